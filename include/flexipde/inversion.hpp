@@ -1,0 +1,45 @@
+// Inversion: TAO minimises J(p) + R(p) with the Simulation's exact discrete gradient.
+//
+// R is an optional Tikhonov smoothness term on every field parameter,
+//   R = 0.5 * alpha * sum_i (p_{i+1} - p_i)^2 / h      (-inv_tikhonov alpha, default 0),
+// bounds lower <= p <= upper are given to TAO types that take them (-inv_lower, -inv_upper;
+// BLMVM is the default -tao_type, LMVM and the rest of TAO via -tao_type). The history records
+// per iteration the objective, the gradient norm and, when the true parameters are known, the
+// parameter RMSE sqrt(mean((p - p_true)^2)).
+#pragma once
+#include "flexipde/scene.hpp"
+#include <vector>
+
+namespace flexipde {
+
+struct HistoryEntry {
+  PetscInt iteration;
+  PetscReal objective, misfit, gradient_norm, rmse;
+};
+
+class Inversion {
+public:
+  PetscErrorCode setup(Scene &scene, Vec p_true /* may be null */);
+  PetscErrorCode solve(Vec p);
+  const std::vector<HistoryEntry> &history() const { return history_; }
+  PetscErrorCode rmse(Vec p, PetscReal *value) const;
+  Tao tao() const { return tao_; }
+  PetscInt evaluations() const { return evaluations_; }
+
+  // Objective + regularisation and gradient; public for tests.
+  PetscErrorCode evaluate(Vec p, PetscReal *f, Vec g);
+
+private:
+  static PetscErrorCode form_function_gradient(Tao, Vec, PetscReal *, Vec, void *);
+  static PetscErrorCode monitor(Tao, void *);
+  PetscErrorCode tikhonov(Vec p, PetscReal *R, Vec g);
+
+  Scene *scene_ = nullptr;
+  OwnedTao tao_;
+  OwnedVec p_true_, lower_, upper_, field_, field_local_, gfield_local_, gfield_;
+  PetscReal alpha_ = 0, lower_value_ = PETSC_NINFINITY, upper_value_ = PETSC_INFINITY, last_misfit_ = 0;
+  PetscInt evaluations_ = 0;
+  std::vector<HistoryEntry> history_;
+};
+
+} // namespace flexipde

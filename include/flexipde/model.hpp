@@ -1,0 +1,60 @@
+// The one interface a PDE implements: dU/dt = G(t, U; p) on a grid.
+//
+// A model provides its components per grid point, G, dG/dU (an assembled Mat or a MatShell with
+// MultTranspose), dG/dp for the parameters it declares, and its initial condition U0(p) with the
+// transpose of dU0/dp. It never sees the adjoint, the trajectory, the optimiser or the output:
+// the Simulation owns those and works for every model alike.
+#pragma once
+#include "flexipde/grid.hpp"
+#include "flexipde/parameters.hpp"
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+
+namespace flexipde {
+
+// Bounds on the spectrum of dG/dU, used to refuse explicit steps beyond the stability limit.
+struct Spectrum {
+  PetscReal imag_radius = 0; // eigenvalues have |Im| <= imag_radius
+  PetscReal real_radius = 0; // and -real_radius <= Re <= 0
+};
+
+class Model {
+public:
+  virtual ~Model() = default;
+  virtual const char *name() const = 0;
+  virtual PetscInt dof() const = 0;
+  virtual const char *component_name(PetscInt c) const = 0;
+  // Ghost width the model's stencils need (the grid is created with it).
+  virtual PetscInt stencil_width(MPI_Comm comm) const = 0;
+
+  // Reads the model's options and declares its parameters (before params.finalize()).
+  virtual PetscErrorCode setup(const Grid &grid, DM state_dm, Parameters &params) = 0;
+  // Called once the parameter layout is final, before any solve.
+  virtual PetscErrorCode create_jacobian(Mat *J) = 0;
+  virtual PetscErrorCode create_jacobian_p(Mat *Jp) = 0;
+
+  // Tell the model the current parameter values (before each solve).
+  virtual PetscErrorCode set_parameters(Vec p) = 0;
+  virtual PetscErrorCode rhs(PetscReal t, Vec U, Vec G) = 0;
+  virtual PetscErrorCode rhs_jacobian(PetscReal t, Vec U, Mat J) = 0;
+  virtual PetscErrorCode rhs_jacobian_p(PetscReal t, Vec U, Mat Jp) = 0;
+  // True when G is linear in U (lets an implicit integrator skip Newton).
+  virtual bool linear() const { return false; }
+  // True when dG/dU depends on neither t nor U (only on p): the Simulation then assembles it
+  // once per parameter value instead of once per stage.
+  virtual bool jacobian_constant() const { return false; }
+  virtual PetscErrorCode spectrum(Spectrum *s) = 0;
+
+  // U0 = U0(p), and grad += (dU0/dp)^T lambda0.
+  virtual PetscErrorCode initial_condition(Vec p, Vec U0) = 0;
+  virtual PetscErrorCode initial_condition_transpose(Vec p, Vec lambda0, Vec grad) = 0;
+};
+
+using ModelFactory = std::function<std::unique_ptr<Model>()>;
+std::map<std::string, ModelFactory> &model_registry();
+PetscErrorCode create_model(MPI_Comm comm, const std::string &name, std::unique_ptr<Model> &model);
+std::string model_names();
+
+} // namespace flexipde

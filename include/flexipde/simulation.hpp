@@ -1,0 +1,63 @@
+// Simulation: the PETSc TS that integrates a Model forward and, with TSAdjoint, backward.
+//
+// Forward: U(0) = U0(p), dU/dt = G(t, U; p) to T. Gradient: with the trajectory stored, TSAdjoint
+// integrates lambda' = -(dG/dU)^T lambda from lambda(T) = dJ/dU(T) and accumulates
+// mu = int (dG/dp)^T lambda dt; then dJ/dp = mu + (dU0/dp)^T lambda(0) and dJ/dU0 = lambda(0).
+// The cost is one forward and one backward sweep whatever the number of parameters.
+//
+// Integrators with an adjoint here: -ts_type rk (any -ts_rk_type), theta, cn, beuler. Explicit
+// steps beyond the stability limit of the model's spectrum are refused before the run, with the
+// largest stable dt. Options: PETSc's -ts_dt, -ts_max_time, -ts_type, -ts_rk_type, -ts_monitor,
+// -ts_trajectory_type, and -sim_stability_check 0 to run an unstable explicit step anyway.
+#pragma once
+#include "flexipde/model.hpp"
+#include "flexipde/objective.hpp"
+
+namespace flexipde {
+
+struct SimulationStats {
+  PetscInt steps = 0;
+  PetscReal dt = 0, final_time = 0;
+  char ts_type[64] = "";
+};
+
+class Simulation {
+public:
+  PetscErrorCode setup(Model &model, const Grid &grid, DM state_dm, const Parameters &params);
+  void set_objective(Objective *objective) { objective_ = objective; }
+  void set_default_time(PetscReal dt, PetscReal final_time) {
+    dt_ = dt;
+    final_time_ = final_time;
+  }
+
+  PetscErrorCode create_state(Vec *U) const { return DMCreateGlobalVector(dm_, U); }
+  // U(T) for parameters p.
+  PetscErrorCode forward(Vec p, Vec UT);
+  // J(p) and its gradient; grad_u0 (state-shaped, may be null) receives dJ/dU0.
+  PetscErrorCode gradient(Vec p, PetscReal *J, Vec grad_p, Vec grad_u0);
+  const SimulationStats &stats() const { return stats_; }
+
+private:
+  PetscErrorCode create_ts(bool with_adjoint, OwnedTS &ts);
+  PetscErrorCode check_stability(TS ts);
+  static PetscErrorCode rhs_cb(TS, PetscReal, Vec, Vec, void *);
+  static PetscErrorCode rhs_jacobian_cb(TS, PetscReal, Vec, Mat, Mat, void *);
+  static PetscErrorCode rhs_jacobian_p_cb(TS, PetscReal, Vec, Mat, void *);
+  PetscErrorCode check_finite(Vec U, const char *what);
+
+  Model *model_ = nullptr;
+  const Grid *grid_ = nullptr;
+  const Parameters *params_ = nullptr;
+  Objective *objective_ = nullptr;
+  DM dm_ = nullptr;
+  PetscReal dt_ = 1e-3, final_time_ = 1.0;
+  OwnedMat J_, Jp_;
+  OwnedVec lambda_, mu_;
+  // dG/dU of a model whose Jacobian is constant in (t, U) is reassembled only when the parameters
+  // changed or TS shifted the matrix (implicit methods), detected through PETSc's object state.
+  PetscObjectState jac_state_ = -1;
+  PetscInt param_version_ = 0, jac_param_version_ = -1;
+  SimulationStats stats_;
+};
+
+} // namespace flexipde

@@ -1,0 +1,24 @@
+#!/usr/bin/env bash
+# Install (with Debian's apt-get) whatever flexipde needs that is missing. Idempotent and quiet
+# when everything is already there. Run as root on Debian 12.
+set -euo pipefail
+pkgs=(
+  build-essential cmake pkg-config git
+  petsc-dev libopenmpi-dev openmpi-bin
+  libfftw3-dev libfftw3-mpi-dev libhdf5-openmpi-dev
+  libgtest-dev
+  python3-numpy python3-matplotlib python3-h5py
+)
+missing=()
+for p in "${pkgs[@]}"; do
+  st=$(dpkg-query -W -f='${Status}' "$p" 2>/dev/null || true)
+  [[ "$st" == "install ok installed" ]] || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  echo "setup: installing ${missing[*]}"
+  SUDO=""
+  [[ $(id -u) -eq 0 ]] || SUDO="sudo"
+  export DEBIAN_FRONTEND=noninteractive
+  $SUDO apt-get update -qq
+  $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi

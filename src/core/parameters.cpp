@@ -1,0 +1,146 @@
+#include "flexipde/parameters.hpp"
+#include <cmath>
+
+namespace flexipde {
+
+PetscInt Parameters::add(const std::string &name, ParamKind kind) {
+  info_.push_back({name, kind, 0, 0});
+  return static_cast<PetscInt>(info_.size()) - 1;
+}
+
+PetscInt Parameters::find(const std::string &name) const {
+  for (PetscInt k = 0; k < count(); ++k)
+    if (info_[k].name == name) return k;
+  return -1;
+}
+
+PetscErrorCode Parameters::finalize(const Grid &grid) {
+  PetscMPIInt rank;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_rank(grid.comm(), &rank));
+  grid_ = &grid;
+  PetscInt off = 0;
+  for (auto &pi : info_) { // scalars first so that their global index is rank 0's start
+    if (pi.kind != ParamKind::Scalar) continue;
+    pi.local_offset = off;
+    pi.local_size = rank == 0 ? 1 : 0;
+    off += pi.local_size;
+  }
+  for (auto &pi : info_) {
+    if (pi.kind != ParamKind::Field) continue;
+    pi.local_offset = off;
+    pi.local_size = grid.xm();
+    off += pi.local_size;
+  }
+  nlocal_ = off;
+  PetscCallMPI(MPI_Allreduce(&nlocal_, &nglobal_, 1, MPIU_INT, MPI_SUM, grid.comm()));
+  PetscCallMPI(MPI_Scan(&nlocal_, &rstart_, 1, MPIU_INT, MPI_SUM, grid.comm()));
+  rstart_ -= nlocal_;
+  finalized_ = true;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Parameters::create_vec(Vec *p) const {
+  PetscFunctionBeginUser;
+  PetscCheck(finalized_, PETSC_COMM_SELF, PETSC_ERR_ORDER, "Parameters::finalize() must come first");
+  PetscCall(VecCreateMPI(grid_->comm(), nlocal_, nglobal_, p));
+  PetscCall(VecSet(*p, 0.0));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Parameters::scalar(Vec p, PetscInt k, PetscReal *value) const {
+  PetscReal v = 0;
+  PetscMPIInt rank;
+  PetscFunctionBeginUser;
+  PetscCheck(info_[k].kind == ParamKind::Scalar, PETSC_COMM_SELF, PETSC_ERR_ARG_WRONG, "%s is not a scalar",
+             info_[k].name.c_str());
+  PetscCallMPI(MPI_Comm_rank(grid_->comm(), &rank));
+  {
+    ConstArray a(p);
+    PetscCall(a.error());
+    if (rank == 0) v = PetscRealPart(a[info_[k].local_offset]);
+  }
+  PetscCallMPI(MPI_Bcast(&v, 1, MPIU_REAL, 0, grid_->comm()));
+  *value = v;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Parameters::set_scalar(Vec p, PetscInt k, PetscReal value) const {
+  PetscFunctionBeginUser;
+  PetscCheck(info_[k].kind == ParamKind::Scalar, PETSC_COMM_SELF, PETSC_ERR_ARG_WRONG, "%s is not a scalar",
+             info_[k].name.c_str());
+  Array a(p);
+  PetscCall(a.error());
+  if (info_[k].local_size) a[info_[k].local_offset] = value;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Parameters::set_field(Vec p, PetscInt k, Vec field) const {
+  PetscFunctionBeginUser;
+  PetscCheck(info_[k].kind == ParamKind::Field, PETSC_COMM_SELF, PETSC_ERR_ARG_WRONG, "%s is not a field",
+             info_[k].name.c_str());
+  Array a(p);
+  ConstArray f(field);
+  PetscCall(a.error());
+  PetscCall(f.error());
+  for (PetscInt i = 0; i < info_[k].local_size; ++i) a[info_[k].local_offset + i] = f[i];
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Parameters::get_field(Vec p, PetscInt k, Vec field) const {
+  PetscFunctionBeginUser;
+  PetscCheck(info_[k].kind == ParamKind::Field, PETSC_COMM_SELF, PETSC_ERR_ARG_WRONG, "%s is not a field",
+             info_[k].name.c_str());
+  ConstArray a(p);
+  Array f(field);
+  PetscCall(a.error());
+  PetscCall(f.error());
+  for (PetscInt i = 0; i < info_[k].local_size; ++i) f[i] = a[info_[k].local_offset + i];
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode fill_from_options(const Parameters &params, PetscInt k, const char *prefix, PetscReal default_value,
+                                 Vec p) {
+  const ParamInfo &pi = params.info(k);
+  const Grid &g = *params.grid();
+  std::string pre = std::string("-") + prefix;
+  PetscReal value = default_value, left = default_value, right = default_value, bump = 0.0, center = 0.5 * (g.x0() + g.x1()),
+            width = 0.1 * (g.x1() - g.x0());
+  const char *types[] = {"constant", "linear", "gaussian"};
+  PetscInt type = 0;
+  PetscFunctionBeginUser;
+  PetscOptionsBegin(g.comm(), nullptr, "Parameter values", "Parameters");
+  PetscCall(PetscOptionsReal(pre.c_str(), "Constant value of the parameter", "Parameters", value, &value, nullptr));
+  if (pi.kind == ParamKind::Field) {
+    left = right = value;
+    PetscCall(PetscOptionsEList((pre + "_profile").c_str(), "Shape of the field", "Parameters", types, 3, types[type],
+                                &type, nullptr));
+    PetscCall(PetscOptionsReal((pre + "_left").c_str(), "Linear profile: value at the left end", "Parameters", left,
+                               &left, nullptr));
+    PetscCall(PetscOptionsReal((pre + "_right").c_str(), "Linear profile: value at the right end", "Parameters", right,
+                               &right, nullptr));
+    PetscCall(PetscOptionsReal((pre + "_bump").c_str(), "Gaussian profile: height of the bump added to the value",
+                               "Parameters", bump, &bump, nullptr));
+    PetscCall(PetscOptionsReal((pre + "_center").c_str(), "Gaussian profile: centre", "Parameters", center, &center,
+                               nullptr));
+    PetscCall(PetscOptionsReal((pre + "_width").c_str(), "Gaussian profile: width", "Parameters", width, &width,
+                               nullptr));
+  }
+  PetscOptionsEnd();
+  Array a(p);
+  PetscCall(a.error());
+  if (pi.kind == ParamKind::Scalar) {
+    if (pi.local_size) a[pi.local_offset] = value;
+  } else {
+    for (PetscInt i = 0; i < pi.local_size; ++i) {
+      const PetscReal x = g.x(g.xs() + i), s = (x - g.x0()) / (g.x1() - g.x0());
+      PetscReal v = value;
+      if (type == 1) v = left + (right - left) * s;
+      if (type == 2) v = value + bump * std::exp(-std::pow((x - center) / width, 2));
+      a[pi.local_offset + i] = v;
+    }
+  }
+  PetscFunctionReturn(0);
+}
+
+} // namespace flexipde

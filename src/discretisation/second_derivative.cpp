@@ -1,0 +1,57 @@
+#include "flexipde/differentiator.hpp"
+
+namespace flexipde {
+
+PetscErrorCode SecondDerivative::from_options(MPI_Comm comm, const char *prefix, PetscInt default_order,
+                                              SecondDerivative &d) {
+  PetscInt order = default_order;
+  PetscFunctionBeginUser;
+  PetscOptionsBegin(comm, prefix, "Finite-difference second derivative", "Differentiator");
+  PetscCall(PetscOptionsInt("-fd_order", "Order of the centred second derivative (2 or 4)", "SecondDerivative",
+                            order, &order, nullptr));
+  PetscOptionsEnd();
+  PetscCall(d.set_order(order));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SecondDerivative::set_order(PetscInt order) {
+  PetscFunctionBeginUser;
+  PetscCheck(order == 2 || order == 4, PETSC_COMM_SELF, PETSC_ERR_ARG_OUTOFRANGE,
+             "-fd_order %" PetscInt_FMT " is not offered: choose 2 or 4", order);
+  order_ = order;
+  PetscFunctionReturn(0);
+}
+
+PetscInt SecondDerivative::row(const Grid &g, PetscInt i, std::array<StencilEntry, 5> &out) const {
+  static const PetscReal w2[3] = {1.0, -2.0, 1.0};
+  static const PetscReal w4[5] = {-1.0 / 12, 16.0 / 12, -30.0 / 12, 16.0 / 12, -1.0 / 12};
+  const PetscInt r = half_width(), n = g.n();
+  const PetscReal *w = order_ == 2 ? w2 : w4;
+  const PetscReal ih2 = 1.0 / (g.h() * g.h());
+  PetscInt m = 0;
+  for (PetscInt k = -r; k <= r; ++k) {
+    PetscInt j = i + k;
+    PetscReal s = 1.0;
+    if (g.periodic()) {
+      j = (j % n + n) % n;
+    } else if (j < 0) { // odd reflection about the wall at index 0
+      j = -j;
+      s = -1.0;
+    } else if (j > n - 1) {
+      j = 2 * (n - 1) - j;
+      s = -1.0;
+    }
+    if (!g.periodic() && (j == 0 || j == n - 1)) continue; // wall value is zero
+    PetscReal wk = s * w[k + r] * ih2;
+    bool merged = false;
+    for (PetscInt q = 0; q < m; ++q)
+      if (out[q].j == j) {
+        out[q].weight += wk;
+        merged = true;
+      }
+    if (!merged) out[m++] = {j, wk};
+  }
+  return m;
+}
+
+} // namespace flexipde

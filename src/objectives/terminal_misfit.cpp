@@ -1,0 +1,44 @@
+#include "flexipde/objective.hpp"
+
+namespace flexipde {
+
+PetscErrorCode TerminalMisfit::setup(const Grid &grid, PetscInt component, PetscInt dof) {
+  PetscFunctionBeginUser;
+  component_ = component;
+  dof_ = dof;
+  PetscCall(DMCreateGlobalVector(grid.dm(), data_.out()));
+  PetscCall(VecDuplicate(data_, work_.out()));
+  PetscCall(set_kind_from_options(grid.comm()));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode TerminalMisfit::set_kind_from_options(MPI_Comm comm) {
+  const char *kinds[] = {"l2sq", "l2"};
+  PetscInt k = kind_ == Kind::L2 ? 1 : 0;
+  PetscFunctionBeginUser;
+  PetscOptionsBegin(comm, nullptr, "Objective", "Objective");
+  PetscCall(PetscOptionsEList("-objective_type", "Terminal misfit: l2sq = 0.5||u(T)-d||^2, l2 = ||u(T)-d||",
+                              "Objective", kinds, 2, kinds[k], &k, nullptr));
+  PetscOptionsEnd();
+  kind_ = k == 1 ? Kind::L2 : Kind::L2Squared;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode TerminalMisfit::terminal(Vec UT, PetscReal *J, Vec dJdU) {
+  PetscReal nrm;
+  PetscFunctionBeginUser;
+  if (dof_ == 1) PetscCall(VecCopy(UT, work_));
+  else PetscCall(VecStrideGather(UT, component_, work_, INSERT_VALUES));
+  PetscCall(VecAXPY(work_, -1.0, data_));
+  PetscCall(VecNorm(work_, NORM_2, &nrm));
+  *J = kind_ == Kind::L2 ? nrm : 0.5 * nrm * nrm;
+  if (dJdU) {
+    if (kind_ == Kind::L2) PetscCall(VecScale(work_, nrm > 0 ? 1.0 / nrm : 0.0));
+    PetscCall(VecSet(dJdU, 0.0));
+    if (dof_ == 1) PetscCall(VecCopy(work_, dJdU));
+    else PetscCall(VecStrideScatter(work_, component_, dJdU, INSERT_VALUES));
+  }
+  PetscFunctionReturn(0);
+}
+
+} // namespace flexipde

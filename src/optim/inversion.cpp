@@ -1,0 +1,134 @@
+#include "flexipde/inversion.hpp"
+#include <cmath>
+
+namespace flexipde {
+
+PetscErrorCode Inversion::setup(Scene &scene, Vec p_true) {
+  MPI_Comm comm = scene.comm();
+  PetscBool has_lower = PETSC_FALSE, has_upper = PETSC_FALSE;
+  PetscFunctionBeginUser;
+  scene_ = &scene;
+  PetscOptionsBegin(comm, nullptr, "Inversion", "Inversion");
+  PetscCall(PetscOptionsReal("-inv_tikhonov", "Weight alpha of the smoothness term 0.5 alpha sum (dp)^2/h on fields",
+                             "Inversion", alpha_, &alpha_, nullptr));
+  PetscCall(PetscOptionsReal("-inv_lower", "Lower bound on every parameter", "Inversion", lower_value_, &lower_value_,
+                             &has_lower));
+  PetscCall(PetscOptionsReal("-inv_upper", "Upper bound on every parameter", "Inversion", upper_value_, &upper_value_,
+                             &has_upper));
+  PetscOptionsEnd();
+  PetscCheck(alpha_ >= 0, comm, PETSC_ERR_ARG_OUTOFRANGE, "-inv_tikhonov must be non-negative, got %g", (double)alpha_);
+  PetscCheck(lower_value_ < upper_value_, comm, PETSC_ERR_ARG_OUTOFRANGE,
+             "Inverted bounds: -inv_lower %g is not below -inv_upper %g", (double)lower_value_, (double)upper_value_);
+  if (p_true) {
+    PetscCall(VecDuplicate(p_true, p_true_.out()));
+    PetscCall(VecCopy(p_true, p_true_));
+  }
+  PetscCall(DMCreateGlobalVector(scene.grid.dm(), field_.out()));
+  PetscCall(DMCreateGlobalVector(scene.grid.dm(), gfield_.out()));
+  PetscCall(DMCreateLocalVector(scene.grid.dm(), field_local_.out()));
+  PetscCall(DMCreateLocalVector(scene.grid.dm(), gfield_local_.out()));
+
+  PetscCall(TaoCreate(comm, tao_.out()));
+  PetscCall(TaoSetType(tao_, TAOBLMVM));
+  PetscCall(TaoSetObjectiveAndGradient(tao_, nullptr, form_function_gradient, this));
+  PetscCall(scene.params.create_vec(lower_.out()));
+  PetscCall(VecDuplicate(lower_, upper_.out()));
+  PetscCall(VecSet(lower_, lower_value_));
+  PetscCall(VecSet(upper_, upper_value_));
+  PetscCall(TaoSetVariableBounds(tao_, lower_, upper_));
+  PetscCall(TaoSetMonitor(tao_, monitor, this, nullptr));
+  PetscCall(TaoSetFromOptions(tao_));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Inversion::rmse(Vec p, PetscReal *value) const {
+  OwnedVec d;
+  PetscReal nrm;
+  PetscInt n;
+  PetscFunctionBeginUser;
+  *value = -1;
+  if (!p_true_) PetscFunctionReturn(0);
+  PetscCall(VecDuplicate(p, d.out()));
+  PetscCall(VecWAXPY(d, -1.0, p_true_, p));
+  PetscCall(VecNorm(d, NORM_2, &nrm));
+  PetscCall(VecGetSize(d, &n));
+  *value = nrm / std::sqrt((PetscReal)n);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Inversion::tikhonov(Vec p, PetscReal *R, Vec g) {
+  const Grid &grid = scene_->grid;
+  const Parameters &params = scene_->params;
+  PetscReal local = 0;
+  PetscFunctionBeginUser;
+  *R = 0;
+  if (alpha_ == 0) PetscFunctionReturn(0);
+  for (PetscInt k = 0; k < params.count(); ++k) {
+    if (params.info(k).kind != ParamKind::Field) continue;
+    PetscCall(params.get_field(p, k, field_));
+    PetscCall(DMGlobalToLocal(grid.dm(), field_, INSERT_VALUES, field_local_));
+    PetscCall(VecSet(gfield_local_, 0.0));
+    PetscScalar *f, *gf;
+    PetscCall(DMDAVecGetArray(grid.dm(), field_local_, &f));
+    PetscCall(DMDAVecGetArray(grid.dm(), gfield_local_, &gf));
+    const PetscInt n = grid.n(), end = grid.xs() + grid.xm();
+    for (PetscInt i = grid.xs(); i < end; ++i) {
+      if (!grid.periodic() && i == n - 1) continue;
+      const PetscScalar diff = f[i + 1] - f[i];
+      local += 0.5 * alpha_ * PetscRealPart(diff * diff) / grid.h();
+      gf[i] -= alpha_ * diff / grid.h();
+      gf[i + 1] += alpha_ * diff / grid.h();
+    }
+    PetscCall(DMDAVecRestoreArray(grid.dm(), field_local_, &f));
+    PetscCall(DMDAVecRestoreArray(grid.dm(), gfield_local_, &gf));
+    PetscCall(VecSet(gfield_, 0.0));
+    PetscCall(DMLocalToGlobal(grid.dm(), gfield_local_, ADD_VALUES, gfield_));
+    // g += gfield on field k
+    PetscCall(params.get_field(g, k, field_));
+    PetscCall(VecAXPY(field_, 1.0, gfield_));
+    PetscCall(params.set_field(g, k, field_));
+  }
+  PetscCallMPI(MPI_Allreduce(&local, R, 1, MPIU_REAL, MPI_SUM, grid.comm()));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Inversion::evaluate(Vec p, PetscReal *f, Vec g) {
+  PetscReal J, R;
+  PetscFunctionBeginUser;
+  PetscCall(scene_->sim.gradient(p, &J, g, nullptr));
+  PetscCall(tikhonov(p, &R, g));
+  last_misfit_ = J;
+  *f = J + R;
+  ++evaluations_;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Inversion::form_function_gradient(Tao, Vec p, PetscReal *f, Vec g, void *ctx) {
+  PetscFunctionBeginUser;
+  PetscCall(static_cast<Inversion *>(ctx)->evaluate(p, f, g));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Inversion::monitor(Tao tao, void *ctx) {
+  auto *inv = static_cast<Inversion *>(ctx);
+  PetscInt it;
+  PetscReal f, gnorm, cnorm, xdiff, e;
+  TaoConvergedReason reason;
+  Vec x;
+  PetscFunctionBeginUser;
+  PetscCall(TaoGetSolutionStatus(tao, &it, &f, &gnorm, &cnorm, &xdiff, &reason));
+  PetscCall(TaoGetSolution(tao, &x));
+  PetscCall(inv->rmse(x, &e));
+  inv->history_.push_back({it, f, inv->last_misfit_, gnorm, e});
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Inversion::solve(Vec p) {
+  PetscFunctionBeginUser;
+  history_.clear();
+  PetscCall(TaoSetSolution(tao_, p));
+  PetscCall(TaoSolve(tao_));
+  PetscFunctionReturn(0);
+}
+
+} // namespace flexipde
