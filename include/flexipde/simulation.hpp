@@ -36,6 +36,9 @@ public:
   // J(p) and its gradient; grad_u0 (state-shaped, may be null) receives dJ/dU0.
   PetscErrorCode gradient(Vec p, PetscReal *J, Vec grad_p, Vec grad_u0);
   const SimulationStats &stats() const { return stats_; }
+  // Creates (and discards) the integrator as a gradient would: lists its options under -help and
+  // reports a bad integrator choice before any work is done.
+  PetscErrorCode check_options();
 
 private:
   PetscErrorCode create_ts(bool with_adjoint, OwnedTS &ts);

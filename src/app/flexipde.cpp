@@ -3,6 +3,7 @@
 //   -task forward   integrate to T and report ||U(T)||
 //   -task gradient  J(p) and dJ/dp by TSAdjoint (-check_fd: compare one entry with central differences)
 //   -task taylor    Taylor test of the gradient along a random direction (-taylor_eps, -taylor_levels)
+//   -task landscape J(c) of a one-scalar scene at -landscape_n values in [-landscape_lower, -landscape_upper]
 //   -task invert    synthetic data from the true parameters (-true_*), TAO from the initial ones,
 //                   history and fields written to -output FILE.h5
 //
@@ -56,14 +57,14 @@ static PetscErrorCode print_parameters(const Scene &s, Vec p, const char *label)
 }
 
 static PetscErrorCode run(MPI_Comm comm) {
-  const char *tasks[] = {"forward", "gradient", "taylor", "invert"};
+  const char *tasks[] = {"forward", "gradient", "taylor", "invert", "landscape"};
   PetscInt task = 3, levels = 5;
   char output[PETSC_MAX_PATH_LEN] = "";
   PetscBool check_fd = PETSC_FALSE;
   PetscReal eps0 = 1e-2;
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm, nullptr, "flexipde driver", "flexipde");
-  PetscCall(PetscOptionsEList("-task", "What to run", "flexipde", tasks, 4, tasks[task], &task, nullptr));
+  PetscCall(PetscOptionsEList("-task", "What to run", "flexipde", tasks, 5, tasks[task], &task, nullptr));
   PetscCall(PetscOptionsString("-output", "HDF5 results file", "flexipde", output, output, sizeof(output), nullptr));
   PetscCall(PetscOptionsBool("-check_fd", "gradient: compare with central differences (scalars / first entry)",
                              "flexipde", check_fd, &check_fd, nullptr));
@@ -80,6 +81,15 @@ static PetscErrorCode run(MPI_Comm comm) {
   PetscCall(scene.sim.create_state(U.out()));
   PetscCall(scene.parameters_from_options("", p));
   PetscCall(scene.parameters_from_options("true_", p_true));
+  PetscBool help = PETSC_FALSE;
+  PetscCall(PetscOptionsHasHelp(nullptr, &help));
+  if (help) { // list every option of this scene and stop before any work
+    Inversion inv;
+    PetscCall(scene.model->set_parameters(p));
+    PetscCall(scene.sim.check_options());
+    if (task == 3) PetscCall(inv.setup(scene, p_true));
+    PetscFunctionReturn(0);
+  }
   PetscCall(PetscPrintf(comm, "flexipde: model %s, %" PetscInt_FMT " points, %" PetscInt_FMT " parameters\n",
                         scene.model->name(), scene.grid.n(), scene.params.global_size()));
 
@@ -132,6 +142,38 @@ static PetscErrorCode run(MPI_Comm comm) {
       PetscCallMPI(MPI_Bcast(&g0, 1, MPIU_SCALAR, 0, comm));
       PetscCall(PetscPrintf(comm, "check_fd: adjoint dJ/dp_0 = %.12e, central difference = %.12e\n", (double)PetscRealPart(g0),
                             (double)((Jp - Jm) / (2 * h))));
+    }
+    PetscFunctionReturn(0);
+  }
+
+  if (task == 4) {
+    PetscInt n = 51;
+    PetscReal lo = 0.5, hi = 1.5;
+    PetscOptionsBegin(comm, nullptr, "Objective landscape", "flexipde");
+    PetscCall(PetscOptionsInt("-landscape_n", "landscape: number of values", "flexipde", n, &n, nullptr));
+    PetscCall(PetscOptionsReal("-landscape_lower", "landscape: first value", "flexipde", lo, &lo, nullptr));
+    PetscCall(PetscOptionsReal("-landscape_upper", "landscape: last value", "flexipde", hi, &hi, nullptr));
+    PetscOptionsEnd();
+    PetscCheck(scene.params.global_size() == 1, comm, PETSC_ERR_ARG_WRONG,
+               "-task landscape needs a scene with exactly one scalar parameter (e.g. -wave_c_field 0)");
+    PetscCheck(n >= 2 && hi > lo, comm, PETSC_ERR_ARG_OUTOFRANGE, "-task landscape needs -landscape_n >= 2 and upper > lower");
+    std::vector<PetscReal> cs, Js;
+    for (PetscInt k = 0; k < n; ++k) {
+      const PetscReal c = lo + (hi - lo) * k / (n - 1);
+      PetscReal J;
+      PetscCall(scene.params.set_scalar(p, 0, c));
+      PetscCall(scene.sim.forward(p, U));
+      PetscCall(scene.objective.terminal(U, &J, nullptr));
+      cs.push_back(c);
+      Js.push_back(J);
+      PetscCall(PetscPrintf(comm, "landscape: %s = %.6f  J = %.10e\n", scene.params.info(0).name.c_str(), (double)c, (double)J));
+    }
+    if (output[0]) {
+      H5Writer w;
+      PetscCall(w.open(comm, output));
+      PetscCall(w.write_series("/landscape", "parameter", cs));
+      PetscCall(w.write_series("/landscape", "objective", Js));
+      PetscCall(w.close());
     }
     PetscFunctionReturn(0);
   }

@@ -177,6 +177,13 @@ PetscErrorCode Simulation::check_finite(Vec U, const char *what) {
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode Simulation::check_options() {
+  OwnedTS ts;
+  PetscFunctionBeginUser;
+  PetscCall(create_ts(objective_ != nullptr, ts));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode Simulation::forward(Vec p, Vec UT) {
   OwnedTS ts;
   PetscFunctionBeginUser;

@@ -15,7 +15,13 @@ PetscErrorCode Inversion::setup(Scene &scene, Vec p_true) {
                              &has_lower));
   PetscCall(PetscOptionsReal("-inv_upper", "Upper bound on every parameter", "Inversion", upper_value_, &upper_value_,
                              &has_upper));
+  PetscCall(PetscOptionsInt("-inv_scan", "Scalar problems: start from the best of N objective values evenly spaced "
+                            "between the bounds (guards against cycle skipping; 0 = off)",
+                            "Inversion", scan_, &scan_, nullptr));
   PetscOptionsEnd();
+  PetscCheck(scan_ >= 0, comm, PETSC_ERR_ARG_OUTOFRANGE, "-inv_scan must be non-negative");
+  PetscCheck(scan_ == 0 || (scene.params.global_size() == 1 && has_lower && has_upper), comm, PETSC_ERR_ARG_WRONG,
+             "-inv_scan needs a single scalar parameter and both -inv_lower and -inv_upper");
   PetscCheck(alpha_ >= 0, comm, PETSC_ERR_ARG_OUTOFRANGE, "-inv_tikhonov must be non-negative, got %g", (double)alpha_);
   PetscCheck(lower_value_ < upper_value_, comm, PETSC_ERR_ARG_OUTOFRANGE,
              "Inverted bounds: -inv_lower %g is not below -inv_upper %g", (double)lower_value_, (double)upper_value_);
@@ -123,9 +129,33 @@ PetscErrorCode Inversion::monitor(Tao tao, void *ctx) {
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode Inversion::scan(Vec p) {
+  const Parameters &params = scene_->params;
+  PetscReal best = PETSC_MAX_REAL, best_value = 0;
+  OwnedVec U;
+  PetscFunctionBeginUser;
+  PetscCall(scene_->sim.create_state(U.out()));
+  for (PetscInt k = 0; k < scan_; ++k) {
+    const PetscReal v = lower_value_ + (upper_value_ - lower_value_) * (k + 0.5) / scan_;
+    PetscReal J;
+    PetscCall(params.set_scalar(p, 0, v));
+    PetscCall(scene_->sim.forward(p, U)); // a value needs no adjoint
+    PetscCall(scene_->objective.terminal(U, &J, nullptr));
+    if (J < best) {
+      best = J;
+      best_value = v;
+    }
+  }
+  PetscCall(params.set_scalar(p, 0, best_value));
+  PetscCall(PetscInfo(nullptr, "scan: best of %" PetscInt_FMT " values is %g (J = %g)\n", scan_, (double)best_value, (double)best));
+  scan_start_ = best_value;
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode Inversion::solve(Vec p) {
   PetscFunctionBeginUser;
   history_.clear();
+  if (scan_ > 0) PetscCall(scan(p));
   PetscCall(TaoSetSolution(tao_, p));
   PetscCall(TaoSolve(tao_));
   PetscFunctionReturn(0);

@@ -1,0 +1,135 @@
+// Helpers shared by the unit tests (header only; tests/CMakeLists.txt compiles test_*.cpp).
+//
+// Collective safety: every helper here is either purely local and deterministic (so every rank
+// computes the same thing) or collective over the communicator it is given. Values that tests
+// assert on are reduced over the communicator first, so every rank takes the same branch and an
+// ASSERT that returns early does so on every rank at once.
+#pragma once
+#include "flexipde/petsc.hpp"
+#include <algorithm>
+#include <cmath>
+#include <gtest/gtest.h>
+#include <string>
+#include <utility>
+#include <vector>
+
+// Assert that a PETSc-style call succeeded (collective calls fail on every rank alike).
+#define PETSC_ASSERT_OK(expr) ASSERT_EQ((PetscErrorCode)0, (expr)) << #expr
+#define PETSC_EXPECT_OK(expr) EXPECT_EQ((PetscErrorCode)0, (expr)) << #expr
+
+namespace flexipde_test {
+
+// Sets options in the global PETSc options database for its lifetime and restores the previous
+// state afterwards (clears options that were unset, restores values that an enclosing scope set),
+// so that tests do not leak options into each other and scopes can be nested.
+class ScopedOptions {
+public:
+  ScopedOptions() = default;
+  ScopedOptions(std::initializer_list<std::pair<const char *, const char *>> opts) {
+    for (auto &o : opts) set(o.first, o.second);
+  }
+  ScopedOptions(const ScopedOptions &) = delete;
+  ScopedOptions &operator=(const ScopedOptions &) = delete;
+  ~ScopedOptions() {
+    for (auto it = saved_.rbegin(); it != saved_.rend(); ++it) {
+      if (!it->was_set) (void)PetscOptionsClearValue(nullptr, it->name.c_str());
+      else (void)PetscOptionsSetValue(nullptr, it->name.c_str(), it->value.empty() ? nullptr : it->value.c_str());
+    }
+  }
+  void set(const std::string &name, const std::string &value) {
+    Saved s{name, PETSC_FALSE, ""};
+    char buf[PETSC_MAX_PATH_LEN] = "";
+    (void)PetscOptionsGetString(nullptr, nullptr, name.c_str(), buf, sizeof(buf), &s.was_set);
+    s.value = buf;
+    saved_.push_back(s);
+    (void)PetscOptionsSetValue(nullptr, name.c_str(), value.c_str());
+  }
+
+private:
+  struct Saved {
+    std::string name;
+    PetscBool was_set;
+    std::string value;
+  };
+  std::vector<Saved> saved_;
+};
+
+// While alive, PETSc errors return their code silently instead of printing a traceback.
+class QuietErrors {
+public:
+  QuietErrors() { (void)PetscPushErrorHandler(PetscReturnErrorHandler, nullptr); }
+  ~QuietErrors() { (void)PetscPopErrorHandler(); }
+  QuietErrors(const QuietErrors &) = delete;
+  QuietErrors &operator=(const QuietErrors &) = delete;
+};
+
+// Every rank's copy of a distributed Vec, in global order (collective).
+inline PetscErrorCode gather_all(Vec v, std::vector<PetscReal> &out) {
+  VecScatter sc;
+  Vec all;
+  PetscInt n;
+  PetscFunctionBeginUser;
+  PetscCall(VecScatterCreateToAll(v, &sc, &all));
+  PetscCall(VecScatterBegin(sc, v, all, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecScatterEnd(sc, v, all, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecGetSize(all, &n));
+  const PetscScalar *a;
+  PetscCall(VecGetArrayRead(all, &a));
+  out.resize(n);
+  for (PetscInt i = 0; i < n; ++i) out[i] = PetscRealPart(a[i]);
+  PetscCall(VecRestoreArrayRead(all, &a));
+  PetscCall(VecDestroy(&all));
+  PetscCall(VecScatterDestroy(&sc));
+  PetscFunctionReturn(0);
+}
+
+// Uniform random entries in [lo, hi] from a fixed seed (collective on the Vec's communicator).
+inline PetscErrorCode fill_random(Vec v, PetscReal lo, PetscReal hi, unsigned long seed) {
+  PetscRandom rnd;
+  MPI_Comm comm;
+  PetscFunctionBeginUser;
+  PetscCall(PetscObjectGetComm((PetscObject)v, &comm));
+  PetscCall(PetscRandomCreate(comm, &rnd));
+  PetscCall(PetscRandomSetInterval(rnd, lo, hi));
+  PetscCall(PetscRandomSetSeed(rnd, seed));
+  PetscCall(PetscRandomSeed(rnd));
+  PetscCall(VecSetRandom(v, rnd));
+  PetscCall(PetscRandomDestroy(&rnd));
+  PetscFunctionReturn(0);
+}
+
+inline PetscReal dot(Vec a, Vec b) {
+  PetscScalar d = 0;
+  if (VecDot(a, b, &d)) return NAN;
+  return PetscRealPart(d);
+}
+
+inline PetscReal norm(Vec a, NormType t = NORM_2) {
+  PetscReal n = 0;
+  if (VecNorm(a, t, &n)) return NAN;
+  return n;
+}
+
+// |a - b| / max(|a|, |b|, tiny): relative difference of two numbers.
+inline PetscReal rel_diff(PetscReal a, PetscReal b) {
+  const PetscReal s = std::max(std::max(std::fabs(a), std::fabs(b)), (PetscReal)1e-300);
+  return std::fabs(a - b) / s;
+}
+
+// ||a - b||_inf / ||b||_inf (collective).
+inline PetscReal rel_diff(Vec a, Vec b) {
+  Vec d;
+  if (VecDuplicate(a, &d)) return NAN;
+  if (VecWAXPY(d, -1.0, b, a)) return NAN;
+  const PetscReal r = norm(d, NORM_INFINITY) / std::max(norm(b, NORM_INFINITY), (PetscReal)1e-300);
+  (void)VecDestroy(&d);
+  return r;
+}
+
+inline bool is_rank0(MPI_Comm comm = PETSC_COMM_WORLD) {
+  int r = 0;
+  MPI_Comm_rank(comm, &r);
+  return r == 0;
+}
+
+} // namespace flexipde_test
