@@ -43,7 +43,7 @@ TEST(H5Writer, RoundTrip) {
   PETSC_ASSERT_OK(scene.sim.create_state(U.out()));
   PETSC_ASSERT_OK(flexipde_test::fill_random(c, 0.5, 1.5, 5));
   PETSC_ASSERT_OK(flexipde_test::fill_random(U, -1, 1, 6));
-  PETSC_ASSERT_OK(PetscObjectSetName((PetscObject)c, "keep_me"));
+  PETSC_ASSERT_OK(PetscObjectSetName((PetscObject)c.get(), "keep_me"));
   const std::vector<PetscReal> series = {3.0, 1.5, 0.25, -2.0};
   {
     H5Writer w;
@@ -55,7 +55,7 @@ TEST(H5Writer, RoundTrip) {
     PETSC_ASSERT_OK(w.close());
   }
   const char *name;
-  PETSC_ASSERT_OK(PetscObjectGetName((PetscObject)c, &name));
+  PETSC_ASSERT_OK(PetscObjectGetName((PetscObject)c.get(), &name));
   EXPECT_STREQ(name, "keep_me") << "write_vec must restore the Vec's name";
 
   OwnedVec c2, U2, x, s;
