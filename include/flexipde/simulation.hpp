@@ -47,6 +47,8 @@ private:
   static PetscErrorCode rhs_jacobian_cb(TS, PetscReal, Vec, Mat, Mat, void *);
   static PetscErrorCode rhs_jacobian_p_cb(TS, PetscReal, Vec, Mat, void *);
   PetscErrorCode check_finite(Vec U, const char *what);
+  PetscErrorCode finish_solve(TS ts);
+  bool adaptive_ = false;
 
   Model *model_ = nullptr;
   const Grid *grid_ = nullptr;

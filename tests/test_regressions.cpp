@@ -1,7 +1,6 @@
-// Reproducers of library bugs found while writing the tests. They FAIL with the current library
-// and are therefore DISABLED_ (GoogleTest reports them as disabled; the suite stays green).
-// Run them with:   build/tests/unit_tests --gtest_also_run_disabled_tests --gtest_filter='KnownBugs*'
-// Remove the DISABLED_ prefix once the library is fixed.
+// Regression tests for library bugs found while writing the suite (adaptive RK stopping early,
+// explicit Euler and theta < 1/2 not refused); each failed before its fix.
+// Run them with:   build/tests/unit_tests --gtest_filter='Regressions*'
 #include "flexipde/scene.hpp"
 #include "test_support.hpp"
 
@@ -32,7 +31,7 @@ const std::initializer_list<std::pair<const char *, const char *>> scene_opts = 
 // Simulation::create_ts sets TSSetMaxSteps(round(T/dt)). With an adaptive RK tableau (5dp, 3bs, ...
 // get TSADAPTBASIC by default) the controller may shrink the step, and TSSolve then stops at the
 // step limit before T, silently: stats() still reports T. Here it stops at t ~ 0.32 instead of 1.
-TEST(KnownBugs, DISABLED_AdaptiveRkStopsBeforeFinalTime) {
+TEST(Regressions, AdaptiveRkStopsBeforeFinalTime) {
   ScopedOptions base(scene_opts);
   PetscReal reference, adaptive;
   {
@@ -50,7 +49,7 @@ TEST(KnownBugs, DISABLED_AdaptiveRkStopsBeforeFinalTime) {
 // The stability check only looks at -ts_type rk. Forward Euler (explicit, unstable for the wave's
 // imaginary spectrum at any dt) runs and returns a blown-up but finite state (||U(T)|| ~ 8e13),
 // contradicting "Explicit steps beyond the stability limit ... are refused before the run".
-TEST(KnownBugs, DISABLED_ExplicitEulerIsNotRefused) {
+TEST(Regressions, ExplicitEulerIsNotRefused) {
   ScopedOptions base(scene_opts);
   ScopedOptions o{{"-ts_type", "euler"}};
   const PetscReal n = final_norm();
@@ -59,7 +58,7 @@ TEST(KnownBugs, DISABLED_ExplicitEulerIsNotRefused) {
 
 // check_stability assumes every theta method is A-stable ("theta >= 1/2"), but -ts_theta_theta
 // below 1/2 is accepted and unstable for the wave: ||U(T)|| ~ 5e4 instead of ~25.
-TEST(KnownBugs, DISABLED_ThetaBelowOneHalfIsNotRefused) {
+TEST(Regressions, ThetaBelowOneHalfIsNotRefused) {
   ScopedOptions base(scene_opts);
   ScopedOptions o{{"-ts_type", "theta"}, {"-ts_theta_theta", "0.3"}};
   const PetscReal n = final_norm();
