@@ -30,10 +30,10 @@ $MPI $BIN -task landscape -true_wave_c 1.0 -landscape_lower 0.5 -landscape_upper
 LINEAR="-wave_c_field 1 -true_wave_c_profile linear -true_wave_c_left 0.9 -true_wave_c_right 1.0 \
         -wave_c_profile linear -wave_c_left 0.85 -wave_c_right 1.0"
 log "Case 2: linear profile 0.9 -> 1.0 from 0.85 -> 1.0, 1000 parameters, BLMVM with bounds"
-$MPI $BIN -task invert $LINEAR $BOUNDS -tao_max_it ${MAX_IT:-200} -inv_tikhonov ${TIKHONOV:-1e-4} \
+$MPI $BIN -task invert $LINEAR $BOUNDS -tao_max_it ${MAX_IT:-200} -inv_tikhonov ${TIKHONOV:-1e-2} \
   -output results/fwi_linear_blmvm.h5 | tee results/fwi_linear_blmvm.log | grep -v " TAO, "
 log "Case 2 with LMVM (no bounds)"
-$MPI $BIN -task invert $LINEAR -tao_type lmvm -tao_max_it ${MAX_IT:-200} -inv_tikhonov ${TIKHONOV:-1e-4} \
+$MPI $BIN -task invert $LINEAR -tao_type lmvm -tao_max_it ${MAX_IT:-200} -inv_tikhonov ${TIKHONOV:-1e-2} \
   -output results/fwi_linear_lmvm.h5 | tee results/fwi_linear_lmvm.log | grep -v " TAO, "
 
 log "Plots"

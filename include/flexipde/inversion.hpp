@@ -2,7 +2,8 @@
 //
 // R is an optional Tikhonov smoothness term on every field parameter,
 //   R = 0.5 * alpha * sum_i (p_{i+1} - p_i)^2 / h      (-inv_tikhonov alpha, default 0),
-// bounds lower <= p <= upper are given to TAO types that take them (-inv_lower, -inv_upper;
+// bounds lower <= p <= upper are given to TAO types that take them (-inv_lower, -inv_upper, the
+// lower one never below the physical bound the model declares, e.g. -wave_c_min;
 // BLMVM is the default -tao_type, LMVM and the rest of TAO via -tao_type). The history records
 // per iteration the objective, the gradient norm and, when the true parameters are known, the
 // parameter RMSE sqrt(mean((p - p_true)^2)). -inv_scan N (one scalar parameter) first evaluates J at

@@ -246,7 +246,10 @@ static PetscErrorCode run(MPI_Comm comm) {
 
 int main(int argc, char **argv) {
   PetscCall(PetscInitialize(&argc, &argv, nullptr, help));
-  PetscCall(run(PETSC_COMM_WORLD));
+  // An error ends every rank at once with a non-zero exit (MPI_Abort), even if it was raised on
+  // one rank only: no rank is left waiting in a collective call.
+  PetscErrorCode ierr = run(PETSC_COMM_WORLD);
+  if (ierr) MPI_Abort(MPI_COMM_WORLD, (int)ierr);
   PetscCall(PetscFinalize());
   return 0;
 }

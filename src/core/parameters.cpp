@@ -3,8 +3,8 @@
 
 namespace flexipde {
 
-PetscInt Parameters::add(const std::string &name, ParamKind kind) {
-  info_.push_back({name, kind, 0, 0});
+PetscInt Parameters::add(const std::string &name, ParamKind kind, PetscReal lower) {
+  info_.push_back({name, kind, 0, 0, lower});
   return static_cast<PetscInt>(info_.size()) - 1;
 }
 

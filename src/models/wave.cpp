@@ -53,10 +53,13 @@ public:
                                nullptr));
     PetscCall(PetscOptionsReal("-wave_ic_width", "Width w of the pulse exp(-((x-x_c)/w)^2)", "Wave", width_, &width_,
                                nullptr));
+    PetscCall(PetscOptionsReal("-wave_c_min", "Smallest admissible speed: optimisers never go below it", "Wave", c_min_,
+                               &c_min_, nullptr));
     PetscOptionsEnd();
+    PetscCheck(c_min_ > 0, grid.comm(), PETSC_ERR_ARG_OUTOFRANGE, "-wave_c_min must be positive, got %g", (double)c_min_);
     PetscCheck(width_ > 0, grid.comm(), PETSC_ERR_ARG_OUTOFRANGE, "-wave_ic_width must be positive, got %g",
                (double)width_);
-    c_index_ = params.add("wave_c", c_field_ ? ParamKind::Field : ParamKind::Scalar);
+    c_index_ = params.add("wave_c", c_field_ ? ParamKind::Field : ParamKind::Scalar, c_min_);
     PetscCall(DMCreateGlobalVector(grid.dm(), c_.out()));
     PetscCall(DMCreateGlobalVector(dm_, work_.out()));
     // Preallocate only: DMDA would otherwise store explicit zeros for the whole dof-coupled stencil
@@ -273,7 +276,7 @@ private:
   SecondDerivative d2_;
   PetscBool c_field_ = PETSC_FALSE;
   PetscInt ic_ = 0, c_index_ = -1;
-  PetscReal center_ = 0.5, width_ = 0.2, cmax_ = 0;
+  PetscReal center_ = 0.5, width_ = 0.2, cmax_ = 0, c_min_ = 0.01;
   OwnedVec c_, work_;
   OwnedMat A_;
   std::vector<PetscReal> d2u_, gbuf_;

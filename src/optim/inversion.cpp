@@ -39,8 +39,15 @@ PetscErrorCode Inversion::setup(Scene &scene, Vec p_true) {
   PetscCall(TaoSetObjectiveAndGradient(tao_, nullptr, form_function_gradient, this));
   PetscCall(scene.params.create_vec(lower_.out()));
   PetscCall(VecDuplicate(lower_, upper_.out()));
-  PetscCall(VecSet(lower_, lower_value_));
   PetscCall(VecSet(upper_, upper_value_));
+  { // the user's bound, raised to the physical bound each model declares for its parameters
+    Array lo(lower_);
+    PetscCall(lo.error());
+    for (PetscInt k = 0; k < scene.params.count(); ++k) {
+      const ParamInfo &pi = scene.params.info(k);
+      for (PetscInt i = 0; i < pi.local_size; ++i) lo[pi.local_offset + i] = PetscMax(lower_value_, pi.lower);
+    }
+  }
   PetscCall(TaoSetVariableBounds(tao_, lower_, upper_));
   PetscCall(TaoSetMonitor(tao_, monitor, this, nullptr));
   PetscCall(TaoSetFromOptions(tao_));
