@@ -140,8 +140,9 @@ static PetscErrorCode run(MPI_Comm comm) {
         g0 = a[0];
       }
       PetscCallMPI(MPI_Bcast(&g0, 1, MPIU_SCALAR, 0, comm));
-      PetscCall(PetscPrintf(comm, "check_fd: adjoint dJ/dp_0 = %.12e, central difference = %.12e\n", (double)PetscRealPart(g0),
-                            (double)((Jp - Jm) / (2 * h))));
+      const PetscReal fd = (Jp - Jm) / (2 * h), ad = PetscRealPart(g0);
+      PetscCall(PetscPrintf(comm, "check_fd: adjoint dJ/dp_0 = %.12e, central difference = %.12e, relative difference = %.3e\n",
+                            (double)ad, (double)fd, (double)(PetscAbsReal(ad - fd) / PetscMax(PetscAbsReal(fd), PETSC_SMALL))));
     }
     PetscFunctionReturn(0);
   }
