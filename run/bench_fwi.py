@@ -55,6 +55,8 @@ def main(out):
             if k == "command":
                 n, p, t, cmd = v.split("\t", 3)
                 commands[(n, p, t)] = cmd
+            elif k == "failed_run":
+                meta.setdefault("failed", []).append(v)
             else:
                 meta[k] = v
     wall = defaultdict(list)
@@ -83,6 +85,8 @@ def main(out):
     print(f"{meta.get('reps')} repetitions of each run, interleaved; 1/5/15-minute load average "
           f"{meta.get('load_before')} before, {meta.get('load_after')} after"
           f"{' (waited ' + meta['load_waited_s'] + ' s for it to drop)' if meta.get('load_waited_s', '0') != '0' else ''}.")
+    if meta.get("failed"):
+        print(f"{len(meta['failed'])} run(s) failed and were repeated: " + "; ".join(meta["failed"]) + ".")
     print()
     print("Wall clock (median seconds of whole `mpiexec ... flexipde` runs):")
     print()

@@ -20,8 +20,8 @@ BOUNDS="-inv_lower 0.5 -inv_upper 2 -tao_type blmvm -tao_monitor"
 log "Case 1a: constant c, data from c = 1.0, BLMVM started at c = 0.8 (the seed's start)"
 $MPI $BIN -task invert -wave_c 0.8 -true_wave_c 1.0 $BOUNDS -output results/fwi_constant_from_0.8.h5 \
   | tee results/fwi_constant_from_0.8.log
-log "Case 1b: the same data, start chosen by a 16-point scan of the bounds, then BLMVM"
-$MPI $BIN -task invert -wave_c 0.8 -true_wave_c 1.0 $BOUNDS -inv_scan 16 -tao_gatol 1e-12 \
+log "Case 1b: the same data, start chosen by a 151-point scan of the bounds, then BLMVM"
+$MPI $BIN -task invert -wave_c 0.8 -true_wave_c 1.0 $BOUNDS -inv_scan 151 \
   -output results/fwi_constant.h5 | tee results/fwi_constant.log
 log "Case 1c: objective landscape J(c) of the seed scene"
 $MPI $BIN -task landscape -true_wave_c 1.0 -landscape_lower 0.5 -landscape_upper 1.5 -landscape_n 101 \
@@ -30,10 +30,10 @@ $MPI $BIN -task landscape -true_wave_c 1.0 -landscape_lower 0.5 -landscape_upper
 LINEAR="-wave_c_field 1 -true_wave_c_profile linear -true_wave_c_left 0.9 -true_wave_c_right 1.0 \
         -wave_c_profile linear -wave_c_left 0.85 -wave_c_right 1.0"
 log "Case 2: linear profile 0.9 -> 1.0 from 0.85 -> 1.0, 1000 parameters, BLMVM with bounds"
-$MPI $BIN -task invert $LINEAR $BOUNDS -tao_max_it ${MAX_IT:-200} -inv_tikhonov ${TIKHONOV:-1e-2} \
+$MPI $BIN -task invert $LINEAR $BOUNDS -tao_max_it ${MAX_IT:-500} -inv_tikhonov ${TIKHONOV:-1e-2} \
   -output results/fwi_linear_blmvm.h5 | tee results/fwi_linear_blmvm.log | grep -v " TAO, "
 log "Case 2 with LMVM (no bounds)"
-$MPI $BIN -task invert $LINEAR -tao_type lmvm -tao_max_it ${MAX_IT:-200} -inv_tikhonov ${TIKHONOV:-1e-2} \
+$MPI $BIN -task invert $LINEAR -tao_type lmvm -tao_max_it ${MAX_IT:-500} -inv_tikhonov ${TIKHONOV:-1e-2} \
   -output results/fwi_linear_lmvm.h5 | tee results/fwi_linear_lmvm.log | grep -v " TAO, "
 
 log "Plots"

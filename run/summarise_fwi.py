@@ -37,7 +37,7 @@ def main():
     d = sys.argv[1] if len(sys.argv) > 1 else "results"
     cases = [
         ("fwi_constant_from_0.8.h5", "1a constant c, BLMVM from 0.8"),
-        ("fwi_constant.h5", "1b constant c, 16-point scan + BLMVM"),
+        ("fwi_constant.h5", "1b constant c, 151-point scan + BLMVM"),
         ("fwi_linear_blmvm.h5", "2 linear c(x), BLMVM, bounds [0.5,2]"),
         ("fwi_linear_lmvm.h5", "2 linear c(x), LMVM"),
     ]

@@ -7,8 +7,9 @@
 // BLMVM is the default -tao_type, LMVM and the rest of TAO via -tao_type). The history records
 // per iteration the objective, the gradient norm and, when the true parameters are known, the
 // parameter RMSE sqrt(mean((p - p_true)^2)). -inv_scan N (one scalar parameter) first evaluates J at
-// N points between the bounds and starts from the best: a terminal snapshot of a wave gives an
-// objective with several minima (cycle skipping), and a scan is the honest cure for one unknown.
+// N points between the bounds and polishes its best local minima (-inv_scan_starts, default 3),
+// keeping the lowest objective: a terminal snapshot of a wave gives an objective with several
+// nearly equal minima (cycle skipping), and a scan is the honest cure for one unknown.
 #pragma once
 #include "flexipde/scene.hpp"
 #include <vector>
@@ -29,6 +30,9 @@ public:
   Tao tao() const { return tao_; }
   PetscInt evaluations() const { return evaluations_; }
   PetscReal scan_start() const { return scan_start_; }
+  // Of the solve that produced the result (with -inv_scan: the winning start).
+  TaoConvergedReason converged_reason() const { return reason_; }
+  PetscInt iterations() const { return iterations_; }
 
   // Objective + regularisation and gradient; public for tests.
   PetscErrorCode evaluate(Vec p, PetscReal *f, Vec g);
@@ -37,14 +41,16 @@ private:
   static PetscErrorCode form_function_gradient(Tao, Vec, PetscReal *, Vec, void *);
   static PetscErrorCode monitor(Tao, void *);
   PetscErrorCode tikhonov(Vec p, PetscReal *R, Vec g);
-  PetscErrorCode scan(Vec p);
+  PetscErrorCode scan(Vec p, std::vector<PetscReal> &starts);
 
   Scene *scene_ = nullptr;
   OwnedTao tao_;
   OwnedVec p_true_, lower_, upper_, field_, field_local_, gfield_local_, gfield_;
   PetscReal alpha_ = 0, lower_value_ = PETSC_NINFINITY, upper_value_ = PETSC_INFINITY, last_misfit_ = 0;
-  PetscInt evaluations_ = 0, scan_ = 0;
+  PetscInt evaluations_ = 0, scan_ = 0, scan_starts_ = 3;
   PetscReal scan_start_ = 0;
+  TaoConvergedReason reason_ = TAO_CONTINUE_ITERATING;
+  PetscInt iterations_ = 0;
   std::vector<HistoryEntry> history_;
 };
 

@@ -209,10 +209,8 @@ static PetscErrorCode run(MPI_Comm comm) {
   PetscCall(print_parameters(scene, p, "initial"));
   PetscCall(inv.solve(p));
   PetscCall(inv.rmse(p, &e1));
-  TaoConvergedReason reason;
-  PetscInt its;
-  PetscCall(TaoGetConvergedReason(inv.tao(), &reason));
-  PetscCall(TaoGetIterationNumber(inv.tao(), &its));
+  const TaoConvergedReason reason = inv.converged_reason();
+  const PetscInt its = inv.iterations();
   PetscCall(print_parameters(scene, p, "recovered"));
   PetscCall(PetscPrintf(comm, "invert: %s after %" PetscInt_FMT " iterations, %" PetscInt_FMT " gradient evaluations; parameter RMSE %.6e -> %.6e\n",
                         TaoConvergedReasons[reason], its, inv.evaluations(), (double)e0, (double)e1));

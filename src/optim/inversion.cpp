@@ -1,4 +1,5 @@
 #include "flexipde/inversion.hpp"
+#include <algorithm>
 #include <cmath>
 
 namespace flexipde {
@@ -15,9 +16,11 @@ PetscErrorCode Inversion::setup(Scene &scene, Vec p_true) {
                              &has_lower));
   PetscCall(PetscOptionsReal("-inv_upper", "Upper bound on every parameter", "Inversion", upper_value_, &upper_value_,
                              &has_upper));
-  PetscCall(PetscOptionsInt("-inv_scan", "Scalar problems: start from the best of N objective values evenly spaced "
-                            "between the bounds (guards against cycle skipping; 0 = off)",
+  PetscCall(PetscOptionsInt("-inv_scan", "Scalar problems: evaluate J at N values evenly spaced between the bounds "
+                            "and start from its best local minima (guards against cycle skipping; 0 = off)",
                             "Inversion", scan_, &scan_, nullptr));
+  PetscCall(PetscOptionsInt("-inv_scan_starts", "With -inv_scan: number of scan minima polished by TAO; the lowest "
+                            "objective wins", "Inversion", scan_starts_, &scan_starts_, nullptr));
   PetscOptionsEnd();
   PetscCheck(scan_ >= 0, comm, PETSC_ERR_ARG_OUTOFRANGE, "-inv_scan must be non-negative");
   PetscCheck(scan_ == 0 || (scene.params.global_size() == 1 && has_lower && has_upper), comm, PETSC_ERR_ARG_WRONG,
@@ -136,35 +139,67 @@ PetscErrorCode Inversion::monitor(Tao tao, void *ctx) {
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode Inversion::scan(Vec p) {
+// J at scan_ evenly spaced values of the single scalar parameter; returns the values at the local
+// minima of the scan, best first.
+PetscErrorCode Inversion::scan(Vec p, std::vector<PetscReal> &starts) {
   const Parameters &params = scene_->params;
-  PetscReal best = PETSC_MAX_REAL, best_value = 0;
+  std::vector<PetscReal> v(scan_), J(scan_);
   OwnedVec U;
   PetscFunctionBeginUser;
   PetscCall(scene_->sim.create_state(U.out()));
   for (PetscInt k = 0; k < scan_; ++k) {
-    const PetscReal v = lower_value_ + (upper_value_ - lower_value_) * (k + 0.5) / scan_;
-    PetscReal J;
-    PetscCall(params.set_scalar(p, 0, v));
+    v[k] = lower_value_ + (upper_value_ - lower_value_) * (k + 0.5) / scan_;
+    PetscCall(params.set_scalar(p, 0, v[k]));
     PetscCall(scene_->sim.forward(p, U)); // a value needs no adjoint
-    PetscCall(scene_->objective.terminal(U, &J, nullptr));
-    if (J < best) {
-      best = J;
-      best_value = v;
-    }
+    PetscCall(scene_->objective.terminal(U, &J[k], nullptr));
   }
-  PetscCall(params.set_scalar(p, 0, best_value));
-  PetscCall(PetscInfo(nullptr, "scan: best of %" PetscInt_FMT " values is %g (J = %g)\n", scan_, (double)best_value, (double)best));
-  scan_start_ = best_value;
+  std::vector<PetscInt> minima;
+  for (PetscInt k = 0; k < scan_; ++k)
+    if ((k == 0 || J[k] <= J[k - 1]) && (k == scan_ - 1 || J[k] <= J[k + 1])) minima.push_back(k);
+  std::sort(minima.begin(), minima.end(), [&](PetscInt a, PetscInt b) { return J[a] < J[b]; });
+  starts.clear();
+  for (PetscInt k : minima) starts.push_back(v[k]);
   PetscFunctionReturn(0);
 }
 
 PetscErrorCode Inversion::solve(Vec p) {
   PetscFunctionBeginUser;
   history_.clear();
-  if (scan_ > 0) PetscCall(scan(p));
-  PetscCall(TaoSetSolution(tao_, p));
-  PetscCall(TaoSolve(tao_));
+  if (scan_ == 0) {
+    PetscCall(TaoSetSolution(tao_, p));
+    PetscCall(TaoSolve(tao_));
+    PetscCall(TaoGetConvergedReason(tao_, &reason_));
+    PetscCall(TaoGetIterationNumber(tao_, &iterations_));
+    PetscFunctionReturn(0);
+  }
+  // Polish the best few minima of the scan and keep the lowest objective: snapshot misfits of waves
+  // have several nearly equal minima (cycle skipping), which a single start cannot tell apart.
+  std::vector<PetscReal> starts;
+  PetscCall(scan(p, starts));
+  OwnedVec best;
+  PetscReal fbest = PETSC_MAX_REAL;
+  std::vector<HistoryEntry> best_history;
+  const size_t n = std::min<size_t>(starts.size(), (size_t)scan_starts_);
+  for (size_t k = 0; k < n; ++k) {
+    PetscReal f;
+    history_.clear();
+    PetscCall(scene_->params.set_scalar(p, 0, starts[k]));
+    PetscCall(TaoSetSolution(tao_, p));
+    PetscCall(TaoSolve(tao_));
+    PetscCall(TaoGetSolutionStatus(tao_, nullptr, &f, nullptr, nullptr, nullptr, nullptr));
+    PetscCall(PetscInfo(tao_.get(), "scan start %g -> objective %g\n", (double)starts[k], (double)f));
+    if (f < fbest) {
+      fbest = f;
+      best_history = history_;
+      if (!best) PetscCall(VecDuplicate(p, best.out()));
+      PetscCall(VecCopy(p, best));
+      scan_start_ = starts[k];
+      PetscCall(TaoGetConvergedReason(tao_, &reason_));
+      PetscCall(TaoGetIterationNumber(tao_, &iterations_));
+    }
+  }
+  PetscCall(VecCopy(best, p));
+  history_ = best_history;
   PetscFunctionReturn(0);
 }
 
