@@ -10,6 +10,7 @@
 // largest stable dt. Options: PETSc's -ts_dt, -ts_max_time, -ts_type, -ts_rk_type, -ts_monitor,
 // -ts_trajectory_type, and -sim_stability_check 0 to run an unstable explicit step anyway.
 #pragma once
+#include "flexipde/checkpoint.hpp"
 #include "flexipde/model.hpp"
 #include "flexipde/objective.hpp"
 
@@ -36,6 +37,8 @@ public:
   // J(p) and its gradient; grad_u0 (state-shaped, may be null) receives dJ/dU0.
   PetscErrorCode gradient(Vec p, PetscReal *J, Vec grad_p, Vec grad_u0);
   const SimulationStats &stats() const { return stats_; }
+  // Stored states and recomputed steps of the last gradient's adjoint (-checkpoint_budget).
+  const CheckpointStats &checkpoint_stats() const { return checkpoint_stats_; }
   // Creates (and discards) the integrator as a gradient would: lists its options under -help and
   // reports a bad integrator choice before any work is done.
   PetscErrorCode check_options();
@@ -63,6 +66,7 @@ private:
   PetscObjectState jac_state_ = -1;
   PetscInt param_version_ = 0, jac_param_version_ = -1;
   SimulationStats stats_;
+  CheckpointStats checkpoint_stats_;
 };
 
 } // namespace flexipde

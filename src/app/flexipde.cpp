@@ -117,6 +117,11 @@ static PetscErrorCode run(MPI_Comm comm) {
     PetscCall(VecNorm(g, NORM_2, &gn));
     PetscCall(PetscPrintf(comm, "gradient: J = %.12e, ||dJ/dp|| = %.12e (%s, %" PetscInt_FMT " steps)\n", (double)J,
                           (double)gn, scene.sim.stats().ts_type, scene.sim.stats().steps));
+    const CheckpointStats &cs = scene.sim.checkpoint_stats();
+    PetscCall(PetscPrintf(comm,
+                          "checkpointing: budget %" PetscInt_FMT " (0: full storage), %" PetscInt_FMT
+                          " states stored at most, %" PetscInt64_FMT " steps recomputed, binomial optimum %" PetscInt64_FMT "\n",
+                          cs.budget, cs.stored_peak, cs.recomputed_steps, cs.optimal_recomputations));
     if (check_fd) {
       const PetscReal h = 1e-6;
       OwnedVec q;

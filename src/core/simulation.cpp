@@ -85,13 +85,9 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts) {
     if (size > 1) PetscCall(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
   }
   if (with_adjoint) {
-    TSTrajectory tj;
-    PetscCall(TSSetSaveTrajectory(ts));
-    PetscCall(TSGetTrajectory(ts, &tj));
-    PetscCall(TSTrajectorySetType(tj, ts, TSTRAJECTORYMEMORY));
-    // Store U only and recompute a step's stages in the adjoint: 1/(stages+1) of the memory and,
-    // measured on the seed scene, less time than copying every stage.
-    PetscCall(TSTrajectorySetSolutionOnly(tj, PETSC_TRUE));
+    // Full storage (every state, solution only), or binomial checkpointing within
+    // -checkpoint_budget states (checkpoint.hpp); what it cost lands in checkpoint_stats_.
+    PetscCall(setup_adjoint_trajectory(ts, &checkpoint_stats_));
     if (Jp_) PetscCall(TSSetRHSJacobianP(ts, Jp_, rhs_jacobian_p_cb, this));
   }
   PetscCall(TSSetFromOptions(ts));

@@ -1,0 +1,295 @@
+// Binomial checkpointing (-checkpoint_budget): the schedule's recomputation count equals the
+// revolve optimum t(n, s) = r n - beta(s+1, r-1) (itself checked against a brute-force dynamic
+// programme), and a gradient computed within a budget equals the full-storage gradient to 1e-12
+// for every integrator with an adjoint here, for field and scalar parameters and for dJ/dU0.
+#include "flexipde/checkpoint.hpp"
+#include "flexipde/scene.hpp"
+#include "test_support.hpp"
+#include <string>
+
+using namespace flexipde;
+using flexipde_test::QuietErrors;
+using flexipde_test::rel_diff;
+using flexipde_test::ScopedOptions;
+
+namespace {
+
+// t(l, c) by its defining recursion: reverse l steps with c checkpoints, one of them holding the
+// start. Either advance l-1 steps unstored (c = 1), or advance m, store, reverse the right part
+// with c-1 checkpoints, then the left part with c.
+std::vector<std::vector<PetscInt64>> brute_force(PetscInt64 lmax, PetscInt64 cmax) {
+  std::vector<std::vector<PetscInt64>> t(lmax + 1, std::vector<PetscInt64>(cmax + 1, 0));
+  for (PetscInt64 l = 2; l <= lmax; ++l) {
+    t[l][1] = (l - 1) + t[l - 1][1];
+    for (PetscInt64 c = 2; c <= cmax; ++c) {
+      PetscInt64 best = -1;
+      for (PetscInt64 m = 1; m < l; ++m) {
+        const PetscInt64 cost = m + t[l - m][c - 1] + t[m][c];
+        if (best < 0 || cost < best) best = cost;
+      }
+      t[l][c] = best;
+    }
+  }
+  return t;
+}
+
+// Runs a schedule without PETSc: the forward sweep, then the plans for k = n-1 .. 1, checking that
+// every plan starts from a stored state before k, ends with the step k-1 -> k, and never holds
+// more than the budget. Returns the recomputed steps (-1 on an inconsistency).
+PetscInt64 simulate(PetscInt n, PetscInt s, PetscInt *peak) {
+  BinomialSchedule sch;
+  sch.reset(n, s);
+  std::vector<PetscInt> stored;
+  for (PetscInt step = 0; step <= n; ++step)
+    if (sch.store_in_forward(step)) stored.push_back(step);
+  if (sch.held() > s) return -1;
+  PetscInt64 total = 0;
+  std::vector<BinomialSchedule::Action> plan;
+  for (PetscInt k = n - 1; k >= 1; --k) {
+    if (sch.reverse(k, plan)) return -1;
+    if (plan.empty() || plan.front().op != BinomialSchedule::Op::Restore || plan.front().step > k - 1) return -1;
+    PetscInt at = plan.front().step;
+    bool taped = false;
+    for (auto &a : plan) {
+      if (a.op == BinomialSchedule::Op::Advance && a.step <= at) return -1;
+      if (a.op == BinomialSchedule::Op::Advance || a.op == BinomialSchedule::Op::Tape) at = a.step;
+      if (a.op == BinomialSchedule::Op::Store && a.step != at) return -1;
+      if (a.op == BinomialSchedule::Op::Tape) taped = (a.step == k);
+    }
+    if (!taped || at != k || sch.held() > s) return -1;
+    total += BinomialSchedule::steps_in(plan, 0);
+  }
+  if (sch.held() != 0) return -1; // everything released at the end
+  *peak = sch.peak();
+  return total;
+}
+
+} // namespace
+
+TEST(BinomialFormula, ClosedFormEqualsBruteForce) {
+  const PetscInt64 lmax = 120, cmax = 8;
+  auto t = brute_force(lmax, cmax);
+  for (PetscInt64 c = 1; c <= cmax; ++c)
+    for (PetscInt64 l = 1; l <= lmax; ++l)
+      ASSERT_EQ(binomial_optimal_recomputations(l, c), t[l][c]) << "n = " << l << ", s = " << c;
+  // Known values: one checkpoint re-runs n(n-1)/2 steps, enough of them n-1.
+  EXPECT_EQ(binomial_optimal_recomputations(1000, 1), 1000 * 999 / 2);
+  EXPECT_EQ(binomial_optimal_recomputations(1000, 999), 999);
+  EXPECT_EQ(binomial_optimal_recomputations(1000, 5000), 999);
+  EXPECT_EQ(binomial_beta(10, 5), 3003);
+  EXPECT_EQ(binomial_repetitions(3003, 10), 5);
+  EXPECT_EQ(binomial_repetitions(3004, 10), 6);
+}
+
+TEST(BinomialSchedule, RecomputationsEqualOptimum) {
+  const std::vector<std::pair<PetscInt, PetscInt>> cases = {
+      {1, 1},    {2, 1},    {2, 5},     {3, 2},     {10, 1},    {10, 3},     {55, 3},     {56, 3},
+      {100, 5},  {300, 10}, {1000, 10}, {1000, 30}, {1000, 100}, {3000, 100}, {10000, 10}, {10000, 30},
+      {100000, 10}, {100000, 100}, {40, 400}};
+  for (auto [n, s] : cases) {
+    PetscInt peak = 0;
+    const PetscInt64 got = simulate(n, s, &peak), opt = binomial_optimal_recomputations(n, s);
+    EXPECT_EQ(got, opt) << "n = " << n << ", s = " << s;
+    EXPECT_LE(peak, s);
+    if (n >= 2) EXPECT_GE(peak, 1);
+  }
+  // Every small case, against the brute force as well.
+  auto t = brute_force(60, 6);
+  for (PetscInt s = 1; s <= 6; ++s)
+    for (PetscInt n = 1; n <= 60; ++n) {
+      PetscInt peak = 0;
+      ASSERT_EQ(simulate(n, s, &peak), t[n][s]) << "n = " << n << ", s = " << s;
+    }
+}
+
+namespace {
+
+struct Result {
+  PetscReal J = 0;
+  OwnedVec g, gu0;
+  CheckpointStats stats;
+};
+
+// J, dJ/dp and dJ/dU0 of the scene under `extra` options (a fresh scene each time).
+PetscErrorCode run_gradient(const std::vector<std::pair<std::string, std::string>> &extra, Result &r) {
+  ScopedOptions opts;
+  for (auto &o : extra) opts.set(o.first, o.second);
+  Scene scene;
+  OwnedVec p, p_true;
+  PetscFunctionBeginUser;
+  PetscCall(scene.setup(PETSC_COMM_WORLD));
+  PetscCall(scene.params.create_vec(p.out()));
+  PetscCall(scene.params.create_vec(p_true.out()));
+  PetscCall(scene.parameters_from_options("", p));
+  PetscCall(scene.parameters_from_options("true_", p_true));
+  PetscCall(scene.make_synthetic_data(p_true));
+  PetscCall(VecDuplicate(p, r.g.out()));
+  PetscCall(scene.sim.create_state(r.gu0.out()));
+  PetscCall(scene.sim.gradient(p, &r.J, r.g, r.gu0));
+  r.stats = scene.sim.checkpoint_stats();
+  PetscFunctionReturn(0);
+}
+
+struct IntegratorCase {
+  const char *name;
+  std::vector<std::pair<std::string, std::string>> options;
+};
+
+std::ostream &operator<<(std::ostream &os, const IntegratorCase &c) { return os << c.name; }
+
+class CheckpointGradient : public ::testing::TestWithParam<IntegratorCase> {};
+
+} // namespace
+
+// For each integrator: full storage against budgets 1, 4 and 13 (n = 60 or 24 steps), field
+// parameters and dJ/dU0. The budgets force re-run steps far beyond full storage's n-1.
+TEST_P(CheckpointGradient, EqualsFullStorage) {
+  const IntegratorCase &ic = GetParam();
+  std::vector<std::pair<std::string, std::string>> base = {{"-da_grid_x", "61"},         {"-ts_max_time", "0.12"},
+                                                           {"-wave_c_field", "1"},       {"-wave_c", "0.9"},
+                                                           {"-true_wave_c_profile", "gaussian"},
+                                                           {"-true_wave_c_bump", "0.1"}, {"-true_wave_c", "1.0"}};
+  for (auto &o : ic.options) base.push_back(o);
+  Result full;
+  PETSC_ASSERT_OK(run_gradient(base, full));
+  const PetscInt n = full.stats.steps;
+  ASSERT_GE(n, 20);
+  EXPECT_EQ(full.stats.budget, 0);
+  EXPECT_GT(flexipde_test::norm(full.g), 0.0);
+  EXPECT_GT(flexipde_test::norm(full.gu0), 0.0);
+  for (const char *budget : {"1", "4", "13"}) {
+    auto opts = base;
+    opts.push_back({"-checkpoint_budget", budget});
+    Result cp;
+    PETSC_ASSERT_OK(run_gradient(opts, cp));
+    const PetscInt s = std::stoi(budget);
+    const PetscReal dJ = rel_diff(cp.J, full.J), dg = rel_diff(cp.g, full.g), du = rel_diff(cp.gu0, full.gu0);
+    PetscPrintf(PETSC_COMM_WORLD,
+                "  [%s, n = %d, budget %d] held %d, recomputed %lld (optimum %lld); rel diff J %.1e, dJ/dp %.1e, dJ/dU0 %.1e\n",
+                ic.name, (int)n, (int)s, (int)cp.stats.stored_peak, (long long)cp.stats.recomputed_steps,
+                (long long)cp.stats.optimal_recomputations, (double)dJ, (double)dg, (double)du);
+    EXPECT_EQ(cp.J, full.J); // the forward solve does not depend on the trajectory
+    EXPECT_LE(dg, 1e-12) << "budget " << budget;
+    EXPECT_LE(du, 1e-12) << "budget " << budget;
+    EXPECT_EQ(cp.stats.budget, s);
+    EXPECT_EQ(cp.stats.steps, n);
+    EXPECT_LE(cp.stats.stored_peak, s);
+    EXPECT_EQ(cp.stats.stored_peak, std::min<PetscInt>(s, n - 1));
+    EXPECT_EQ(cp.stats.recomputed_steps, binomial_optimal_recomputations(n, s));
+    EXPECT_GT(cp.stats.recomputed_steps, (PetscInt64)n - 1);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Wave, CheckpointGradient,
+    ::testing::Values(IntegratorCase{"rk4", {{"-ts_type", "rk"}, {"-ts_rk_type", "4"}, {"-ts_dt", "2e-3"}}},
+                      IntegratorCase{"rk3bs_fsal", {{"-ts_type", "rk"}, {"-ts_rk_type", "3bs"}, {"-ts_dt", "2e-3"}}},
+                      IntegratorCase{"rk5dp_fsal_7_stages", {{"-ts_type", "rk"}, {"-ts_rk_type", "5dp"}, {"-ts_dt", "2e-3"}}},
+                      IntegratorCase{"rk3", {{"-ts_type", "rk"}, {"-ts_rk_type", "3"}, {"-ts_dt", "2e-3"}}},
+                      IntegratorCase{"rk8vr_13_stages", {{"-ts_type", "rk"}, {"-ts_rk_type", "8vr"}, {"-ts_dt", "2e-3"}}},
+                      IntegratorCase{"theta0.7", {{"-ts_type", "theta"}, {"-ts_theta_theta", "0.7"}, {"-ts_dt", "5e-3"}}},
+                      IntegratorCase{"cn", {{"-ts_type", "cn"}, {"-ts_dt", "5e-3"}}},
+                      IntegratorCase{"beuler", {{"-ts_type", "beuler"}, {"-ts_dt", "5e-3"}}}),
+    [](const ::testing::TestParamInfo<IntegratorCase> &i) {
+      std::string s = i.param.name;
+      for (auto &ch : s)
+        if (!isalnum((unsigned char)ch)) ch = '_';
+      return s;
+    });
+
+// A scalar parameter (dG/dp a dense column), and the smallest step counts (1 and 2 steps).
+TEST(CheckpointGradient, ScalarParameterAndShortRuns) {
+  for (const char *T : {"0.002", "0.004", "0.2"}) {
+    std::vector<std::pair<std::string, std::string>> base = {{"-da_grid_x", "81"}, {"-ts_max_time", T},
+                                                             {"-ts_dt", "2e-3"},   {"-wave_c", "0.9"},
+                                                             {"-true_wave_c", "1.0"}};
+    Result full, cp;
+    PETSC_ASSERT_OK(run_gradient(base, full));
+    base.push_back({"-checkpoint_budget", "3"});
+    PETSC_ASSERT_OK(run_gradient(base, cp));
+    const PetscInt n = full.stats.steps;
+    EXPECT_LE(rel_diff(cp.g, full.g), 1e-12) << "T = " << T;
+    EXPECT_LE(rel_diff(cp.gu0, full.gu0), 1e-12) << "T = " << T;
+    EXPECT_GT(flexipde_test::norm(full.g), 0.0);
+    EXPECT_EQ(cp.stats.recomputed_steps, binomial_optimal_recomputations(n, 3));
+    // Full storage (PETSc's memory trajectory, solution only) re-runs n - 1 steps and keeps n states.
+    EXPECT_EQ(full.stats.recomputed_steps, (PetscInt64)n - 1);
+    EXPECT_EQ(full.stats.stored_peak, n);
+  }
+}
+
+// Full storage with an FSAL method (3bs) keeps the stages: PETSc's solution-only memory trajectory
+// would re-run steps without restarting the FSAL derivative (3e-5 relative error here). The
+// gradient agrees with central differences, with and without a budget.
+TEST(CheckpointGradient, FsalMatchesFiniteDifferences) {
+  const std::vector<std::pair<std::string, std::string>> base = {
+      {"-da_grid_x", "201"}, {"-ts_max_time", "0.3"}, {"-ts_dt", "1e-3"},     {"-ts_rk_type", "3bs"},
+      {"-wave_c", "0.9"},    {"-true_wave_c", "1.0"}, {"-objective_type", "l2sq"}};
+  const PetscReal c = 0.9, h = 1e-6;
+  auto J_at = [&](PetscReal cc, const char *budget, Result &r) {
+    auto opts = base;
+    opts.push_back({"-wave_c", std::to_string(cc)});
+    if (budget) opts.push_back({"-checkpoint_budget", budget});
+    return run_gradient(opts, r);
+  };
+  Result plus, minus;
+  PETSC_ASSERT_OK(J_at(c + h, nullptr, plus));
+  PETSC_ASSERT_OK(J_at(c - h, nullptr, minus));
+  const PetscReal fd = (plus.J - minus.J) / (2 * h);
+  for (const char *budget : {(const char *)nullptr, "7"}) {
+    Result r;
+    PETSC_ASSERT_OK(J_at(c, budget, r));
+    std::vector<PetscReal> g;
+    PETSC_ASSERT_OK(flexipde_test::gather_all(r.g, g));
+    ASSERT_EQ(g.size(), 1u);
+    PetscPrintf(PETSC_COMM_WORLD, "  [3bs, budget %s] adjoint %.12e, central difference %.12e, rel diff %.1e\n",
+                budget ? budget : "full", (double)g[0], (double)fd, (double)rel_diff(g[0], fd));
+    EXPECT_LE(rel_diff(g[0], fd), 1e-8) << (budget ? budget : "full storage");
+  }
+}
+
+// Repeated evaluations on one Simulation (as TAO does) give identical results and statistics.
+TEST(CheckpointGradient, RepeatedEvaluations) {
+  ScopedOptions opts{{"-da_grid_x", "81"}, {"-ts_max_time", "0.1"}, {"-ts_dt", "2e-3"}, {"-wave_c_field", "1"},
+                     {"-wave_c", "0.9"},    {"-true_wave_c", "1.0"}, {"-checkpoint_budget", "5"}};
+  Scene scene;
+  OwnedVec p, p_true, g1, g2;
+  PETSC_ASSERT_OK(scene.setup(PETSC_COMM_WORLD));
+  PETSC_ASSERT_OK(scene.params.create_vec(p.out()));
+  PETSC_ASSERT_OK(scene.params.create_vec(p_true.out()));
+  PETSC_ASSERT_OK(scene.parameters_from_options("", p));
+  PETSC_ASSERT_OK(scene.parameters_from_options("true_", p_true));
+  PETSC_ASSERT_OK(scene.make_synthetic_data(p_true));
+  PETSC_ASSERT_OK(VecDuplicate(p, g1.out()));
+  PETSC_ASSERT_OK(VecDuplicate(p, g2.out()));
+  PetscReal J1, J2;
+  PETSC_ASSERT_OK(scene.sim.gradient(p, &J1, g1, nullptr));
+  const CheckpointStats first = scene.sim.checkpoint_stats();
+  PETSC_ASSERT_OK(scene.sim.gradient(p, &J2, g2, nullptr));
+  const CheckpointStats &second = scene.sim.checkpoint_stats();
+  EXPECT_EQ(J1, J2);
+  EXPECT_EQ(rel_diff(g1, g2), 0.0);
+  EXPECT_EQ(first.recomputed_steps, second.recomputed_steps);
+  EXPECT_EQ(first.stores, second.stores);
+  EXPECT_EQ(second.recomputed_steps, binomial_optimal_recomputations(50, 5));
+}
+
+// A budget that is not a positive number of states, or adaptive steps with a budget, are refused.
+TEST(CheckpointErrors, BadBudgetAndAdaptiveSteps) {
+  const std::vector<std::vector<std::pair<std::string, std::string>>> bad = {
+      {{"-checkpoint_budget", "0"}},
+      {{"-checkpoint_budget", "-4"}},
+      {{"-checkpoint_budget", "10"}, {"-ts_rk_type", "3bs"}, {"-ts_adapt_type", "basic"}}};
+  for (auto &extra : bad) {
+    auto opts = extra;
+    for (auto o : std::vector<std::pair<std::string, std::string>>{{"-da_grid_x", "41"}, {"-ts_max_time", "0.02"}, {"-ts_dt", "2e-3"}})
+      opts.push_back(o);
+    Result r;
+    PetscErrorCode ierr;
+    {
+      QuietErrors q;
+      ierr = run_gradient(opts, r);
+    }
+    EXPECT_NE(ierr, 0) << extra.front().first << " " << extra.front().second;
+  }
+}
