@@ -49,8 +49,8 @@ def main():
         if os.path.exists(p):
             print(row(p, label))
     print("\nSeed's published RMSE for case 2: Adam %.4f, L-BFGS %.4f." % (SEED["Adam"], SEED["L-BFGS"]))
-    print("The two wall points of c(x) do not enter the equations (u = 0 there), so they keep their initial")
-    print("value; 'interior RMSE' leaves them out.")
+    print("The two wall values of c(x) do not enter the equations (u = 0 there): only the smoothness term")
+    print("moves them, so 'interior RMSE' also reports the error without them.")
     land = os.path.join(d, "fwi_landscape.h5")
     if os.path.exists(land):
         import matplotlib
