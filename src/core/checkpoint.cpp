@@ -11,7 +11,7 @@
 // inside Get is safe. Get(n) needs nothing: the forward solve left the last step in the TS.
 //
 // A restored state restarts the integrator (TSRestartStep): an FSAL Runge-Kutta method (3bs,
-// 5dp, ...) would otherwise reuse the last stage derivative of whatever step ran before, which
+// 5dp, 5bs, 6vr) would otherwise reuse the last stage derivative of whatever step ran before, which
 // belongs to a different point of the trajectory. A checkpoint keeps the time and the step size
 // with which the forward run left that state, so that re-run steps repeat the forward
 // arithmetic exactly.
@@ -366,8 +366,8 @@ PetscErrorCode checkpoint_options(PetscObject obj, PetscOptionItems *PetscOption
   }
   // Full storage. PETSc 3.18's memory trajectory in solution-only mode re-runs each step in the
   // adjoint without restarting the integrator, so an FSAL Runge-Kutta method (3bs, 5dp, ...) picks
-  // up a stage derivative from another step and the gradient is wrong (3bs: 3e-5 relative on the
-  // seed scene). Such methods keep their stages instead (no step is re-run).
+  // up a stage derivative from another step and the gradient is wrong (3bs: 3e-5 relative,
+  // docs/checkpointing.md). Such methods keep their stages instead (no step is re-run).
   TSType type;
   PetscBool is_rk, fsal = PETSC_FALSE;
   PetscCall(TSGetType(ts, &type));
