@@ -5,6 +5,8 @@
 #include "flexipde/checkpoint.hpp"
 #include "flexipde/scene.hpp"
 #include "test_support.hpp"
+#include <cmath>
+#include <petsc/private/tsimpl.h> // TSTrajectory counters
 #include <string>
 
 using namespace flexipde;
@@ -272,6 +274,94 @@ TEST(CheckpointGradient, RepeatedEvaluations) {
   EXPECT_EQ(first.recomputed_steps, second.recomputed_steps);
   EXPECT_EQ(first.stores, second.stores);
   EXPECT_EQ(second.recomputed_steps, binomial_optimal_recomputations(50, 5));
+}
+
+namespace {
+
+// Plain PETSc use of the trajectory type: u' = A u (a damped oscillator, 2 unknowns, on
+// PETSC_COMM_SELF), RK 3bs (FSAL), 50 steps; lambda(0) for lambda(T) = (1, 0) after two
+// forward/adjoint cycles on the same TS. Returns lambda(0) and the re-run steps of each cycle.
+PetscErrorCode oscillator_adjoint(const char *type, PetscInt budget, std::vector<PetscReal> &lam0,
+                                  std::vector<PetscInt> &recomps) {
+  TS ts;
+  Mat A;
+  Vec u, lambda;
+  TSTrajectory tj;
+  const PetscInt n = 50;
+  const PetscReal dt = 0.02;
+  PetscFunctionBeginUser;
+  PetscCall(MatCreateSeqDense(PETSC_COMM_SELF, 2, 2, nullptr, &A));
+  PetscCall(MatSetValue(A, 0, 1, 1.0, INSERT_VALUES));
+  PetscCall(MatSetValue(A, 1, 0, -4.0, INSERT_VALUES));
+  PetscCall(MatSetValue(A, 1, 1, -0.1, INSERT_VALUES));
+  PetscCall(MatAssemblyBegin(A, MAT_FINAL_ASSEMBLY));
+  PetscCall(MatAssemblyEnd(A, MAT_FINAL_ASSEMBLY));
+  PetscCall(MatCreateVecs(A, &u, &lambda));
+  PetscCall(TSCreate(PETSC_COMM_SELF, &ts));
+  PetscCall(TSSetProblemType(ts, TS_LINEAR));
+  PetscCall(TSSetRHSFunction(ts, nullptr, TSComputeRHSFunctionLinear, nullptr));
+  PetscCall(TSSetRHSJacobian(ts, A, A, TSComputeRHSJacobianConstant, nullptr));
+  PetscCall(TSSetType(ts, TSRK));
+  PetscCall(TSRKSetType(ts, TSRK3BS));
+  PetscCall(TSSetMaxSteps(ts, n));
+  PetscCall(TSSetMaxTime(ts, 10.0));
+  PetscCall(TSSetExactFinalTime(ts, TS_EXACTFINALTIME_MATCHSTEP));
+  {
+    TSAdapt adapt;
+    PetscCall(TSGetAdapt(ts, &adapt));
+    PetscCall(TSAdaptSetType(adapt, TSADAPTNONE));
+  }
+  PetscCall(TSSetSaveTrajectory(ts));
+  PetscCall(TSGetTrajectory(ts, &tj));
+  PetscCall(register_binomial_trajectory());
+  PetscCall(TSTrajectorySetType(tj, ts, type));
+  PetscCall(TSTrajectorySetSolutionOnly(tj, PETSC_FALSE)); // memory: keep the stages (FSAL-safe)
+  if (budget > 0) PetscCall(binomial_trajectory_set_budget(tj, budget));
+  lam0.clear();
+  recomps.clear();
+  for (int cycle = 0; cycle < 2; ++cycle) {
+    PetscCall(TSSetTime(ts, 0.0));
+    PetscCall(TSSetStepNumber(ts, 0));
+    PetscCall(TSSetTimeStep(ts, dt));
+    PetscCall(VecSetValue(u, 0, 1.0, INSERT_VALUES));
+    PetscCall(VecSetValue(u, 1, 0.5, INSERT_VALUES));
+    PetscCall(VecAssemblyBegin(u));
+    PetscCall(VecAssemblyEnd(u));
+    PetscCall(TSSolve(ts, u));
+    PetscCall(VecSet(lambda, 0.0));
+    PetscCall(VecSetValue(lambda, 0, 1.0, INSERT_VALUES));
+    PetscCall(VecAssemblyBegin(lambda));
+    PetscCall(VecAssemblyEnd(lambda));
+    PetscCall(TSSetCostGradients(ts, 1, &lambda, nullptr));
+    PetscCall(TSAdjointSolve(ts));
+    const PetscScalar *l;
+    PetscCall(VecGetArrayRead(lambda, &l));
+    lam0.push_back(PetscRealPart(l[0]));
+    lam0.push_back(PetscRealPart(l[1]));
+    PetscCall(VecRestoreArrayRead(lambda, &l));
+    recomps.push_back(tj->recomps);
+  }
+  PetscCall(TSDestroy(&ts));
+  PetscCall(VecDestroy(&u));
+  PetscCall(VecDestroy(&lambda));
+  PetscCall(MatDestroy(&A));
+  PetscFunctionReturn(0);
+}
+
+} // namespace
+
+TEST(BinomialTrajectory, PlainTSRepeatedSolves) {
+  std::vector<PetscReal> ref, got;
+  std::vector<PetscInt> ref_re, got_re;
+  PETSC_ASSERT_OK(oscillator_adjoint(TSTRAJECTORYMEMORY, 0, ref, ref_re));
+  PETSC_ASSERT_OK(oscillator_adjoint(FLEXIPDE_TSTRAJECTORY_BINOMIAL, 4, got, got_re));
+  ASSERT_EQ(ref.size(), 4u);
+  ASSERT_EQ(got.size(), 4u);
+  EXPECT_GT(std::fabs(ref[0]) + std::fabs(ref[1]), 0.1);
+  for (size_t i = 0; i < 4; ++i) EXPECT_LE(std::fabs(got[i] - ref[i]), 1e-13 * std::fabs(ref[i & 1u])) << i;
+  EXPECT_EQ(ref_re[0], 0); // stages stored: nothing re-run
+  EXPECT_EQ(got_re[0], binomial_optimal_recomputations(50, 4));
+  EXPECT_EQ(got_re[1], got_re[0]); // the second cycle planned and ran the same schedule
 }
 
 // A budget that is not a positive number of states, or adaptive steps with a budget, are refused.

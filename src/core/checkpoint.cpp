@@ -186,6 +186,9 @@ PetscErrorCode store_state(TSTrajectory tj, BinomialTrajectory *bt, PetscInt ste
   PetscFunctionReturn(0);
 }
 
+// One forward step again. Monitors and pre-/post-step hooks are not called: monitors would see
+// the step twice, and TSSolve stores a state before its post-step hook runs, so a hook that
+// changes the state could not be replayed faithfully anyway (the Simulation sets none).
 PetscErrorCode run_step(TS ts, BinomialTrajectory *bt) {
   PetscFunctionBegin;
   PetscCall(TSStep(ts));
@@ -214,7 +217,10 @@ PetscErrorCode binomial_get(TSTrajectory tj, TS ts, PetscInt stepnum, PetscReal 
   BinomialTrajectory *bt = context(tj);
   const PetscInt n = bt->schedule.steps();
   PetscFunctionBegin;
-  if (stepnum == 0) PetscFunctionReturn(0); // the adjoint has finished
+  if (stepnum == 0) { // the adjoint has finished: a next TSSolve sets the schedule up again (pool kept)
+    PetscCall(TSTrajectoryReset(tj));
+    PetscFunctionReturn(0);
+  }
   PetscCheck(stepnum <= n, PetscObjectComm((PetscObject)tj), PETSC_ERR_ARG_OUTOFRANGE,
              "Binomial trajectory: step %" PetscInt_FMT " was never computed (%" PetscInt_FMT " steps)", stepnum, n);
   if (stepnum < n) {
@@ -244,6 +250,8 @@ PetscErrorCode binomial_get(TSTrajectory tj, TS ts, PetscInt stepnum, PetscReal 
       case BinomialSchedule::Op::Tape:
         PetscCheck(ts->steps == a.step - 1, PetscObjectComm((PetscObject)tj), PETSC_ERR_PLIB,
                    "Binomial trajectory: at step %" PetscInt_FMT " instead of %" PetscInt_FMT, ts->steps, a.step - 1);
+        if (tj->monitor)
+          PetscCall(PetscViewerASCIIPrintf(tj->monitor, "binomial: step %" PetscInt_FMT " -> %" PetscInt_FMT " for its stages\n", a.step - 1, a.step));
         PetscCall(run_step(ts, bt));
         break;
       case BinomialSchedule::Op::Release:
