@@ -85,9 +85,9 @@ TEST(BinomialFormula, ClosedFormEqualsBruteForce) {
 
 TEST(BinomialSchedule, RecomputationsEqualOptimum) {
   const std::vector<std::pair<PetscInt, PetscInt>> cases = {
-      {1, 1},    {2, 1},    {2, 5},     {3, 2},     {10, 1},    {10, 3},     {55, 3},     {56, 3},
-      {100, 5},  {300, 10}, {1000, 10}, {1000, 30}, {1000, 100}, {3000, 100}, {10000, 10}, {10000, 30},
-      {100000, 10}, {100000, 100}, {40, 400}};
+      {1, 1},      {2, 1},      {2, 5},       {3, 2},        {10, 1},    {10, 3},     {55, 3},
+      {56, 3},     {100, 5},    {300, 10},    {1000, 10},    {1000, 30}, {1000, 100}, {3000, 100},
+      {10000, 10}, {10000, 30}, {100000, 10}, {100000, 100}, {40, 400}};
   for (auto [n, s] : cases) {
     PetscInt peak = 0;
     const PetscInt64 got = simulate(n, s, &peak), opt = binomial_optimal_recomputations(n, s);
@@ -147,10 +147,13 @@ class CheckpointGradient : public ::testing::TestWithParam<IntegratorCase> {};
 // parameters and dJ/dU0. The budgets force re-run steps far beyond full storage's n-1.
 TEST_P(CheckpointGradient, EqualsFullStorage) {
   const IntegratorCase &ic = GetParam();
-  std::vector<std::pair<std::string, std::string>> base = {{"-da_grid_x", "61"},         {"-ts_max_time", "0.12"},
-                                                           {"-wave_c_field", "1"},       {"-wave_c", "0.9"},
+  std::vector<std::pair<std::string, std::string>> base = {{"-da_grid_x", "61"},
+                                                           {"-ts_max_time", "0.12"},
+                                                           {"-wave_c_field", "1"},
+                                                           {"-wave_c", "0.9"},
                                                            {"-true_wave_c_profile", "gaussian"},
-                                                           {"-true_wave_c_bump", "0.1"}, {"-true_wave_c", "1.0"}};
+                                                           {"-true_wave_c_bump", "0.1"},
+                                                           {"-true_wave_c", "1.0"}};
   for (auto &o : ic.options) base.push_back(o);
   Result full;
   PETSC_ASSERT_OK(run_gradient(base, full));
@@ -166,10 +169,11 @@ TEST_P(CheckpointGradient, EqualsFullStorage) {
     PETSC_ASSERT_OK(run_gradient(opts, cp));
     const PetscInt s = std::stoi(budget);
     const PetscReal dJ = rel_diff(cp.J, full.J), dg = rel_diff(cp.g, full.g), du = rel_diff(cp.gu0, full.gu0);
-    PetscPrintf(PETSC_COMM_WORLD,
-                "  [%s, n = %d, budget %d] held %d, recomputed %lld (optimum %lld); rel diff J %.1e, dJ/dp %.1e, dJ/dU0 %.1e\n",
-                ic.name, (int)n, (int)s, (int)cp.stats.stored_peak, (long long)cp.stats.recomputed_steps,
-                (long long)cp.stats.optimal_recomputations, (double)dJ, (double)dg, (double)du);
+    PetscPrintf(
+        PETSC_COMM_WORLD,
+        "  [%s, n = %d, budget %d] held %d, recomputed %lld (optimum %lld); rel diff J %.1e, dJ/dp %.1e, dJ/dU0 %.1e\n",
+        ic.name, (int)n, (int)s, (int)cp.stats.stored_peak, (long long)cp.stats.recomputed_steps,
+        (long long)cp.stats.optimal_recomputations, (double)dJ, (double)dg, (double)du);
     EXPECT_EQ(cp.J, full.J); // the forward solve does not depend on the trajectory
     EXPECT_LE(dg, 1e-12) << "budget " << budget;
     EXPECT_LE(du, 1e-12) << "budget " << budget;
@@ -184,14 +188,15 @@ TEST_P(CheckpointGradient, EqualsFullStorage) {
 
 INSTANTIATE_TEST_SUITE_P(
     Wave, CheckpointGradient,
-    ::testing::Values(IntegratorCase{"rk4", {{"-ts_type", "rk"}, {"-ts_rk_type", "4"}, {"-ts_dt", "2e-3"}}},
-                      IntegratorCase{"rk3bs_fsal", {{"-ts_type", "rk"}, {"-ts_rk_type", "3bs"}, {"-ts_dt", "2e-3"}}},
-                      IntegratorCase{"rk5dp_fsal_7_stages", {{"-ts_type", "rk"}, {"-ts_rk_type", "5dp"}, {"-ts_dt", "2e-3"}}},
-                      IntegratorCase{"rk3", {{"-ts_type", "rk"}, {"-ts_rk_type", "3"}, {"-ts_dt", "2e-3"}}},
-                      IntegratorCase{"rk8vr_13_stages", {{"-ts_type", "rk"}, {"-ts_rk_type", "8vr"}, {"-ts_dt", "2e-3"}}},
-                      IntegratorCase{"theta0.7", {{"-ts_type", "theta"}, {"-ts_theta_theta", "0.7"}, {"-ts_dt", "5e-3"}}},
-                      IntegratorCase{"cn", {{"-ts_type", "cn"}, {"-ts_dt", "5e-3"}}},
-                      IntegratorCase{"beuler", {{"-ts_type", "beuler"}, {"-ts_dt", "5e-3"}}}),
+    ::testing::Values(
+        IntegratorCase{"rk4", {{"-ts_type", "rk"}, {"-ts_rk_type", "4"}, {"-ts_dt", "2e-3"}}},
+        IntegratorCase{"rk3bs_fsal", {{"-ts_type", "rk"}, {"-ts_rk_type", "3bs"}, {"-ts_dt", "2e-3"}}},
+        IntegratorCase{"rk5dp_fsal_7_stages", {{"-ts_type", "rk"}, {"-ts_rk_type", "5dp"}, {"-ts_dt", "2e-3"}}},
+        IntegratorCase{"rk3", {{"-ts_type", "rk"}, {"-ts_rk_type", "3"}, {"-ts_dt", "2e-3"}}},
+        IntegratorCase{"rk8vr_13_stages", {{"-ts_type", "rk"}, {"-ts_rk_type", "8vr"}, {"-ts_dt", "2e-3"}}},
+        IntegratorCase{"theta0.7", {{"-ts_type", "theta"}, {"-ts_theta_theta", "0.7"}, {"-ts_dt", "5e-3"}}},
+        IntegratorCase{"cn", {{"-ts_type", "cn"}, {"-ts_dt", "5e-3"}}},
+        IntegratorCase{"beuler", {{"-ts_type", "beuler"}, {"-ts_dt", "5e-3"}}}),
     [](const ::testing::TestParamInfo<IntegratorCase> &i) {
       std::string s = i.param.name;
       for (auto &ch : s)
@@ -202,9 +207,8 @@ INSTANTIATE_TEST_SUITE_P(
 // A scalar parameter (dG/dp a dense column), and the smallest step counts (1 and 2 steps).
 TEST(CheckpointGradient, ScalarParameterAndShortRuns) {
   for (const char *T : {"0.002", "0.004", "0.2"}) {
-    std::vector<std::pair<std::string, std::string>> base = {{"-da_grid_x", "81"}, {"-ts_max_time", T},
-                                                             {"-ts_dt", "2e-3"},   {"-wave_c", "0.9"},
-                                                             {"-true_wave_c", "1.0"}};
+    std::vector<std::pair<std::string, std::string>> base = {
+        {"-da_grid_x", "81"}, {"-ts_max_time", T}, {"-ts_dt", "2e-3"}, {"-wave_c", "0.9"}, {"-true_wave_c", "1.0"}};
     Result full, cp;
     PETSC_ASSERT_OK(run_gradient(base, full));
     base.push_back({"-checkpoint_budget", "3"});
@@ -225,7 +229,7 @@ TEST(CheckpointGradient, ScalarParameterAndShortRuns) {
 // gradient agrees with central differences, with and without a budget.
 TEST(CheckpointGradient, FsalMatchesFiniteDifferences) {
   const std::vector<std::pair<std::string, std::string>> base = {
-      {"-da_grid_x", "201"}, {"-ts_max_time", "0.3"}, {"-ts_dt", "1e-3"},     {"-ts_rk_type", "3bs"},
+      {"-da_grid_x", "201"}, {"-ts_max_time", "0.3"}, {"-ts_dt", "1e-3"},         {"-ts_rk_type", "3bs"},
       {"-wave_c", "0.9"},    {"-true_wave_c", "1.0"}, {"-objective_type", "l2sq"}};
   const PetscReal c = 0.9, h = 1e-6;
   auto J_at = [&](PetscReal cc, const char *budget, Result &r) {
@@ -252,8 +256,8 @@ TEST(CheckpointGradient, FsalMatchesFiniteDifferences) {
 
 // Repeated evaluations on one Simulation (as TAO does) give identical results and statistics.
 TEST(CheckpointGradient, RepeatedEvaluations) {
-  ScopedOptions opts{{"-da_grid_x", "81"}, {"-ts_max_time", "0.1"}, {"-ts_dt", "2e-3"}, {"-wave_c_field", "1"},
-                     {"-wave_c", "0.9"},    {"-true_wave_c", "1.0"}, {"-checkpoint_budget", "5"}};
+  ScopedOptions opts{{"-da_grid_x", "81"}, {"-ts_max_time", "0.1"}, {"-ts_dt", "2e-3"},         {"-wave_c_field", "1"},
+                     {"-wave_c", "0.9"},   {"-true_wave_c", "1.0"}, {"-checkpoint_budget", "5"}};
   Scene scene;
   OwnedVec p, p_true, g1, g2;
   PETSC_ASSERT_OK(scene.setup(PETSC_COMM_WORLD));
@@ -372,7 +376,8 @@ TEST(CheckpointErrors, BadBudgetAndAdaptiveSteps) {
       {{"-checkpoint_budget", "10"}, {"-ts_rk_type", "3bs"}, {"-ts_adapt_type", "basic"}}};
   for (auto &extra : bad) {
     auto opts = extra;
-    for (auto o : std::vector<std::pair<std::string, std::string>>{{"-da_grid_x", "41"}, {"-ts_max_time", "0.02"}, {"-ts_dt", "2e-3"}})
+    for (auto o : std::vector<std::pair<std::string, std::string>>{
+             {"-da_grid_x", "41"}, {"-ts_max_time", "0.02"}, {"-ts_dt", "2e-3"}})
       opts.push_back(o);
     Result r;
     PetscErrorCode ierr;

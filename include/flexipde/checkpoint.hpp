@@ -76,11 +76,11 @@ private:
 
 // What the adjoint trajectory cost in the last gradient evaluation.
 struct CheckpointStats {
-  PetscInt budget = 0;                 // 0: full storage
-  PetscInt steps = 0;                  // forward steps n
-  PetscInt stored_peak = 0;            // most states held at once by the trajectory
-  PetscInt64 stores = 0;               // checkpoint writes (forward sweep and adjoint)
-  PetscInt64 recomputed_steps = 0;     // forward steps run again during TSAdjointSolve
+  PetscInt budget = 0;                   // 0: full storage
+  PetscInt steps = 0;                    // forward steps n
+  PetscInt stored_peak = 0;              // most states held at once by the trajectory
+  PetscInt64 stores = 0;                 // checkpoint writes (forward sweep and adjoint)
+  PetscInt64 recomputed_steps = 0;       // forward steps run again during TSAdjointSolve
   PetscInt64 optimal_recomputations = 0; // the binomial optimum t(n, s) (full storage: n - 1)
 };
 

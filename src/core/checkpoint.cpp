@@ -41,7 +41,7 @@ PetscInt64 binomial_beta(PetscInt64 s, PetscInt64 r) {
 
 PetscInt64 binomial_repetitions(PetscInt64 n, PetscInt64 s) {
   if (n <= 1) return 0;
-  if (s < 1) return -1; // no checkpoint: nothing can be reversed
+  if (s < 1) return -1;    // no checkpoint: nothing can be reversed
   PetscInt64 r = 0, b = 1; // b = beta(s, r)
   while (b < n) {
     ++r;
@@ -172,7 +172,8 @@ struct BinomialTrajectory {
 
 BinomialTrajectory *context(TSTrajectory tj) { return static_cast<BinomialTrajectory *>(tj->data); }
 
-PetscErrorCode store_state(TSTrajectory tj, BinomialTrajectory *bt, PetscInt step, PetscReal time, PetscReal dt, Vec X) {
+PetscErrorCode store_state(TSTrajectory tj, BinomialTrajectory *bt, PetscInt step, PetscReal time, PetscReal dt,
+                           Vec X) {
   PetscFunctionBegin;
   PetscCheck(!bt->free_.empty(), PetscObjectComm((PetscObject)tj), PETSC_ERR_PLIB,
              "Binomial trajectory: more stored states than the budget %" PetscInt_FMT, bt->budget);
@@ -182,7 +183,9 @@ PetscErrorCode store_state(TSTrajectory tj, BinomialTrajectory *bt, PetscInt ste
   bt->meta[slot] = {step, time, dt};
   bt->held_.push_back(slot);
   ++bt->stores;
-  if (tj->monitor) PetscCall(PetscViewerASCIIPrintf(tj->monitor, "binomial: store state %" PetscInt_FMT " (t = %g)\n", step, (double)time));
+  if (tj->monitor)
+    PetscCall(
+        PetscViewerASCIIPrintf(tj->monitor, "binomial: store state %" PetscInt_FMT " (t = %g)\n", step, (double)time));
   PetscFunctionReturn(0);
 }
 
@@ -204,7 +207,8 @@ PetscErrorCode binomial_set(TSTrajectory tj, TS ts, PetscInt stepnum, PetscReal 
   const PetscInt n = bt->schedule.steps();
   PetscFunctionBegin;
   PetscCheck(stepnum <= n, PetscObjectComm((PetscObject)tj), PETSC_ERR_ARG_OUTOFRANGE,
-             "Binomial trajectory: the forward solve takes more than the %" PetscInt_FMT " steps it was planned for", n);
+             "Binomial trajectory: the forward solve takes more than the %" PetscInt_FMT " steps it was planned for",
+             n);
   PetscCheck(!ts->reason || stepnum == n, PetscObjectComm((PetscObject)tj), PETSC_ERR_ARG_OUTOFRANGE,
              "Binomial trajectory: the forward solve stopped after %" PetscInt_FMT " of %" PetscInt_FMT
              " planned steps; the step count (-ts_max_steps) must be the one reached at -ts_max_time",
@@ -241,7 +245,8 @@ PetscErrorCode binomial_get(TSTrajectory tj, TS ts, PetscInt stepnum, PetscReal 
       }
       case BinomialSchedule::Op::Advance:
         if (tj->monitor)
-          PetscCall(PetscViewerASCIIPrintf(tj->monitor, "binomial: advance %" PetscInt_FMT " -> %" PetscInt_FMT "\n", ts->steps, a.step));
+          PetscCall(PetscViewerASCIIPrintf(tj->monitor, "binomial: advance %" PetscInt_FMT " -> %" PetscInt_FMT "\n",
+                                           ts->steps, a.step));
         while (ts->steps < a.step) PetscCall(run_step(ts, bt));
         break;
       case BinomialSchedule::Op::Store:
@@ -251,7 +256,9 @@ PetscErrorCode binomial_get(TSTrajectory tj, TS ts, PetscInt stepnum, PetscReal 
         PetscCheck(ts->steps == a.step - 1, PetscObjectComm((PetscObject)tj), PETSC_ERR_PLIB,
                    "Binomial trajectory: at step %" PetscInt_FMT " instead of %" PetscInt_FMT, ts->steps, a.step - 1);
         if (tj->monitor)
-          PetscCall(PetscViewerASCIIPrintf(tj->monitor, "binomial: step %" PetscInt_FMT " -> %" PetscInt_FMT " for its stages\n", a.step - 1, a.step));
+          PetscCall(PetscViewerASCIIPrintf(tj->monitor,
+                                           "binomial: step %" PetscInt_FMT " -> %" PetscInt_FMT " for its stages\n",
+                                           a.step - 1, a.step));
         PetscCall(run_step(ts, bt));
         break;
       case BinomialSchedule::Op::Release:
@@ -315,10 +322,12 @@ PetscErrorCode binomial_setfromoptions(TSTrajectory tj, PetscOptionItems *) {
 PetscErrorCode binomial_view(TSTrajectory tj, PetscViewer viewer) {
   BinomialTrajectory *bt = context(tj);
   PetscFunctionBegin;
-  PetscCall(PetscViewerASCIIPrintf(viewer, "binomial checkpointing: budget %" PetscInt_FMT " states for %" PetscInt_FMT
-                                           " steps, at most %" PetscInt_FMT " held, %" PetscInt64_FMT " stores\n",
+  PetscCall(PetscViewerASCIIPrintf(viewer,
+                                   "binomial checkpointing: budget %" PetscInt_FMT " states for %" PetscInt_FMT
+                                   " steps, at most %" PetscInt_FMT " held, %" PetscInt64_FMT " stores\n",
                                    bt->budget, bt->schedule.steps(), bt->schedule.peak(), bt->stores));
-  PetscCall(PetscViewerASCIIPrintf(viewer, "  recomputed steps %" PetscInt64_FMT ", binomial optimum %" PetscInt64_FMT "\n",
+  PetscCall(PetscViewerASCIIPrintf(viewer,
+                                   "  recomputed steps %" PetscInt64_FMT ", binomial optimum %" PetscInt64_FMT "\n",
                                    bt->recomputed, binomial_optimal_recomputations(bt->schedule.steps(), bt->budget)));
   PetscFunctionReturn(0);
 }
@@ -401,7 +410,7 @@ PetscErrorCode checkpoint_statistics(TS ts, PetscInt step, PetscReal, Vec, Petsc
     stats->stores = bt->stores;
     stats->recomputed_steps = bt->recomputed;
     stats->optimal_recomputations = binomial_optimal_recomputations(stats->steps, bt->budget);
-  } else { // PETSc's memory trajectory keeps every state (or every step's stages)
+  } else {                                  // PETSc's memory trajectory keeps every state (or every step's stages)
     if (!stats->steps) stats->steps = step; // the first call comes at the final step
     const PetscInt n = stats->steps;
     stats->budget = 0;
@@ -427,7 +436,8 @@ PetscErrorCode binomial_trajectory_set_budget(TSTrajectory tj, PetscInt budget) 
   PetscCall(PetscObjectTypeCompare((PetscObject)tj, FLEXIPDE_TSTRAJECTORY_BINOMIAL, &match));
   PetscCheck(match, PetscObjectComm((PetscObject)tj), PETSC_ERR_ARG_WRONG, "The trajectory is not of type binomial");
   PetscCheck(budget >= 1, PetscObjectComm((PetscObject)tj), PETSC_ERR_ARG_OUTOFRANGE,
-             "-checkpoint_budget %" PetscInt_FMT ": the budget is a number of stored states and must be at least 1", budget);
+             "-checkpoint_budget %" PetscInt_FMT ": the budget is a number of stored states and must be at least 1",
+             budget);
   context(tj)->budget = budget;
   PetscFunctionReturn(0);
 }
