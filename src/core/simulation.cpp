@@ -101,7 +101,23 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts) {
   const bool has_adjoint = !std::strcmp(type, TSRK) || !std::strcmp(type, TSTHETA) || !std::strcmp(type, TSCN) ||
                            !std::strcmp(type, TSBEULER);
   PetscCheck(!with_adjoint || has_adjoint, comm, PETSC_ERR_SUP,
-             "-ts_type %s has no adjoint in flexipde: choose rk (any -ts_rk_type), theta, cn or beuler", type);
+             "-ts_type %s has no adjoint in flexipde: choose rk, theta, cn or beuler", type);
+  if (with_adjoint && Jp_ && !std::strcmp(type, TSRK)) {
+    // PETSc 3.18's TSAdjointStep_RK skips dG/dp for a stage whose weight b_i is zero (it rescales
+    // a stale vector instead), so parameter gradients of such tableaux are wrong. The FSAL last
+    // stage is skipped on purpose and is harmless.
+    PetscInt s;
+    const PetscReal *b;
+    PetscBool fsal;
+    TSRKType rktype;
+    PetscCall(TSRKGetType(ts, &rktype));
+    PetscCall(TSRKGetTableau(ts, &s, nullptr, &b, nullptr, nullptr, nullptr, nullptr, &fsal));
+    for (PetscInt i = 0; i < s - (fsal ? 1 : 0); ++i)
+      PetscCheck(b[i] != 0.0, comm, PETSC_ERR_SUP,
+                 "-ts_rk_type %s has a zero weight b_%" PetscInt_FMT ", for which PETSc 3.18's adjoint gives wrong "
+                 "parameter gradients: choose -ts_rk_type 1fe, 2a, 3, 3bs, 4 or an implicit -ts_type",
+                 rktype, i + 1);
+  }
   PetscReal dt, T;
   PetscCall(TSGetTimeStep(ts, &dt));
   PetscCall(TSGetMaxTime(ts, &T));
