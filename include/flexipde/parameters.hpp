@@ -19,12 +19,13 @@ struct ParamInfo {
   PetscInt local_offset = 0; // position of this parameter's first local entry in the packed local array
   PetscInt local_size = 0;
   PetscReal lower = PETSC_NINFINITY; // physical lower bound declared by the model (e.g. a speed > 0)
+  PetscReal initial = 1.0;           // value when the options give none (the model's default)
 };
 
 class Parameters {
 public:
   // Declaration (before finalize). Returns the index used to refer to the parameter later.
-  PetscInt add(const std::string &name, ParamKind kind, PetscReal lower = PETSC_NINFINITY);
+  PetscInt add(const std::string &name, ParamKind kind, PetscReal lower = PETSC_NINFINITY, PetscReal initial = 1.0);
   PetscErrorCode finalize(const Grid &grid);
 
   PetscErrorCode create_vec(Vec *p) const;

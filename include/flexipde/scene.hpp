@@ -3,8 +3,9 @@
 //
 // Options: -model wave (see model_names()), the grid's (-da_grid_x, -grid_x0, -grid_x1,
 // -grid_periodic), the model's (-wave_*), parameter values (-wave_c, -wave_c_profile ...) and the
-// values that generate synthetic data (-true_wave_c, -true_wave_c_profile ...), -objective_type,
-// -objective_component, and PETSc's -ts_* for the integrator.
+// values that generate synthetic data (-true_wave_c, -true_wave_c_profile ...), -objective_type
+// (l2sq, l2: misfit with data; mean_square: no data), -objective_component, and PETSc's -ts_* for
+// the integrator.
 #pragma once
 #include "flexipde/model.hpp"
 #include "flexipde/objective.hpp"
@@ -26,7 +27,8 @@ public:
   // Parameter values from options: "" gives the working/initial values (-wave_c ...), "true_"
   // the values that generate synthetic data (-true_wave_c ...).
   PetscErrorCode parameters_from_options(const char *prefix, Vec p) const;
-  // Runs the model with p_true and stores the objective's component of U(T) as the data.
+  // Runs the model with p_true and stores the objective's component of U(T) as the data; an
+  // objective without data (mean_square) needs none, and nothing is run.
   PetscErrorCode make_synthetic_data(Vec p_true);
 
   MPI_Comm comm() const { return comm_; }
@@ -34,7 +36,7 @@ public:
   OwnedDM state_dm;
   std::unique_ptr<Model> model;
   Parameters params;
-  TerminalMisfit objective;
+  SelectedObjective objective;
   Simulation sim;
 
 private:

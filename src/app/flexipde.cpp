@@ -236,7 +236,7 @@ static PetscErrorCode run(MPI_Comm comm) {
     PetscCall(write_parameters(w, scene, p0, "initial"));
     PetscCall(write_parameters(w, scene, p, "recovered"));
     PetscCall(w.write_vec("/fields", "U_final", U));
-    PetscCall(w.write_vec("/fields", "data", scene.objective.data()));
+    if (scene.objective.data()) PetscCall(w.write_vec("/fields", "data", scene.objective.data()));
     PetscCall(w.write_series("/history", "iteration", it));
     PetscCall(w.write_series("/history", "objective", f));
     PetscCall(w.write_series("/history", "misfit", mis));

@@ -3,8 +3,8 @@
 
 namespace flexipde {
 
-PetscInt Parameters::add(const std::string &name, ParamKind kind, PetscReal lower) {
-  info_.push_back({name, kind, 0, 0, lower});
+PetscInt Parameters::add(const std::string &name, ParamKind kind, PetscReal lower, PetscReal initial) {
+  info_.push_back({name, kind, 0, 0, lower, initial});
   return static_cast<PetscInt>(info_.size()) - 1;
 }
 
@@ -109,7 +109,9 @@ PetscErrorCode fill_from_options(const Parameters &params, PetscInt k, const cha
   const char *types[] = {"constant", "linear", "gaussian"};
   PetscInt type = 0;
   PetscFunctionBeginUser;
-  PetscOptionsBegin(g.comm(), nullptr, "Parameter values", "Parameters");
+  // One help section per parameter: PETSc lists a section title only once.
+  const std::string title = "Parameter " + std::string(prefix);
+  PetscOptionsBegin(g.comm(), nullptr, title.c_str(), "Parameters");
   PetscCall(PetscOptionsReal(pre.c_str(), "Constant value of the parameter", "Parameters", value, &value, nullptr));
   if (pi.kind == ParamKind::Field) {
     left = right = value;

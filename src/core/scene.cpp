@@ -40,7 +40,7 @@ PetscErrorCode Scene::parameters_from_options(const char *prefix, Vec p) const {
   PetscFunctionBeginUser;
   for (PetscInt k = 0; k < params.count(); ++k) {
     std::string key = std::string(prefix) + params.info(k).name;
-    PetscCall(fill_from_options(params, k, key.c_str(), 1.0, p));
+    PetscCall(fill_from_options(params, k, key.c_str(), params.info(k).initial, p));
   }
   PetscFunctionReturn(0);
 }
@@ -48,6 +48,7 @@ PetscErrorCode Scene::parameters_from_options(const char *prefix, Vec p) const {
 PetscErrorCode Scene::make_synthetic_data(Vec p_true) {
   OwnedVec U;
   PetscFunctionBeginUser;
+  if (!objective.data()) PetscFunctionReturn(0);
   PetscCall(DMCreateGlobalVector(state_dm, U.out()));
   PetscCall(sim.forward(p_true, U));
   if (model->dof() == 1) PetscCall(VecCopy(U, objective.data()));

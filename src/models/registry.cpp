@@ -2,10 +2,12 @@
 
 namespace flexipde {
 
+std::unique_ptr<Model> make_advection_model();
 std::unique_ptr<Model> make_wave_model();
 
 std::map<std::string, ModelFactory> &model_registry() {
   static std::map<std::string, ModelFactory> registry = {
+      {"advection", make_advection_model},
       {"wave", make_wave_model},
   };
   return registry;

@@ -8,19 +8,6 @@ PetscErrorCode TerminalMisfit::setup(const Grid &grid, PetscInt component, Petsc
   dof_ = dof;
   PetscCall(DMCreateGlobalVector(grid.dm(), data_.out()));
   PetscCall(VecDuplicate(data_, work_.out()));
-  PetscCall(set_kind_from_options(grid.comm()));
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode TerminalMisfit::set_kind_from_options(MPI_Comm comm) {
-  const char *kinds[] = {"l2sq", "l2"};
-  PetscInt k = kind_ == Kind::L2 ? 1 : 0;
-  PetscFunctionBeginUser;
-  PetscOptionsBegin(comm, nullptr, "Objective", "Objective");
-  PetscCall(PetscOptionsEList("-objective_type", "Terminal misfit: l2sq = 0.5||u(T)-d||^2, l2 = ||u(T)-d||",
-                              "Objective", kinds, 2, kinds[k], &k, nullptr));
-  PetscOptionsEnd();
-  kind_ = k == 1 ? Kind::L2 : Kind::L2Squared;
   PetscFunctionReturn(0);
 }
 
