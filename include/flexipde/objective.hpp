@@ -8,8 +8,17 @@
 // MeanSquare needs no data:
 //   -objective_type mean_square :  J = (1/N) sum_i u_i(T)^2      dJ/du = 2 u / N
 // Norms are plain sums over the N grid points (the seed's definition), not quadrature.
+//
+// An objective may also integrate over time, J = J_T(U(T)) + int_0^T r(t, U) dt: it then answers
+// has_integrand() and provides r, dr/dU and dr/dp; the Simulation integrates r with the
+// integrator's own quadrature (PETSc's quadrature TS) and TSAdjoint adds dr/dU to lambda and
+// dr/dp to mu, so the gradient is exact for the discrete scheme.
+//   -objective_type time_variation :  J = int_0^T ||u_t||^2 dt = int_0^T ||G(t, U; p)||^2 dt
+//                                     dr/dU = 2 (dG/dU)^T G,   dr/dp = 2 (dG/dp)^T G
+// (all components of U, plain sum over grid points; no terminal part).
 #pragma once
 #include "flexipde/grid.hpp"
+#include "flexipde/model.hpp"
 #include <memory>
 #include <string>
 
@@ -20,6 +29,24 @@ public:
   virtual ~Objective() = default;
   // J at the final state; dJdU (state-shaped) is filled when not null.
   virtual PetscErrorCode terminal(Vec UT, PetscReal *J, Vec dJdU) = 0;
+
+  // The integrand r(t, U; p). The parameters are those the model was last given (the Simulation
+  // sets them before each solve), so p is not passed again. r is collective and the same on every
+  // rank. drdU is state-shaped, drdp parameter-shaped; both are overwritten.
+  virtual bool has_integrand() const { return false; }
+  virtual PetscErrorCode integrand(PetscReal t, Vec U, PetscReal *r) {
+    (void)t, (void)U;
+    *r = 0;
+    return 0;
+  }
+  virtual PetscErrorCode integrand_dU(PetscReal t, Vec U, Vec drdU) {
+    (void)t, (void)U;
+    return VecSet(drdU, 0.0);
+  }
+  virtual PetscErrorCode integrand_dp(PetscReal t, Vec U, Vec drdp) {
+    (void)t, (void)U;
+    return VecSet(drdp, 0.0);
+  }
 };
 
 class TerminalMisfit final : public Objective {
@@ -46,13 +73,37 @@ private:
   OwnedVec work_;
 };
 
+// J = int_0^T ||G(t, U; p)||^2 dt, the time variation of the solution (u_t = G). Needs the model
+// for G, dG/dU and dG/dp; owns its own copies of those matrices, because an implicit TS shifts
+// the Simulation's.
+class TimeVariation final : public Objective {
+public:
+  PetscErrorCode setup(Model &model, DM state_dm, bool with_parameters);
+  PetscErrorCode terminal(Vec UT, PetscReal *J, Vec dJdU) override;
+  bool has_integrand() const override { return true; }
+  PetscErrorCode integrand(PetscReal t, Vec U, PetscReal *r) override;
+  PetscErrorCode integrand_dU(PetscReal t, Vec U, Vec drdU) override;
+  PetscErrorCode integrand_dp(PetscReal t, Vec U, Vec drdp) override;
+
+private:
+  Model *model_ = nullptr;
+  OwnedVec G_;
+  OwnedMat J_, Jp_;
+};
+
 // The objective chosen with -objective_type, behind one object: the Scene, the Simulation and the
 // callers hold the same SelectedObjective whatever the choice. data() is the misfit's data, or
 // null for an objective that needs none.
 class SelectedObjective final : public Objective {
 public:
-  PetscErrorCode setup(const Grid &grid, PetscInt component, PetscInt dof);
+  // model and state_dm are needed by time_variation only.
+  PetscErrorCode setup(const Grid &grid, PetscInt component, PetscInt dof, Model *model = nullptr,
+                       DM state_dm = nullptr, bool with_parameters = false);
   PetscErrorCode terminal(Vec UT, PetscReal *J, Vec dJdU) override;
+  bool has_integrand() const override { return chosen_ && chosen_->has_integrand(); }
+  PetscErrorCode integrand(PetscReal t, Vec U, PetscReal *r) override { return chosen_->integrand(t, U, r); }
+  PetscErrorCode integrand_dU(PetscReal t, Vec U, Vec drdU) override { return chosen_->integrand_dU(t, U, drdU); }
+  PetscErrorCode integrand_dp(PetscReal t, Vec U, Vec drdp) override { return chosen_->integrand_dp(t, U, drdp); }
   Vec data() const { return misfit_ ? misfit_->data() : nullptr; }
 
 private:

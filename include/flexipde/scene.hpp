@@ -4,8 +4,8 @@
 // Options: -model wave (see model_names()), the grid's (-da_grid_x, -grid_x0, -grid_x1,
 // -grid_periodic), the model's (-wave_*), parameter values (-wave_c, -wave_c_profile ...) and the
 // values that generate synthetic data (-true_wave_c, -true_wave_c_profile ...), -objective_type
-// (l2sq, l2: misfit with data; mean_square: no data), -objective_component, and PETSc's -ts_* for
-// the integrator.
+// (l2sq, l2: misfit with data; mean_square, time_variation: no data), -objective_component, and
+// PETSc's -ts_* for the integrator.
 #pragma once
 #include "flexipde/model.hpp"
 #include "flexipde/objective.hpp"

@@ -5,6 +5,13 @@
 // mu = int (dG/dp)^T lambda dt; then dJ/dp = mu + (dU0/dp)^T lambda(0) and dJ/dU0 = lambda(0).
 // The cost is one forward and one backward sweep whatever the number of parameters.
 //
+// Time-integrated objectives J = J_T(U(T)) + int_0^T r(t, U) dt (Objective::has_integrand): a
+// quadrature TS (TSCreateQuadratureTS) integrates r during the forward solve with the integrator's
+// own weights (RK: the stages with b_i; theta: its endpoint or midpoint rule), and TSAdjoint adds
+// dr/dU to lambda and dr/dp to mu through its dense N x 1 Jacobians. The integral is accumulated
+// by TSSolve only, never by the steps that checkpointing re-runs, so binomial checkpointing
+// gives the same gradient as full storage.
+//
 // Integrators with an adjoint here: -ts_type rk (any -ts_rk_type), theta, cn, beuler. Explicit
 // steps beyond the stability limit of the model's spectrum are refused before the run, with the
 // largest stable dt. Options: PETSc's -ts_dt, -ts_max_time, -ts_type, -ts_rk_type, -ts_monitor,
@@ -34,6 +41,8 @@ public:
   PetscErrorCode create_state(Vec *U) const { return DMCreateGlobalVector(dm_, U); }
   // U(T) for parameters p.
   PetscErrorCode forward(Vec p, Vec UT);
+  // J(p) = J_T(U(T)) + int_0^T r dt without the adjoint (no trajectory is stored).
+  PetscErrorCode value(Vec p, PetscReal *J);
   // J(p) and its gradient; grad_u0 (state-shaped, may be null) receives dJ/dU0.
   PetscErrorCode gradient(Vec p, PetscReal *J, Vec grad_p, Vec grad_u0);
   const SimulationStats &stats() const { return stats_; }
@@ -44,7 +53,15 @@ public:
   PetscErrorCode check_options();
 
 private:
-  PetscErrorCode create_ts(bool with_adjoint, OwnedTS &ts);
+  // with_integral: attach the objective's integrand, if any (forward() alone does not need it).
+  PetscErrorCode create_ts(bool with_adjoint, OwnedTS &ts, bool with_integral = true);
+  // Attaches the objective's integrand to ts as its quadrature TS (a no-op without integrand);
+  // integral() reads the accumulated value after the solve.
+  PetscErrorCode setup_quadrature(TS ts, bool with_adjoint);
+  PetscErrorCode integral(TS ts, PetscReal *value);
+  static PetscErrorCode quad_rhs_cb(TS, PetscReal, Vec, Vec, void *);
+  static PetscErrorCode quad_jacobian_cb(TS, PetscReal, Vec, Mat, Mat, void *);
+  static PetscErrorCode quad_jacobian_p_cb(TS, PetscReal, Vec, Mat, void *);
   PetscErrorCode check_stability(TS ts);
   static PetscErrorCode rhs_cb(TS, PetscReal, Vec, Vec, void *);
   static PetscErrorCode rhs_jacobian_cb(TS, PetscReal, Vec, Mat, Mat, void *);
@@ -61,6 +78,10 @@ private:
   PetscReal dt_ = 1e-3, final_time_ = 1.0;
   OwnedMat J_, Jp_;
   OwnedVec lambda_, mu_;
+  // The integrand's dr/dU and dr/dp as the dense N x 1 matrices the quadrature TS expects, and
+  // state/parameter-shaped vectors placed on their columns.
+  OwnedMat drdU_, drdp_;
+  OwnedVec drdU_col_, drdp_col_;
   // dG/dU of a model whose Jacobian is constant in (t, U) is reassembled only when the parameters
   // changed or TS shifted the matrix (implicit methods), detected through PETSc's object state.
   PetscObjectState jac_state_ = -1;

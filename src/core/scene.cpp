@@ -29,7 +29,7 @@ PetscErrorCode Scene::setup(MPI_Comm comm, const SceneDefaults &d) {
     PetscCheck(component_ >= 0, comm, PETSC_ERR_ARG_WRONG, "-objective_component %s: model %s has no such component",
                component, model->name());
   }
-  PetscCall(objective.setup(grid, component_, model->dof()));
+  PetscCall(objective.setup(grid, component_, model->dof(), model.get(), state_dm, params.global_size() > 0));
   PetscCall(sim.setup(*model, grid, state_dm, params));
   sim.set_default_time(d.dt, d.final_time);
   sim.set_objective(&objective);

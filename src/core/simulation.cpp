@@ -52,7 +52,96 @@ PetscErrorCode Simulation::rhs_jacobian_p_cb(TS, PetscReal t, Vec U, Mat Jp, voi
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts) {
+PetscErrorCode Simulation::quad_rhs_cb(TS, PetscReal t, Vec U, Vec F, void *ctx) {
+  auto *sim = static_cast<Simulation *>(ctx);
+  PetscReal r;
+  PetscScalar *f;
+  PetscFunctionBeginUser;
+  PetscCall(sim->objective_->integrand(t, U, &r));
+  PetscCall(VecGetArray(F, &f)); // F is sequential, one entry, on every rank alike
+  f[0] = r;
+  PetscCall(VecRestoreArray(F, &f));
+  PetscFunctionReturn(0);
+}
+
+// The quadrature TS reads column 0 of these dense matrices (MatDenseGetColumn) with the layout of
+// lambda (resp. mu), so the objective writes straight into that column.
+PetscErrorCode Simulation::quad_jacobian_cb(TS, PetscReal t, Vec U, Mat A, Mat, void *ctx) {
+  auto *sim = static_cast<Simulation *>(ctx);
+  PetscScalar *col;
+  PetscFunctionBeginUser;
+  PetscCall(MatDenseGetColumn(A, 0, &col));
+  PetscCall(VecPlaceArray(sim->drdU_col_, col));
+  PetscCall(sim->objective_->integrand_dU(t, U, sim->drdU_col_));
+  PetscCall(VecResetArray(sim->drdU_col_));
+  PetscCall(MatDenseRestoreColumn(A, &col));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Simulation::quad_jacobian_p_cb(TS, PetscReal t, Vec U, Mat A, void *ctx) {
+  auto *sim = static_cast<Simulation *>(ctx);
+  PetscScalar *col;
+  PetscFunctionBeginUser;
+  PetscCall(MatDenseGetColumn(A, 0, &col));
+  PetscCall(VecPlaceArray(sim->drdp_col_, col));
+  PetscCall(sim->objective_->integrand_dp(t, U, sim->drdp_col_));
+  PetscCall(VecResetArray(sim->drdp_col_));
+  PetscCall(MatDenseRestoreColumn(A, &col));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Simulation::setup_quadrature(TS ts, bool with_adjoint) {
+  TS quadts;
+  Vec Q;
+  PetscFunctionBeginUser;
+  if (!objective_ || !objective_->has_integrand()) PetscFunctionReturn(0);
+  // Forward accumulation (PETSC_TRUE): the integral is known when TSSolve returns, for value()
+  // as for gradient(), and re-run steps of checkpointing do not touch it.
+  PetscCall(TSCreateQuadratureTS(ts, PETSC_TRUE, &quadts));
+  PetscCall(TSSetRHSFunction(quadts, nullptr, quad_rhs_cb, this));
+  PetscCall(TSGetSolution(quadts, &Q));
+  PetscCall(VecSet(Q, 0.0));
+  MPI_Comm comm = grid_->comm();
+  if (!drdU_) {
+    PetscInt n;
+    PetscCall(VecGetLocalSize(lambda_, &n));
+    PetscCall(MatCreateDense(comm, n, PETSC_DECIDE, PETSC_DETERMINE, 1, nullptr, drdU_.out()));
+    PetscCall(MatSetUp(drdU_));
+    PetscCall(VecDuplicate(lambda_, drdU_col_.out()));
+    if (mu_) {
+      PetscCall(VecGetLocalSize(mu_, &n));
+      PetscCall(MatCreateDense(comm, n, PETSC_DECIDE, PETSC_DETERMINE, 1, nullptr, drdp_.out()));
+      PetscCall(MatSetUp(drdp_));
+      PetscCall(VecDuplicate(mu_, drdp_col_.out()));
+    }
+  }
+  // TSSetUp_RK asks for the quadrature TS's Jacobian even without an adjoint (and would try to
+  // create one from the quadrature TS's shell DM), so it is set for value() too; only TSAdjoint
+  // evaluates it.
+  PetscCall(TSSetRHSJacobian(quadts, drdU_, drdU_, quad_jacobian_cb, this));
+  if (!with_adjoint) PetscFunctionReturn(0);
+  // Always set with parameters, even for an integrand that does not depend on them: the adjoint
+  // steps read this matrix whenever mu is requested.
+  if (drdp_) PetscCall(TSSetRHSJacobianP(quadts, drdp_, quad_jacobian_p_cb, this));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Simulation::integral(TS ts, PetscReal *value) {
+  TS quadts;
+  Vec Q;
+  const PetscScalar *q;
+  PetscFunctionBeginUser;
+  *value = 0;
+  PetscCall(TSGetQuadratureTS(ts, nullptr, &quadts));
+  if (!quadts) PetscFunctionReturn(0);
+  PetscCall(TSGetSolution(quadts, &Q));
+  PetscCall(VecGetArrayRead(Q, &q));
+  *value = PetscRealPart(q[0]);
+  PetscCall(VecRestoreArrayRead(Q, &q));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_integral) {
   MPI_Comm comm = grid_->comm();
   PetscMPIInt size;
   PetscBool stability_check = PETSC_TRUE;
@@ -90,6 +179,7 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts) {
     PetscCall(setup_adjoint_trajectory(ts, &checkpoint_stats_));
     if (Jp_) PetscCall(TSSetRHSJacobianP(ts, Jp_, rhs_jacobian_p_cb, this));
   }
+  if (with_integral) PetscCall(setup_quadrature(ts, with_adjoint));
   PetscCall(TSSetFromOptions(ts));
   PetscOptionsBegin(comm, nullptr, "Simulation", "Simulation");
   PetscCall(PetscOptionsBool("-sim_stability_check", "Refuse explicit steps beyond the stability limit", "Simulation",
@@ -258,10 +348,29 @@ PetscErrorCode Simulation::forward(Vec p, Vec UT) {
   PetscFunctionBeginUser;
   ++param_version_;
   PetscCall(model_->initial_condition(p, UT)); // also sets the model's parameters
-  PetscCall(create_ts(false, ts));
+  PetscCall(create_ts(false, ts, false));
   PetscCall(TSSolve(ts, UT));
   PetscCall(finish_solve(ts));
   PetscCall(check_finite(UT, "forward solve"));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Simulation::value(Vec p, PetscReal *J) {
+  OwnedTS ts;
+  OwnedVec U;
+  PetscReal integral_part;
+  PetscFunctionBeginUser;
+  PetscCheck(objective_, grid_->comm(), PETSC_ERR_ORDER, "Simulation::value needs an objective");
+  ++param_version_;
+  PetscCall(DMCreateGlobalVector(dm_, U.out()));
+  PetscCall(model_->initial_condition(p, U));
+  PetscCall(create_ts(false, ts));
+  PetscCall(TSSolve(ts, U));
+  PetscCall(finish_solve(ts));
+  PetscCall(check_finite(U, "forward solve"));
+  PetscCall(objective_->terminal(U, J, nullptr));
+  PetscCall(integral(ts, &integral_part));
+  *J += integral_part;
   PetscFunctionReturn(0);
 }
 
@@ -278,6 +387,11 @@ PetscErrorCode Simulation::gradient(Vec p, PetscReal *J, Vec grad_p, Vec grad_u0
   PetscCall(finish_solve(ts));
   PetscCall(check_finite(U, "forward solve"));
   PetscCall(objective_->terminal(U, J, lambda_));
+  {
+    PetscReal integral_part;
+    PetscCall(integral(ts, &integral_part));
+    *J += integral_part;
+  }
   Vec lam = lambda_, mu = mu_;
   if (mu) PetscCall(VecSet(mu, 0.0));
   PetscCall(TSSetCostGradients(ts, 1, &lam, mu ? &mu : nullptr));

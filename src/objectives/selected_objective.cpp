@@ -2,18 +2,26 @@
 
 namespace flexipde {
 
-PetscErrorCode SelectedObjective::setup(const Grid &grid, PetscInt component, PetscInt dof) {
-  const char *types[] = {"l2sq", "l2", "mean_square"};
+PetscErrorCode SelectedObjective::setup(const Grid &grid, PetscInt component, PetscInt dof, Model *model, DM state_dm,
+                                        bool with_parameters) {
+  const char *types[] = {"l2sq", "l2", "mean_square", "time_variation"};
   PetscInt type = 0;
   PetscFunctionBeginUser;
   PetscOptionsBegin(grid.comm(), nullptr, "Objective", "Objective");
   PetscCall(PetscOptionsEList("-objective_type",
                               "Objective of U(T): l2sq = 0.5||u(T)-d||^2, l2 = ||u(T)-d|| (data d from the true "
-                              "parameters), mean_square = mean_i u_i(T)^2 (no data)",
-                              "Objective", types, 3, types[type], &type, nullptr));
+                              "parameters), mean_square = mean_i u_i(T)^2 (no data), time_variation = int_0^T "
+                              "||u_t||^2 dt (no data)",
+                              "Objective", types, 4, types[type], &type, nullptr));
   PetscOptionsEnd();
   misfit_ = nullptr;
-  if (type == 2) {
+  if (type == 3) {
+    PetscCheck(model && state_dm, grid.comm(), PETSC_ERR_ARG_WRONG,
+               "-objective_type time_variation needs the model (SelectedObjective::setup with a Model)");
+    auto tv = std::make_unique<TimeVariation>();
+    PetscCall(tv->setup(*model, state_dm, with_parameters));
+    chosen_ = std::move(tv);
+  } else if (type == 2) {
     auto ms = std::make_unique<MeanSquare>();
     PetscCall(ms->setup(grid, component, dof));
     chosen_ = std::move(ms);
