@@ -144,14 +144,11 @@ PetscErrorCode Inversion::monitor(Tao tao, void *ctx) {
 PetscErrorCode Inversion::scan(Vec p, std::vector<PetscReal> &starts) {
   const Parameters &params = scene_->params;
   std::vector<PetscReal> v(scan_), J(scan_);
-  OwnedVec U;
   PetscFunctionBeginUser;
-  PetscCall(scene_->sim.create_state(U.out()));
   for (PetscInt k = 0; k < scan_; ++k) {
     v[k] = lower_value_ + (upper_value_ - lower_value_) * (k + 0.5) / scan_;
     PetscCall(params.set_scalar(p, 0, v[k]));
-    PetscCall(scene_->sim.forward(p, U)); // a value needs no adjoint
-    PetscCall(scene_->objective.terminal(U, &J[k], nullptr));
+    PetscCall(scene_->sim.value(p, &J[k])); // no adjoint; includes a time integral, if any
   }
   std::vector<PetscInt> minima;
   for (PetscInt k = 0; k < scan_; ++k)
