@@ -38,6 +38,7 @@ def parse_log_view(path):
                 break
             elif in_events and len(w) > 4 and w[0] in EVENTS and w[0] not in out:
                 out[w[0]] = float(w[3])
+                out[w[0] + ":count"] = float(w[1])
     if "Main" not in out:
         raise ValueError(f"{path}: no -log_view summary")
     return out
@@ -81,7 +82,8 @@ def main(out):
     configs = sorted({(n, p) for (n, p, _) in wall}, key=lambda c: (int(c[0]), c[1] != "scalar"))
     nparams = {"scalar": "1", "field": "1000"}
 
-    print(f"Binary {meta.get('binary')} ({meta.get('git')}), {meta.get('host')}, {meta.get('date')}.")
+    built = f"built from {meta['rev']}" if meta.get("rev") else meta.get("git")
+    print(f"Binary {meta.get('binary')} ({built}), {meta.get('host')}, {meta.get('date')}.")
     print(f"{meta.get('reps')} repetitions of each run, interleaved; 1/5/15-minute load average "
           f"{meta.get('load_before')} before, {meta.get('load_after')} after"
           f"{' (waited ' + meta['load_waited_s'] + ' s for it to drop)' if meta.get('load_waited_s', '0') != '0' else ''}.")
@@ -96,23 +98,47 @@ def main(out):
     for n, p in configs:
         s, fw, g = (med(wall[(n, p, t)]) for t in TASKS)
         F, G = fw - s, g - fw
-        print(f"| {n} | {nparams[p]} | {s:.3f} | {fw:.3f} | {g:.3f} | {F:.3f} | {G:.3f} | **{G / F:.2f}** |")
+        ratio = f"**{G / F:.2f}**" if F > 0 else "n/a (start-up noise exceeds the solve)"
+        print(f"| {n} | {nparams[p]} | {s:.3f} | {fw:.3f} | {g:.3f} | {F:.3f} | {G:.3f} | {ratio} |")
     print()
     print("-log_view (median seconds, max over ranks):")
     print()
     print("| ranks | parameters | forward solve (TSStep, fwd run) | gradient = Main(grad) - Main(fwd) "
-          "| gradient / forward | in the gradient run: TSStep (2 forward solves) | TSTrajectorySet | TSTrajectoryGet "
-          "| TSAdjointStep | peak RSS fwd / grad run (MB) |")
-    print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+          "| **gradient / forward** | same, fastest runs | same, within each gradient run |")
+    print("|---:|---:|---:|---:|---:|---:|---:|")
+    breakdown = []
     for n, p in configs:
         L = {t: logs[(n, p, t)] for t in TASKS}
         F = med(L["forward"]["TSStep"])
         G = med(L["gradient"]["Main"]) - med(L["forward"]["Main"])
-        ev = {e: med(L["gradient"].get(e, [])) for e in ("TSStep", "TSTrajectorySet", "TSTrajectoryGet", "TSAdjointStep")}
+        best = (min(L["gradient"]["Main"]) - min(L["forward"]["Main"])) / min(L["forward"]["TSStep"])
+        # Within one gradient run: a forward solve costs the mean TSStep times the steps of a solve
+        # (every TSStep there is a full step: synthetic data, the gradient's forward, re-runs);
+        # the gradient is that forward + storing + restoring/re-running + the adjoint steps.
+        nsteps = med(L["forward"]["TSStep:count"])
+        inrun = []
+        for k in range(len(L["gradient"]["Main"])):
+            g = {e: L["gradient"][e][k] for e in ("TSStep", "TSStep:count", "TSTrajectorySet", "TSTrajectoryGet",
+                                                     "TSAdjointStep")}
+            f = g["TSStep"] / g["TSStep:count"] * nsteps
+            inrun.append((f + g["TSTrajectorySet"] + g["TSTrajectoryGet"] + g["TSAdjointStep"]) / f)
+        print(f"| {n} | {nparams[p]} | {F:.3f} | {G:.3f} | **{G / F:.2f}** | {best:.2f} | {med(inrun):.2f} |")
+        ev = {e: med(L["gradient"].get(e, [])) for e in ("Main", "TSStep", "TSTrajectorySet", "TSTrajectoryGet",
+                                                          "TSAdjointStep")}
+        steps = med(L["gradient"].get("TSStep:count", []))
         m_f, m_g = med(rss[(n, p, "forward")]), med(rss[(n, p, "gradient")])
-        print(f"| {n} | {nparams[p]} | {F:.3f} | {G:.3f} | **{G / F:.2f}** | {ev['TSStep']:.3f} "
-              f"| {ev['TSTrajectorySet']:.3f} | {ev['TSTrajectoryGet']:.3f} | {ev['TSAdjointStep']:.3f} "
-              f"| {m_f:.0f} / {m_g:.0f} |")
+        breakdown.append(f"| {n} | {nparams[p]} | {ev['Main']:.3f} | {ev['TSStep']:.3f} ({steps:.0f}) "
+                         f"| {ev['TSTrajectorySet']:.3f} | {ev['TSTrajectoryGet']:.3f} | {ev['TSAdjointStep']:.3f} "
+                         f"| {m_f:.0f} / {m_g:.0f} |")
+    print()
+    print("Where the gradient run's time goes (-log_view events, median seconds, max over ranks; "
+          "TSTrajectoryGet includes the steps re-run to rebuild stages):")
+    print()
+    print("| ranks | parameters | Main Stage | TSStep (count) | TSTrajectorySet | TSTrajectoryGet | TSAdjointStep "
+          "| peak RSS forward / gradient run (MB) |")
+    print("|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for line in breakdown:
+        print(line)
     print()
     print("Spread (min-max wall seconds of the gradient runs): " + ", ".join(
         f"{n} rank{'s' if n != '1' else ''}/{nparams[p]} par. {min(wall[(n, p, 'gradient')]):.3f}-"

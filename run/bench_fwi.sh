@@ -10,7 +10,8 @@
 # ("mpiexec", plus --allow-run-as-root as root and --oversubscribe above 2 ranks), PYTHON
 # (/usr/bin/python3), OUT (directory for the raw logs, default a new /tmp/bench_fwi.XXXXXX),
 # LOAD_MAX (1.0: wait while the 1-minute load average of this machine is above it),
-# LOAD_WAIT (1200: give up waiting after this many seconds and measure anyway; the report says so).
+# LOAD_WAIT (1200: give up waiting after this many seconds and measure anyway; the report says so),
+# REV (free text for the report: what the binary was built from, e.g. a commit).
 #
 # What is run, REPS times each, interleaved (one of each per round, so that load changes hit all
 # alike), for every rank count and parameter set:
@@ -67,6 +68,7 @@ declare -A TASK=([startup]="-task forward -ts_max_time 5e-4" [forward]="-task fo
 {
   echo "binary	$FLEXIPDE"
   echo "binary_sha256	$(sha256sum "$FLEXIPDE" | cut -d' ' -f1)"
+  [[ -n "${REV:-}" ]] && echo "rev	$REV"
   echo "git	checkout $(git -C "$root" rev-parse --short HEAD 2>/dev/null || echo unknown)$(git -C "$root" diff --quiet HEAD -- src include 2>/dev/null || echo ' + uncommitted src/include changes, which the binary may or may not contain')"
   echo "date	$(date -Iseconds)"
   echo "host	$(uname -n) $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ *//')"

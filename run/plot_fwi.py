@@ -12,7 +12,8 @@ For each results file F.h5 it writes, next to the file (or into DIR):
                  scalar parameters (/scalars/<p>_*) are printed and shown in the history title
   F_history.png  objective and misfit (log scale), gradient norm and parameter RMSE per iteration
   F_state.png    the observed component of U(T) at the recovered parameters against the data,
-                 and their difference
+                 and their difference (component 0, u, unless --component N: the file does not
+                 record the run's -objective_component)
 
 File layout (include/flexipde/io.hpp): /grid/x; /fields/<p>_true|initial|recovered, /fields/U_final
 (n x dof, interleaved components), /fields/data (n); /scalars/<p>_true|initial|recovered (length 1);
@@ -72,13 +73,19 @@ def state_components(U, n):
     return U.reshape(U.shape[0], -1)
 
 
-def observed_component(U, data, requested):
-    """Index of U's column that the data describe: as requested, else the closest one."""
+def observed_component(U, data, requested, path):
+    """Index of U's column that the data describe: as requested, else 0 (the driver's default
+    -objective_component; the file does not record it), with a hint when another fits far better."""
     if requested is not None:
-        if requested >= U.shape[1]:
-            sys.exit(f"plot_fwi: --component {requested} but U(T) has only {U.shape[1]} components")
+        if not 0 <= requested < U.shape[1]:
+            sys.exit(f"plot_fwi: --component {requested} but U(T) has {U.shape[1]} component(s)")
         return requested
-    return int(np.argmin([np.linalg.norm(U[:, k] - data) for k in range(U.shape[1])]))
+    res = [np.linalg.norm(U[:, k] - data) for k in range(U.shape[1])]
+    best = int(np.argmin(res))
+    if best != 0 and res[best] < 0.1 * res[0]:
+        print(f"plot_fwi: {path}: the data match component {best} of U(T) much better than component 0; "
+              f"if the run used -objective_component, pass --component {best}", file=sys.stderr)
+    return 0
 
 
 def positive(y):
@@ -176,7 +183,7 @@ def plot_state(r, out, component):
         print(f"plot_fwi: {r['path']}: U_final has {U.shape[0]} points, data {data.size}; no state plot",
               file=sys.stderr)
         return None
-    k = observed_component(U, data, component)
+    k = observed_component(U, data, component, r["path"])
     cname = COMPONENT_NAMES.get(k, f"component {k}") if U.shape[1] > 1 else "u"
     x = r["x"] if r["x"].size == data.size else np.arange(data.size)
     fig, (a0, a1) = plt.subplots(2, 1, figsize=(8, 6), sharex=True, gridspec_kw=dict(height_ratios=[2, 1]))
@@ -204,7 +211,8 @@ def main(argv=None):
     ap.add_argument("files", nargs="+", metavar="F.h5")
     ap.add_argument("-o", "--outdir", help="write the PNGs here instead of next to each file")
     ap.add_argument("--component", type=int, default=None,
-                    help="column of U_final that the data describe (default: the one closest to the data)")
+                    help="column of U_final that the data describe, as the run's -objective_component "
+                         "(default 0: u for the wave model)")
     a = ap.parse_args(argv)
     if a.outdir:
         os.makedirs(a.outdir, exist_ok=True)
@@ -228,6 +236,9 @@ def main(argv=None):
         for w in written:
             if w:
                 print(w)
+        if not any(written):
+            print(f"plot_fwi: {path}: no inversion results in it (no /fields, /history or /fields/data)",
+                  file=sys.stderr)
     return 0
 
 
