@@ -52,6 +52,29 @@ public:
   virtual PetscErrorCode initial_condition_transpose(Vec p, Vec lambda0, Vec grad) = 0;
 };
 
+// A model with G(U; p) = A(p) U: A is assembled once per parameter value by the model's
+// assemble(); G is one MatMult and dG/dU is A itself. Assembled afresh into TS's matrix rather than
+// copied, because an implicit TS adds a diagonal to it (its pattern may be a superset of A's).
+class LinearModel : public Model {
+public:
+  bool linear() const override { return true; }
+  bool jacobian_constant() const override { return true; }
+  PetscErrorCode rhs(PetscReal, Vec U, Vec G) override {
+    PetscFunctionBeginUser;
+    PetscCall(MatMult(A_, U, G));
+    PetscFunctionReturn(0);
+  }
+  PetscErrorCode rhs_jacobian(PetscReal, Vec, Mat J) override {
+    PetscFunctionBeginUser;
+    PetscCall(assemble(J));
+    PetscFunctionReturn(0);
+  }
+
+protected:
+  virtual PetscErrorCode assemble(Mat A) = 0;
+  OwnedMat A_; // A(p) for the current parameters
+};
+
 using ModelFactory = std::function<std::unique_ptr<Model>()>;
 std::map<std::string, ModelFactory> &model_registry();
 PetscErrorCode create_model(MPI_Comm comm, const std::string &name, std::unique_ptr<Model> &model);

@@ -120,7 +120,7 @@ FaceStencil face_stencil(PetscInt order) {
   return {0, 2, {-1.0, 1.0, 0, 0}, {0.5, 0.5, 0, 0}};
 }
 
-class AdvectionModel final : public Model {
+class AdvectionModel final : public LinearModel {
 public:
   const char *name() const override { return "advection"; }
   PetscInt dof() const override { return 1; }
@@ -130,8 +130,6 @@ public:
     if (read_stencil_choice(s)) return 1; // setup reports the bad option
     return half_width(s);
   }
-  bool linear() const override { return true; }
-  bool jacobian_constant() const override { return true; }
 
   PetscErrorCode setup(const Grid &grid, DM state_dm, Parameters &params) override {
     StencilChoice s;
@@ -240,19 +238,6 @@ public:
       PetscCall(face_diffusivity_range());
     }
     PetscCall(assemble(A_));
-    PetscFunctionReturn(0);
-  }
-
-  PetscErrorCode rhs(PetscReal, Vec U, Vec G) override {
-    PetscFunctionBeginUser;
-    PetscCall(MatMult(A_, U, G));
-    PetscFunctionReturn(0);
-  }
-
-  // Assembled afresh rather than copied: an implicit TS adds a diagonal to J.
-  PetscErrorCode rhs_jacobian(PetscReal, Vec, Mat J) override {
-    PetscFunctionBeginUser;
-    PetscCall(assemble(J));
     PetscFunctionReturn(0);
   }
 
@@ -397,7 +382,7 @@ private:
     PetscFunctionReturn(0);
   }
 
-  PetscErrorCode assemble(Mat A) {
+  PetscErrorCode assemble(Mat A) override {
     const PetscInt xs = grid_->xs(), xm = grid_->xm(), n = grid_->n(), r = grid_->stencil_width();
     const PetscReal ih = 1.0 / grid_->h();
     const auto w = first_derivative_weights(scheme_, a_);
@@ -551,7 +536,6 @@ private:
   PetscInt a_index_ = -1, D_index_ = -1, A_index_ = -1;
   PetscReal a_ = 0, Dface_max_ = 0, amplitude_ = 1.0, phase_ = 0, center_ = 0, width_ = 0;
   OwnedVec D_, D_local_, dD_, dD_local_, U_local_, X_local_;
-  OwnedMat A_;
   std::vector<PetscReal> dGda_, dGdD_;
 };
 

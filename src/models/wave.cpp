@@ -25,7 +25,7 @@
 namespace flexipde {
 namespace {
 
-class WaveModel final : public Model {
+class WaveModel final : public LinearModel {
 public:
   const char *name() const override { return "wave"; }
   PetscInt dof() const override { return 2; }
@@ -35,8 +35,6 @@ public:
     if (SecondDerivative::from_options(comm, nullptr, 2, d)) return 1;
     return d.half_width();
   }
-  bool linear() const override { return true; }
-  bool jacobian_constant() const override { return true; }
 
   PetscErrorCode setup(const Grid &grid, DM state_dm, Parameters &params) override {
     const char *ics[] = {"travelling", "rest"};
@@ -102,20 +100,6 @@ public:
     PetscCheck(cmin > 0, grid_->comm(), PETSC_ERR_ARG_OUTOFRANGE, "Wave speed must be positive, found c = %g", (double)cmin);
     PetscCall(VecMax(c_, nullptr, &cmax_));
     PetscCall(assemble(A_));
-    PetscFunctionReturn(0);
-  }
-
-  PetscErrorCode rhs(PetscReal, Vec U, Vec G) override {
-    PetscFunctionBeginUser;
-    PetscCall(MatMult(A_, U, G));
-    PetscFunctionReturn(0);
-  }
-
-  // Assembled afresh rather than copied: an implicit TS adds a diagonal to J, so its pattern may
-  // be a superset of A's.
-  PetscErrorCode rhs_jacobian(PetscReal, Vec, Mat J) override {
-    PetscFunctionBeginUser;
-    PetscCall(assemble(J));
     PetscFunctionReturn(0);
   }
 
@@ -187,7 +171,7 @@ private:
     *du = -2.0 * s / width_ * (*u);
   }
 
-  PetscErrorCode assemble(Mat A) {
+  PetscErrorCode assemble(Mat A) override {
     ConstArray c(c_);
     std::array<StencilEntry, 5> st;
     PetscFunctionBeginUser;
@@ -278,7 +262,6 @@ private:
   PetscInt ic_ = 0, c_index_ = -1;
   PetscReal center_ = 0.5, width_ = 0.2, cmax_ = 0, c_min_ = 0.01;
   OwnedVec c_, work_;
-  OwnedMat A_;
   std::vector<PetscReal> d2u_, gbuf_;
 };
 
