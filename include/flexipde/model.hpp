@@ -69,9 +69,25 @@ public:
     PetscCall(assemble(J));
     PetscFunctionReturn(0);
   }
+  PetscErrorCode create_jacobian(Mat *J) override {
+    PetscFunctionBeginUser;
+    PetscCall(DMCreateMatrix(operator_dm_, J));
+    PetscCall(MatSetOption(*J, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_FALSE));
+    PetscFunctionReturn(0);
+  }
 
 protected:
   virtual PetscErrorCode assemble(Mat A) = 0;
+  // Creates A_ on the state DM. Preallocate only: DMDA would otherwise store explicit zeros for
+  // the whole dof-coupled stencil, and every MatMult would pay for them.
+  PetscErrorCode create_operator(DM state_dm) {
+    PetscFunctionBeginUser;
+    operator_dm_ = state_dm;
+    PetscCall(DMSetMatrixPreallocateOnly(state_dm, PETSC_TRUE));
+    PetscCall(create_jacobian(A_.out()));
+    PetscFunctionReturn(0);
+  }
+  DM operator_dm_ = nullptr;
   OwnedMat A_; // A(p) for the current parameters
 };
 

@@ -197,18 +197,9 @@ public:
         PetscCall(DMCreateLocalVector(grid.dm(), dD_local_.out()));
       }
     }
-    PetscCall(DMSetMatrixPreallocateOnly(dm_, PETSC_TRUE));
-    PetscCall(DMCreateMatrix(dm_, A_.out()));
-    PetscCall(MatSetOption(A_, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_FALSE));
+    PetscCall(create_operator(dm_));
     dGda_.assign(grid.xm(), 0.0);
     dGdD_.assign(grid.xm(), 0.0);
-    PetscFunctionReturn(0);
-  }
-
-  PetscErrorCode create_jacobian(Mat *J) override {
-    PetscFunctionBeginUser;
-    PetscCall(DMCreateMatrix(dm_, J));
-    PetscCall(MatSetOption(*J, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_FALSE));
     PetscFunctionReturn(0);
   }
 

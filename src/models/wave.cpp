@@ -60,20 +60,9 @@ public:
     c_index_ = params.add("wave_c", c_field_ ? ParamKind::Field : ParamKind::Scalar, c_min_);
     PetscCall(DMCreateGlobalVector(grid.dm(), c_.out()));
     PetscCall(DMCreateGlobalVector(dm_, work_.out()));
-    // Preallocate only: DMDA would otherwise store explicit zeros for the whole dof-coupled stencil
-    // (3x the real entries), and every MatMult would pay for them.
-    PetscCall(DMSetMatrixPreallocateOnly(dm_, PETSC_TRUE));
-    PetscCall(DMCreateMatrix(dm_, A_.out()));
-    PetscCall(MatSetOption(A_, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_FALSE));
+    PetscCall(create_operator(dm_));
     d2u_.assign(grid.xm(), 0.0);
     gbuf_.assign(grid.xm(), 0.0);
-    PetscFunctionReturn(0);
-  }
-
-  PetscErrorCode create_jacobian(Mat *J) override {
-    PetscFunctionBeginUser;
-    PetscCall(DMCreateMatrix(dm_, J));
-    PetscCall(MatSetOption(*J, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_FALSE));
     PetscFunctionReturn(0);
   }
 
