@@ -249,6 +249,11 @@ static PetscErrorCode run(MPI_Comm comm) {
 
 int main(int argc, char **argv) {
   PetscCall(PetscInitialize(&argc, &argv, nullptr, help));
+  { // a misspelled or unused option is reported at the end (-options_left 0 silences it)
+    PetscBool set;
+    PetscCall(PetscOptionsHasName(nullptr, nullptr, "-options_left", &set));
+    if (!set) PetscCall(PetscOptionsSetValue(nullptr, "-options_left", "1"));
+  }
   // An error ends every rank at once with a non-zero exit (MPI_Abort), even if it was raised on
   // one rank only: no rank is left waiting in a collective call.
   PetscErrorCode ierr = run(PETSC_COMM_WORLD);
