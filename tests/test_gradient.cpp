@@ -17,20 +17,7 @@ using flexipde_test::ScopedOptions;
 namespace {
 
 // A small scene with synthetic data from the true parameters (-true_*) and p from (-wave_*).
-struct Problem {
-  Scene scene;
-  OwnedVec p, p_true;
-  PetscErrorCode setup(MPI_Comm comm) {
-    PetscFunctionBeginUser;
-    PetscCall(scene.setup(comm));
-    PetscCall(scene.params.create_vec(p.out()));
-    PetscCall(scene.params.create_vec(p_true.out()));
-    PetscCall(scene.parameters_from_options("", p));
-    PetscCall(scene.parameters_from_options("true_", p_true));
-    PetscCall(scene.make_synthetic_data(p_true));
-    PetscFunctionReturn(0);
-  }
-};
+using Problem = flexipde_test::SceneProblem;
 
 void print_taylor(const char *label, const TaylorResult &tr) {
   PetscPrintf(PETSC_COMM_WORLD, "  Taylor [%s]: g.d = %.6e\n  %10s %12s %7s %12s %7s\n", label, (double)tr.gd, "eps",
@@ -279,21 +266,7 @@ TEST_P(RankComparison, ParallelMatchesSerial) {
   PETSC_ASSERT_OK(flexipde_test::gather_all(gpar, a));
   PETSC_ASSERT_OK(flexipde_test::gather_all(gser, b));
   ASSERT_EQ(a.size(), b.size());
-  PetscReal diff = 0, scale = 0;
-  for (size_t i = 0; i < a.size(); ++i) {
-    diff = std::max(diff, std::fabs(a[i] - b[i]));
-    scale = std::max(scale, std::fabs(b[i]));
-  }
-  PetscReal jdiff = rel_diff(Jpar, Jser), gdiff = diff / scale, worst[2] = {jdiff, gdiff};
-  MPI_Allreduce(MPI_IN_PLACE, worst, 2, MPIU_REAL, MPI_MAX, PETSC_COMM_WORLD);
-  PetscMPIInt size;
-  MPI_Comm_size(PETSC_COMM_WORLD, &size);
-  PetscPrintf(PETSC_COMM_WORLD, "  [%s, %d ranks vs serial] J = %.12e, rel diff J %.2e, gradient %.2e\n",
-              ts_type.c_str(), (int)size, (double)Jpar, (double)worst[0], (double)worst[1]);
-  EXPECT_GT(Jser, 0.0);
-  EXPECT_GT(scale, 0.0);
-  EXPECT_LE(worst[0], 1e-10);
-  EXPECT_LE(worst[1], 1e-10);
+  flexipde_test::expect_matches_serial(ts_type, Jpar, Jser, a, b);
 }
 
 INSTANTIATE_TEST_SUITE_P(Wave, RankComparison, ::testing::Values("rk", "cn"));

@@ -10,20 +10,7 @@ using flexipde_test::ScopedOptions;
 
 namespace {
 
-struct InversionProblem {
-  Scene scene;
-  OwnedVec p, p_true;
-  PetscErrorCode setup(MPI_Comm comm) {
-    PetscFunctionBeginUser;
-    PetscCall(scene.setup(comm));
-    PetscCall(scene.params.create_vec(p.out()));
-    PetscCall(scene.params.create_vec(p_true.out()));
-    PetscCall(scene.parameters_from_options("", p));
-    PetscCall(scene.parameters_from_options("true_", p_true));
-    PetscCall(scene.make_synthetic_data(p_true));
-    PetscFunctionReturn(0);
-  }
-};
+using InversionProblem = flexipde_test::SceneProblem;
 
 void print_history(const Inversion &inv) {
   for (auto &h : inv.history())

@@ -255,21 +255,7 @@ TEST_P(QuadratureRanks, ParallelMatchesSerial) {
   PETSC_ASSERT_OK(flexipde_test::gather_all(gpar, a));
   PETSC_ASSERT_OK(flexipde_test::gather_all(gser, b));
   ASSERT_EQ(a.size(), b.size());
-  PetscReal diff = 0, scale = 0;
-  for (size_t i = 0; i < a.size(); ++i) {
-    diff = std::max(diff, std::fabs(a[i] - b[i]));
-    scale = std::max(scale, std::fabs(b[i]));
-  }
-  PetscReal worst[2] = {rel_diff(Jpar, Jser), diff / scale};
-  MPI_Allreduce(MPI_IN_PLACE, worst, 2, MPIU_REAL, MPI_MAX, PETSC_COMM_WORLD);
-  PetscMPIInt size;
-  MPI_Comm_size(PETSC_COMM_WORLD, &size);
-  PetscPrintf(PETSC_COMM_WORLD, "  [%s, %d ranks vs serial] J = %.12e, rel diff J %.2e, gradient %.2e\n",
-              ts_type.c_str(), (int)size, (double)Jpar, (double)worst[0], (double)worst[1]);
-  EXPECT_GT(Jser, 0.0);
-  EXPECT_GT(scale, 0.0);
-  EXPECT_LE(worst[0], 1e-10);
-  EXPECT_LE(worst[1], 1e-10);
+  flexipde_test::expect_matches_serial(ts_type, Jpar, Jser, a, b);
 }
 
 INSTANTIATE_TEST_SUITE_P(TimeVariation, QuadratureRanks, ::testing::Values("rk", "cn"));

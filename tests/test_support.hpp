@@ -6,6 +6,7 @@
 // ASSERT that returns early does so on every rank at once.
 #pragma once
 #include "flexipde/petsc.hpp"
+#include "flexipde/scene.hpp"
 #include <algorithm>
 #include <cmath>
 #include <gtest/gtest.h>
@@ -130,6 +131,52 @@ inline bool is_rank0(MPI_Comm comm = PETSC_COMM_WORLD) {
   int r = 0;
   MPI_Comm_rank(comm, &r);
   return r == 0;
+}
+
+// A scene from the options with p from -<param> options, p_true from -true_<param> options, and
+// synthetic data made from p_true: the set-up of every gradient and inversion test.
+struct SceneProblem {
+  flexipde::Scene scene;
+  flexipde::OwnedVec p, p_true;
+  PetscErrorCode setup(MPI_Comm comm) {
+    PetscFunctionBeginUser;
+    PetscCall(scene.setup(comm));
+    PetscCall(scene.params.create_vec(p.out()));
+    PetscCall(scene.params.create_vec(p_true.out()));
+    PetscCall(scene.parameters_from_options("", p));
+    PetscCall(scene.parameters_from_options("true_", p_true));
+    PetscCall(scene.make_synthetic_data(p_true));
+    PetscFunctionReturn(0);
+  }
+};
+
+// max_i |a_i - b_i| / max_i |b_i| (entrywise comparison of gathered vectors).
+inline PetscReal max_rel_diff(const std::vector<PetscReal> &a, const std::vector<PetscReal> &b) {
+  PetscReal diff = 0, scale = 0;
+  for (size_t i = 0; i < a.size() && i < b.size(); ++i) {
+    diff = std::max(diff, std::fabs(a[i] - b[i]));
+    scale = std::max(scale, std::fabs(b[i]));
+  }
+  return scale > 0 ? diff / scale : (diff > 0 ? INFINITY : 0);
+}
+
+// Expects a parallel run (value Jpar, gathered gradient a) to match a serial one (Jser, b) to 1e-10
+// relative; the worst difference over ranks decides, so every rank takes the same branch.
+inline void expect_matches_serial(const std::string &label, PetscReal Jpar, PetscReal Jser,
+                                  const std::vector<PetscReal> &a, const std::vector<PetscReal> &b) {
+  EXPECT_EQ(a.size(), b.size());
+  PetscReal scale = 0;
+  for (PetscReal x : b) scale = std::max(scale, std::fabs(x));
+  PetscReal worst[2] = {rel_diff(Jpar, Jser), max_rel_diff(a, b)};
+  MPI_Allreduce(MPI_IN_PLACE, worst, 2, MPIU_REAL, MPI_MAX, PETSC_COMM_WORLD);
+  PetscMPIInt size;
+  MPI_Comm_size(PETSC_COMM_WORLD, &size);
+  PetscPrintf(PETSC_COMM_WORLD, "  [%s, %d ranks vs serial] J = %.12e, rel diff J %.2e, gradient %.2e\n", label.c_str(),
+              (int)size, (double)Jpar, (double)worst[0], (double)worst[1]);
+  EXPECT_GT(Jser, 0.0);
+  EXPECT_GT(scale, 0.0);
+  EXPECT_LE(worst[0], 1e-10);
+  EXPECT_LE(worst[1], 1e-10);
 }
 
 } // namespace flexipde_test
