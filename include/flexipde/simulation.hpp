@@ -15,7 +15,8 @@
 // Integrators with an adjoint here: -ts_type rk (any -ts_rk_type), theta, cn, beuler. Explicit
 // steps beyond the stability limit of the model's spectrum are refused before the run, with the
 // largest stable dt. Options: PETSc's -ts_dt, -ts_max_time, -ts_type, -ts_rk_type, -ts_monitor,
-// -ts_trajectory_type, and -sim_stability_check 0 to run an unstable explicit step anyway.
+// -ts_trajectory_type, -sim_stability_check 0 to run an unstable explicit step anyway, and
+// -sim_blowup_check_every N (NaN/Inf check every N steps, reporting where it first appears).
 #pragma once
 #include "flexipde/checkpoint.hpp"
 #include "flexipde/model.hpp"
@@ -67,6 +68,8 @@ private:
   static PetscErrorCode rhs_jacobian_cb(TS, PetscReal, Vec, Mat, Mat, void *);
   static PetscErrorCode rhs_jacobian_p_cb(TS, PetscReal, Vec, Mat, void *);
   PetscErrorCode check_finite(Vec U, const char *what);
+  static PetscErrorCode blowup_monitor(TS, PetscInt, PetscReal, Vec, void *);
+  PetscInt blowup_every_ = 100;
   PetscErrorCode finish_solve(TS ts);
   bool adaptive_ = false;
 

@@ -249,15 +249,20 @@ static PetscErrorCode run(MPI_Comm comm) {
 
 int main(int argc, char **argv) {
   PetscCall(PetscInitialize(&argc, &argv, nullptr, help));
-  { // a misspelled or unused option is reported at the end (-options_left 0 silences it)
-    PetscBool set;
-    PetscCall(PetscOptionsHasName(nullptr, nullptr, "-options_left", &set));
-    if (!set) PetscCall(PetscOptionsSetValue(nullptr, "-options_left", "1"));
-  }
   // An error ends every rank at once with a non-zero exit (MPI_Abort), even if it was raised on
   // one rank only: no rank is left waiting in a collective call.
   PetscErrorCode ierr = run(PETSC_COMM_WORLD);
   if (ierr) MPI_Abort(MPI_COMM_WORLD, (int)ierr);
+  { // a misspelled or unused option is reported (PETSc's -options_left decides when it is given)
+    PetscBool set;
+    PetscInt unused;
+    PetscCall(PetscOptionsHasName(nullptr, nullptr, "-options_left", &set));
+    PetscCall(PetscOptionsAllUsed(nullptr, &unused));
+    if (!set && unused) {
+      PetscCall(PetscPrintf(PETSC_COMM_WORLD, "WARNING: %" PetscInt_FMT " option(s) you set were not used (misspelled?):\n", unused));
+      PetscCall(PetscOptionsLeft(nullptr));
+    }
+  }
   PetscCall(PetscFinalize());
   return 0;
 }

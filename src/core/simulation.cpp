@@ -184,7 +184,12 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
   PetscOptionsBegin(comm, nullptr, "Simulation", "Simulation");
   PetscCall(PetscOptionsBool("-sim_stability_check", "Refuse explicit steps beyond the stability limit", "Simulation",
                              stability_check, &stability_check, nullptr));
+  PetscCall(PetscOptionsInt("-sim_blowup_check_every", "Stop with the time and step where the state first holds "
+                            "NaN/Inf, checked every N steps (0 = only at the end)",
+                            "Simulation", blowup_every_, &blowup_every_, nullptr));
   PetscOptionsEnd();
+  PetscCheck(blowup_every_ >= 0, comm, PETSC_ERR_ARG_OUTOFRANGE, "-sim_blowup_check_every must be non-negative");
+  if (blowup_every_ > 0) PetscCall(TSMonitorSet(ts, blowup_monitor, this, nullptr));
 
   TSType type;
   PetscCall(TSGetType(ts, &type));
@@ -311,6 +316,21 @@ PetscErrorCode Simulation::check_stability(TS ts) {
             "(radius %g) only up to dt = %g",
             (double)dt, method.c_str(), ax.what, (double)ax.radius, (double)(lim / ax.radius));
   }
+  PetscFunctionReturn(0);
+}
+
+// A monitor, so that it runs after every accepted step of TSSolve (and not in the steps the
+// checkpointing trajectory re-runs, which repeat steps already checked).
+PetscErrorCode Simulation::blowup_monitor(TS, PetscInt step, PetscReal t, Vec U, void *ctx) {
+  auto *sim = static_cast<Simulation *>(ctx);
+  PetscReal nrm;
+  PetscFunctionBeginUser;
+  if (step % sim->blowup_every_) PetscFunctionReturn(0);
+  PetscCall(VecNorm(U, NORM_2, &nrm));
+  PetscCheck(std::isfinite((double)nrm), sim->grid_->comm(), PETSC_ERR_FP,
+             "The solution holds NaN/Inf at t = %g (step %" PetscInt_FMT " of %" PetscInt_FMT ", dt = %g): reduce -ts_dt, "
+             "check the parameters, or use an implicit -ts_type (cn, beuler)",
+             (double)t, step, sim->stats_.steps, (double)sim->stats_.dt);
   PetscFunctionReturn(0);
 }
 
