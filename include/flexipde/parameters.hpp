@@ -44,6 +44,11 @@ public:
   PetscErrorCode set_field(Vec p, PetscInt k, Vec field) const;
   PetscErrorCode get_field(Vec p, PetscInt k, Vec field) const;
   PetscErrorCode set_scalar(Vec p, PetscInt k, PetscReal value) const;
+  // Gradient accumulation (collective). add_local_sum: grad[k] += sum over ranks of `local`, for
+  // a scalar. add_pointwise: g holds one value per owned grid point; a field takes it entry by
+  // entry, a scalar takes its sum over all points.
+  PetscErrorCode add_local_sum(Vec grad, PetscInt k, PetscReal local) const;
+  PetscErrorCode add_pointwise(Vec grad, PetscInt k, const std::vector<PetscReal> &g) const;
 
   const Grid *grid() const { return grid_; }
 

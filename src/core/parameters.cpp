@@ -75,6 +75,35 @@ PetscErrorCode Parameters::set_scalar(Vec p, PetscInt k, PetscReal value) const 
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode Parameters::add_local_sum(Vec grad, PetscInt k, PetscReal local) const {
+  PetscReal total = 0;
+  PetscFunctionBeginUser;
+  PetscCheck(info_[k].kind == ParamKind::Scalar, PETSC_COMM_SELF, PETSC_ERR_ARG_WRONG, "%s is not a scalar",
+             info_[k].name.c_str());
+  PetscCallMPI(MPI_Reduce(&local, &total, 1, MPIU_REAL, MPI_SUM, 0, grid_->comm()));
+  if (info_[k].local_size) {
+    Array G(grad);
+    PetscCall(G.error());
+    G[info_[k].local_offset] += total;
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Parameters::add_pointwise(Vec grad, PetscInt k, const std::vector<PetscReal> &g) const {
+  const ParamInfo &pi = info_[k];
+  PetscFunctionBeginUser;
+  if (pi.kind == ParamKind::Scalar) {
+    PetscReal sum = 0;
+    for (PetscReal x : g) sum += x;
+    PetscCall(add_local_sum(grad, k, sum));
+    PetscFunctionReturn(0);
+  }
+  Array G(grad);
+  PetscCall(G.error());
+  for (PetscInt il = 0; il < pi.local_size; ++il) G[pi.local_offset + il] += g[il];
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode Parameters::set_field(Vec p, PetscInt k, Vec field) const {
   PetscFunctionBeginUser;
   PetscCheck(info_[k].kind == ParamKind::Field, PETSC_COMM_SELF, PETSC_ERR_ARG_WRONG, "%s is not a field",

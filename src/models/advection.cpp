@@ -318,7 +318,7 @@ public:
       PetscCall(L.error());
       for (PetscInt il = 0; il < grid_->xm(); ++il) local += profile(grid_->x(grid_->xs() + il)) * PetscRealPart(L[il]);
     }
-    PetscCall(add_to_scalar(A_index_, local, grad));
+    PetscCall(params_->add_local_sum(grad, A_index_, local));
     PetscFunctionReturn(0);
   }
 
@@ -420,20 +420,6 @@ private:
     PetscFunctionReturn(0);
   }
 
-  // grad[k] += the sum over ranks of `local` (a scalar lives on rank 0).
-  PetscErrorCode add_to_scalar(PetscInt k, PetscReal local, Vec grad) const {
-    PetscReal total = 0;
-    PetscFunctionBeginUser;
-    PetscCallMPI(MPI_Reduce(&local, &total, 1, MPIU_REAL, MPI_SUM, 0, grid_->comm()));
-    const ParamInfo &pi = params_->info(k);
-    if (pi.local_size) {
-      Array G(grad);
-      PetscCall(G.error());
-      G[pi.local_offset] += total;
-    }
-    PetscFunctionReturn(0);
-  }
-
   // y = dG/dp x   (x in parameter space, y in state space)
   static PetscErrorCode jp_mult(Mat Jp, Vec x, Vec y) {
     AdvectionModel *m;
@@ -490,8 +476,8 @@ private:
         if (m->diffusion_ && !m->D_field_) sD += m->dGdD_[il] * PetscRealPart(X[il]);
       }
     }
-    PetscCall(m->add_to_scalar(m->a_index_, sa, y));
-    if (m->diffusion_ && !m->D_field_) PetscCall(m->add_to_scalar(m->D_index_, sD, y));
+    PetscCall(m->params_->add_local_sum(y, m->a_index_, sa));
+    if (m->diffusion_ && !m->D_field_) PetscCall(m->params_->add_local_sum(y, m->D_index_, sD));
     if (m->diffusion_ && m->D_field_) { // -I^T (B u .* B x): faces around each owned D_k
       const PetscScalar *u, *xl;
       PetscCall(DMGlobalToLocal(m->dm_, x, INSERT_VALUES, m->X_local_));

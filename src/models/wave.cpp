@@ -149,7 +149,7 @@ public:
         g[il] = grid_->is_boundary(i) ? 0.0 : -du0 * PetscRealPart(L[2 * il + 1]);
       }
     }
-    PetscCall(add_to_c(g, grad));
+    PetscCall(params_->add_pointwise(grad, c_index_, g));
     PetscFunctionReturn(0);
   }
 
@@ -183,24 +183,6 @@ private:
     }
     PetscCall(MatAssemblyBegin(A, MAT_FINAL_ASSEMBLY));
     PetscCall(MatAssemblyEnd(A, MAT_FINAL_ASSEMBLY));
-    PetscFunctionReturn(0);
-  }
-
-  // grad += g mapped onto c: pointwise for a field, summed onto rank 0's entry for a scalar.
-  PetscErrorCode add_to_c(const std::vector<PetscReal> &g, Vec grad) const {
-    const ParamInfo &pi = params_->info(c_index_);
-    PetscFunctionBeginUser;
-    PetscReal sum = 0, total = 0;
-    if (!c_field_)
-      for (PetscReal x : g) sum += x;
-    if (!c_field_) PetscCallMPI(MPI_Reduce(&sum, &total, 1, MPIU_REAL, MPI_SUM, 0, grid_->comm()));
-    Array G(grad);
-    PetscCall(G.error());
-    if (c_field_) {
-      for (PetscInt il = 0; il < pi.local_size; ++il) G[pi.local_offset + il] += g[il];
-    } else if (pi.local_size) {
-      G[pi.local_offset] += total;
-    }
     PetscFunctionReturn(0);
   }
 
@@ -239,7 +221,7 @@ private:
         g[il] = 2.0 * PetscRealPart(c[il]) * m->d2u_[il] * PetscRealPart(X[2 * il + 1]);
     }
     PetscCall(VecSet(y, 0.0));
-    PetscCall(m->add_to_c(g, y));
+    PetscCall(m->params_->add_pointwise(y, m->c_index_, g));
     PetscFunctionReturn(0);
   }
 
