@@ -1,9 +1,14 @@
-// A structured, distributed grid: a DMDA in one dimension (two for phase space and 2D models
-// later), with physical bounds and per-direction boundary type.
+// A structured, distributed grid: a DMDA in one or two dimensions (x, and y for 2D models or the
+// velocity of a 1D1V phase space), with physical bounds and per-direction boundary type.
 //
-// Options (prefix -grid_): -da_grid_x N (PETSc's own), -grid_x0, -grid_x1, -grid_periodic.
-// Dirichlet grids include both end points: x_i = x0 + i h, h = (x1-x0)/(N-1). Periodic grids
-// exclude the right end: h = (x1-x0)/N.
+// Options: -da_grid_x N and -da_grid_y M (PETSc's own; a 1D scene reads no y option), -grid_x0,
+// -grid_x1, -grid_periodic, and in 2D -grid_y0, -grid_y1, -grid_periodic_y.
+// Dirichlet directions include both end points: x_i = x0 + i h, h = (x1-x0)/(N-1). Periodic
+// directions exclude the right end: h = (x1-x0)/N. A model decides the dimension (Model::dim());
+// the grid of a 1D scene has no second direction at all.
+//
+// Local indexing: owned points are (i, j) with xs <= i < xs+xm, ys <= j < ys+ym; a point's
+// position in the owned block is (j - ys) * xm + (i - xs) (x fastest, as in a DMDA Vec).
 #pragma once
 #include "flexipde/petsc.hpp"
 #include <vector>
@@ -11,9 +16,10 @@
 namespace flexipde {
 
 struct GridOptions {
-  PetscInt n = 1000;
-  PetscReal x0 = 0.0, x1 = 1.0;
-  PetscBool periodic = PETSC_FALSE;
+  PetscInt dim = 1;
+  PetscInt n = 1000, ny = 1;
+  PetscReal x0 = 0.0, x1 = 1.0, y0 = 0.0, y1 = 1.0;
+  PetscBool periodic = PETSC_FALSE, periodic_y = PETSC_FALSE;
 };
 
 class Grid {
@@ -28,24 +34,38 @@ public:
 
   DM dm() const { return dm_; }  // scalar (dof = 1) grid, for parameter fields and data
   MPI_Comm comm() const { return comm_; }
-  PetscInt n() const { return opts_.n; }
-  PetscReal h() const { return h_; }
+  PetscInt dim() const { return opts_.dim; }
+  PetscInt n() const { return opts_.n; }   // points in x
+  PetscInt ny() const { return opts_.ny; } // points in y (1 in 1D)
+  PetscInt points() const { return opts_.n * opts_.ny; }
+  PetscReal h() const { return h_; } // spacing in x
+  PetscReal hy() const { return hy_; }
   PetscReal x0() const { return opts_.x0; }
   PetscReal x1() const { return opts_.x1; }
+  PetscReal y0() const { return opts_.y0; }
+  PetscReal y1() const { return opts_.y1; }
   bool periodic() const { return opts_.periodic; }
-  PetscInt xs() const { return xs_; }  // first owned index
-  PetscInt xm() const { return xm_; }  // number of owned points
+  bool periodic_y() const { return opts_.periodic_y; }
+  PetscInt xs() const { return xs_; }  // first owned index in x
+  PetscInt xm() const { return xm_; }  // number of owned points in x
+  PetscInt ys() const { return ys_; }  // first owned index in y (0 in 1D)
+  PetscInt ym() const { return ym_; }  // owned points in y (1 in 1D)
+  PetscInt local_points() const { return xm_ * ym_; }
   PetscInt stencil_width() const { return sw_; }
   PetscReal x(PetscInt i) const { return opts_.x0 + i * h_; }
+  PetscReal y(PetscInt j) const { return opts_.y0 + j * hy_; }
+  // Cell volume of the discrete inner product (h in 1D, h hy in 2D).
+  PetscReal cell_volume() const { return opts_.dim == 2 ? h_ * hy_ : h_; }
   bool is_boundary(PetscInt i) const { return !opts_.periodic && (i == 0 || i == opts_.n - 1); }
+  bool is_boundary_y(PetscInt j) const { return opts_.dim == 2 && !opts_.periodic_y && (j == 0 || j == opts_.ny - 1); }
 
 private:
   MPI_Comm comm_ = MPI_COMM_NULL;
   GridOptions opts_;
-  PetscReal h_ = 0;
-  PetscInt xs_ = 0, xm_ = 0, sw_ = 1;
+  PetscReal h_ = 0, hy_ = 1;
+  PetscInt xs_ = 0, xm_ = 0, ys_ = 0, ym_ = 1, sw_ = 1;
   OwnedDM dm_;
-  std::vector<PetscInt> lx_;
+  std::vector<PetscInt> lx_, ly_;
 };
 
 } // namespace flexipde

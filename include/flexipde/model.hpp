@@ -28,6 +28,10 @@ public:
   virtual const char *component_name(PetscInt c) const = 0;
   // Ghost width the model's stencils need (the grid is created with it).
   virtual PetscInt stencil_width(MPI_Comm comm) const = 0;
+  // Dimension of the model's grid (1, or 2 for 2D space or 1D1V phase space), and the grid
+  // defaults the model prefers (bounds, periodicity); options override them.
+  virtual PetscInt dim() const { return 1; }
+  virtual void grid_defaults(GridOptions &) const {}
 
   // Reads the model's options and declares its parameters (before params.finalize()).
   virtual PetscErrorCode setup(const Grid &grid, DM state_dm, Parameters &params) = 0;
@@ -46,6 +50,10 @@ public:
   // once per parameter value instead of once per stage.
   virtual bool jacobian_constant() const { return false; }
   virtual PetscErrorCode spectrum(Spectrum *s) = 0;
+  // Second-order-in-time structure, for the leapfrog (Stormer-Verlet) integrator: m > 0 when
+  // components 0..m-1 are positions q and m..2m-1 their velocities p, with G_q = p exactly and G_p
+  // independent of p (it may depend on t, q and the parameters). 0 when the model has no such form.
+  virtual PetscInt second_order_pairs() const { return 0; }
 
   // U0 = U0(p), and grad += (dU0/dp)^T lambda0.
   virtual PetscErrorCode initial_condition(Vec p, Vec U0) = 0;

@@ -29,7 +29,7 @@ PetscErrorCode Parameters::finalize(const Grid &grid) {
   for (auto &pi : info_) {
     if (pi.kind != ParamKind::Field) continue;
     pi.local_offset = off;
-    pi.local_size = grid.xm();
+    pi.local_size = grid.local_points();
     off += pi.local_size;
   }
   nlocal_ = off;
@@ -164,7 +164,7 @@ PetscErrorCode fill_from_options(const Parameters &params, PetscInt k, const cha
     if (pi.local_size) a[pi.local_offset] = value;
   } else {
     for (PetscInt i = 0; i < pi.local_size; ++i) {
-      const PetscReal x = g.x(g.xs() + i), s = (x - g.x0()) / (g.x1() - g.x0());
+      const PetscReal x = g.x(g.xs() + i % g.xm()), s = (x - g.x0()) / (g.x1() - g.x0());
       PetscReal v = value;
       if (type == 1) v = left + (right - left) * s;
       if (type == 2) v = value + bump * std::exp(-std::pow((x - center) / width, 2));

@@ -17,7 +17,12 @@ PetscErrorCode Scene::setup(MPI_Comm comm, const SceneDefaults &d) {
                                "Scene", component, component, sizeof(component), nullptr));
   PetscOptionsEnd();
   PetscCall(create_model(comm, model_name, model));
-  PetscCall(Grid::from_options(comm, model->stencil_width(comm), d.grid, grid));
+  {
+    GridOptions g = d.grid;
+    g.dim = model->dim();
+    model->grid_defaults(g);
+    PetscCall(Grid::from_options(comm, model->stencil_width(comm), g, grid));
+  }
   PetscCall(grid.create_dm(model->dof(), state_dm.out()));
   PetscCall(model->setup(grid, state_dm, params));
   PetscCall(params.finalize(grid));

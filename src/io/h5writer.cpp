@@ -46,15 +46,24 @@ PetscErrorCode H5Writer::write_attribute(const char *dataset, const char *name, 
 }
 
 PetscErrorCode H5Writer::write_coordinates(const Grid &grid) {
-  OwnedVec x;
+  OwnedVec x, y;
   PetscFunctionBeginUser;
   PetscCall(DMCreateGlobalVector(grid.dm(), x.out()));
   {
     Array a(x);
     PetscCall(a.error());
-    for (PetscInt i = 0; i < grid.xm(); ++i) a[i] = grid.x(grid.xs() + i);
+    for (PetscInt i = 0; i < grid.local_points(); ++i) a[i] = grid.x(grid.xs() + i % grid.xm());
   }
   PetscCall(write_vec("/grid", "x", x));
+  if (grid.dim() == 2) {
+    PetscCall(DMCreateGlobalVector(grid.dm(), y.out()));
+    {
+      Array a(y);
+      PetscCall(a.error());
+      for (PetscInt i = 0; i < grid.local_points(); ++i) a[i] = grid.y(grid.ys() + i / grid.xm());
+    }
+    PetscCall(write_vec("/grid", "y", y));
+  }
   PetscFunctionReturn(0);
 }
 

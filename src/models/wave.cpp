@@ -30,6 +30,7 @@ public:
   const char *name() const override { return "wave"; }
   PetscInt dof() const override { return 2; }
   const char *component_name(PetscInt c) const override { return c == 0 ? "u" : "v"; }
+  PetscInt second_order_pairs() const override { return 1; } // u_t = v, v_t = c^2 u_xx
   PetscInt stencil_width(MPI_Comm comm) const override {
     SecondDerivative d;
     if (SecondDerivative::from_options(comm, nullptr, 2, d)) return 1;

@@ -6,7 +6,7 @@ PetscErrorCode MeanSquare::setup(const Grid &grid, PetscInt component, PetscInt 
   PetscFunctionBeginUser;
   component_ = component;
   dof_ = dof;
-  n_ = grid.n();
+  n_ = grid.points();
   PetscCall(DMCreateGlobalVector(grid.dm(), work_.out()));
   PetscFunctionReturn(0);
 }
