@@ -16,6 +16,7 @@
 // with which the forward run left that state, so that re-run steps repeat the forward
 // arithmetic exactly.
 #include "flexipde/checkpoint.hpp"
+#include "flexipde/leapfrog.hpp"
 #include <algorithm>
 #include <limits>
 #include <petsc/private/tsimpl.h>
@@ -390,7 +391,9 @@ PetscErrorCode checkpoint_options(PetscObject obj, PetscOptionItems *PetscOption
   PetscCall(TSGetType(ts, &type));
   PetscCall(PetscStrcmp(type, TSRK, &is_rk));
   if (is_rk) PetscCall(TSRKGetTableau(ts, nullptr, nullptr, nullptr, nullptr, nullptr, nullptr, nullptr, &fsal));
-  if (fsal) PetscCall(TSTrajectorySetSolutionOnly(tj, PETSC_FALSE));
+  // The leapfrog's one stage is the step's start state: storing it is storing the solution, and
+  // no step is re-run in the adjoint.
+  if (fsal || is_leapfrog(ts)) PetscCall(TSTrajectorySetSolutionOnly(tj, PETSC_FALSE));
   PetscFunctionReturn(0);
 }
 

@@ -1,4 +1,5 @@
 #include "flexipde/simulation.hpp"
+#include "flexipde/leapfrog.hpp"
 #include <cmath>
 #include <complex>
 #include <cstring>
@@ -180,6 +181,7 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
     if (Jp_) PetscCall(TSSetRHSJacobianP(ts, Jp_, rhs_jacobian_p_cb, this));
   }
   if (with_integral) PetscCall(setup_quadrature(ts, with_adjoint));
+  PetscCall(register_leapfrog_ts());
   PetscCall(TSSetFromOptions(ts));
   PetscOptionsBegin(comm, nullptr, "Simulation", "Simulation");
   PetscCall(PetscOptionsBool("-sim_stability_check", "Refuse explicit steps beyond the stability limit", "Simulation",
@@ -193,10 +195,18 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
 
   TSType type;
   PetscCall(TSGetType(ts, &type));
+  const bool leapfrog = is_leapfrog(ts);
   const bool has_adjoint = !std::strcmp(type, TSRK) || !std::strcmp(type, TSTHETA) || !std::strcmp(type, TSCN) ||
-                           !std::strcmp(type, TSBEULER);
+                           !std::strcmp(type, TSBEULER) || leapfrog;
   PetscCheck(!with_adjoint || has_adjoint, comm, PETSC_ERR_SUP,
-             "-ts_type %s has no adjoint in flexipde: choose rk, theta, cn or beuler", type);
+             "-ts_type %s has no adjoint in flexipde: choose rk, theta, cn, beuler or leapfrog", type);
+  if (leapfrog) {
+    PetscCheck(model_->second_order_pairs() > 0, comm, PETSC_ERR_ARG_WRONG,
+               "-ts_type leapfrog needs a model in second-order form (q_t = p, p_t = a(t, q)); model %s is not: "
+               "choose -ts_type rk, theta, cn or beuler",
+               model_->name());
+    PetscCall(leapfrog_set_pairs(ts, model_->second_order_pairs()));
+  }
   if (with_adjoint && Jp_ && !std::strcmp(type, TSRK)) {
     // PETSc 3.18's TSAdjointStep_RK skips dG/dp for a stage whose weight b_i is zero (it rescales
     // a stale vector instead), so parameter gradients of such tableaux are wrong. The FSAL last
@@ -225,6 +235,9 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
   PetscCall(TSGetAdapt(ts, &adapt));
   PetscCall(TSAdaptGetType(adapt, &adapt_type));
   adaptive_ = std::strcmp(adapt_type, TSADAPTNONE) != 0;
+  PetscCheck(!(adaptive_ && leapfrog), comm, PETSC_ERR_SUP,
+             "-ts_type leapfrog takes fixed steps only (it is symplectic for a constant dt): remove -ts_adapt_type %s",
+             adapt_type);
   const PetscInt nsteps = std::max<PetscInt>(1, (PetscInt)std::llround(T / dt));
   if (!adaptive_) {
     dt = T / nsteps;
@@ -292,6 +305,16 @@ PetscErrorCode Simulation::check_stability(TS ts) {
     if (th >= 0.5) PetscFunctionReturn(0); // A-stable
     R = [th](std::complex<double> z) { return (1.0 + (1.0 - th) * z) / (1.0 - th * z); };
     method = "-ts_type theta with theta " + std::to_string(th);
+  } else if (is_leapfrog(ts)) {
+    // Stormer-Verlet on q'' = -omega^2 q is stable for dt omega < 2; omega is the imaginary radius.
+    Spectrum sp;
+    PetscCall(model_->spectrum(&sp));
+    const PetscReal dt = stats_.dt, limit = 2.0 / sp.imag_radius;
+    PetscCheck(sp.imag_radius <= 0 || dt < limit * (1 - 1e-12), grid_->comm(), PETSC_ERR_ARG_OUTOFRANGE,
+               "Explicit step beyond the stability limit: dt = %g but -ts_type leapfrog is stable only for "
+               "dt * omega_max < 2, i.e. dt < %g here (omega_max = %g)",
+               (double)dt, (double)limit, (double)sp.imag_radius);
+    PetscFunctionReturn(0);
   } else {
     PetscFunctionReturn(0); // no stability function known here
   }

@@ -1,0 +1,44 @@
+// The leapfrog (Stormer-Verlet, kick-drift-kick) integrator as a PETSc TS type with its own
+// discrete adjoint, for models in second-order form (Model::second_order_pairs() = m > 0):
+//
+//   U = (q, p) per grid point, q_t = p, p_t = a(t, q; theta)       (G_q = p, G_p = a)
+//
+//   step t_k -> t_{k+1} = t_k + dt:
+//     p_h     = p_k + dt/2 a(t_k, q_k)          kick
+//     q_{k+1} = q_k + dt p_h                    drift
+//     p_{k+1} = p_h + dt/2 a(t_{k+1}, q_{k+1})  kick
+//
+// Eliminating p gives q_{k+1} = 2 q_k - q_{k-1} + dt^2 a(q_k): the seed's leapfrog, second order,
+// symplectic, stable for dt * omega_max < 2 (omega_max^2 the largest eigenvalue of -da/dq, i.e.
+// the imaginary radius of the first-order system's spectrum). a(q_{k+1}) is kept for the next
+// step's first kick (first same as last), so a step costs ONE evaluation of G.
+//
+// Adjoint (lambda = dJ/dU, mu = dJ/dtheta), exact for the scheme above: a step's transpose is
+//   lambda_q += dt/2 A_{k+1}^T lambda_p,  lambda_p += dt lambda_q,  lambda_q += dt/2 A_k^T lambda_p
+// with A_k = da/dq(q_k) (and mu += dt/2 (da/dtheta)_k^T lambda_p likewise). The two half-kicks
+// that meet at a time level k use the same lambda_p, so they are applied together, once per level,
+// with weight dt (dt/2 at t_0 and T): an adjoint step costs one product with (dG/dU)^T and one
+// with (dG/dtheta)^T, and needs only the state at the step's start (kept as the step's one
+// "stage", so PETSc's memory trajectory stores it and nothing is recomputed). Since G_q = p and
+// G_p does not depend on p, (dG/dU)^T lambda has A^T lambda_p in its q rows and (dG/dtheta)^T
+// lambda = (da/dtheta)^T lambda_p, so the full Jacobians serve without masking.
+//
+// Time-integrated objectives int_0^T r(t, U) dt use the trapezoidal rule on the time levels
+// (weights dt, dt/2 at both ends), accumulated in the forward sweep; the adjoint adds the same
+// weights times dr/dU and dr/dtheta at each level.
+//
+// Fixed steps only (the scheme is symplectic for a constant dt); the Simulation refuses
+// adaptivity and models without the second-order form for -ts_type leapfrog.
+#pragma once
+#include "flexipde/petsc.hpp"
+#include <petscts.h>
+
+namespace flexipde {
+
+#define FLEXIPDE_TSLEAPFROG "leapfrog"
+PetscErrorCode register_leapfrog_ts();
+// Number m of position/velocity pairs per grid point (components 0..m-1 and m..2m-1).
+PetscErrorCode leapfrog_set_pairs(TS ts, PetscInt m);
+bool is_leapfrog(TS ts);
+
+} // namespace flexipde

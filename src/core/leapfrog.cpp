@@ -1,0 +1,314 @@
+// The leapfrog TS type and its adjoint; the scheme and its transpose are derived in leapfrog.hpp.
+#include "flexipde/leapfrog.hpp"
+#include <petsc/private/petscimpl.h> // PetscObjectStateGet
+#include <petsc/private/tsimpl.h>
+
+namespace flexipde {
+namespace {
+
+struct Leapfrog {
+  PetscInt pairs = 0; // m
+  PetscInt dof = 0;   // 2m
+  Vec F = nullptr;    // G(t, U) at the state the TS holds: its p rows are a(t, q), the next kick
+  Vec Y0 = nullptr;   // the state at the start of the last step (the step's one "stage")
+  Vec W = nullptr;    // adjoint work: (dG/dU)^T lambda
+  Vec dmu = nullptr;  // adjoint work: (dG/dtheta)^T lambda
+  // F is valid for the vector state and time recorded here (first same as last).
+  PetscObjectState F_state = -1;
+  PetscReal F_time = 0;
+  bool F_valid = false;
+  // r(t_{k+1}, U_{k+1}) of the last forward-integral call, reused by the next step as its start.
+  Vec r_end = nullptr;
+  PetscInt r_end_step = -1;
+};
+
+Leapfrog *data(TS ts) { return static_cast<Leapfrog *>(ts->data); }
+
+// p += s * F_p on every grid point (the kick).
+PetscErrorCode kick(const Leapfrog &lf, Vec U, Vec F, PetscReal s) {
+  PetscScalar *u;
+  const PetscScalar *f;
+  PetscInt n;
+  PetscFunctionBegin;
+  PetscCall(VecGetLocalSize(U, &n));
+  PetscCall(VecGetArray(U, &u));
+  PetscCall(VecGetArrayRead(F, &f));
+  const PetscInt m = lf.pairs, d = lf.dof;
+  for (PetscInt i = 0; i < n; i += d)
+    for (PetscInt c = m; c < d; ++c) u[i + c] += s * f[i + c];
+  PetscCall(VecRestoreArrayRead(F, &f));
+  PetscCall(VecRestoreArray(U, &u));
+  PetscFunctionReturn(0);
+}
+
+// q += s * p (the drift). Its transpose on the adjoint: lambda_p += s * lambda_q.
+PetscErrorCode drift(const Leapfrog &lf, Vec U, PetscReal s, bool transpose) {
+  PetscScalar *u;
+  PetscInt n;
+  PetscFunctionBegin;
+  PetscCall(VecGetLocalSize(U, &n));
+  PetscCall(VecGetArray(U, &u));
+  const PetscInt m = lf.pairs, d = lf.dof;
+  if (!transpose) {
+    for (PetscInt i = 0; i < n; i += d)
+      for (PetscInt c = 0; c < m; ++c) u[i + c] += s * u[i + m + c];
+  } else {
+    for (PetscInt i = 0; i < n; i += d)
+      for (PetscInt c = 0; c < m; ++c) u[i + m + c] += s * u[i + c];
+  }
+  PetscCall(VecRestoreArray(U, &u));
+  PetscFunctionReturn(0);
+}
+
+// lambda_q += s * W_q (the q rows of (dG/dU)^T lambda = A^T lambda_p).
+PetscErrorCode add_q_rows(const Leapfrog &lf, Vec lambda, Vec W, PetscReal s) {
+  PetscScalar *l;
+  const PetscScalar *w;
+  PetscInt n;
+  PetscFunctionBegin;
+  PetscCall(VecGetLocalSize(lambda, &n));
+  PetscCall(VecGetArray(lambda, &l));
+  PetscCall(VecGetArrayRead(W, &w));
+  const PetscInt m = lf.pairs, d = lf.dof;
+  for (PetscInt i = 0; i < n; i += d)
+    for (PetscInt c = 0; c < m; ++c) l[i + c] += s * w[i + c];
+  PetscCall(VecRestoreArrayRead(W, &w));
+  PetscCall(VecRestoreArray(lambda, &l));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode TSStep_Leapfrog(TS ts) {
+  Leapfrog *lf = data(ts);
+  Vec U = ts->vec_sol;
+  const PetscReal dt = ts->time_step, t = ts->ptime;
+  PetscObjectState st;
+  PetscFunctionBegin;
+  PetscCall(VecCopy(U, lf->Y0));
+  PetscCall(PetscObjectStateGet((PetscObject)U, &st));
+  if (!lf->F_valid || st != lf->F_state || t != lf->F_time) PetscCall(TSComputeRHSFunction(ts, t, U, lf->F));
+  PetscCall(kick(*lf, U, lf->F, 0.5 * dt));
+  PetscCall(drift(*lf, U, dt, false));
+  // G_p does not depend on p, so G at (q_{k+1}, p_h) already gives a(t_{k+1}, q_{k+1})
+  PetscCall(TSComputeRHSFunction(ts, t + dt, U, lf->F));
+  PetscCall(kick(*lf, U, lf->F, 0.5 * dt));
+  PetscCall(PetscObjectStateGet((PetscObject)U, &lf->F_state));
+  lf->F_time = t + dt;
+  lf->F_valid = true;
+  ts->ptime += dt;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode TSSetUp_Leapfrog(TS ts) {
+  Leapfrog *lf = data(ts);
+  PetscInt bs;
+  PetscFunctionBegin;
+  PetscCall(TSCheckImplicitTerm(ts));
+  PetscCheck(lf->pairs > 0, PetscObjectComm((PetscObject)ts), PETSC_ERR_ORDER,
+             "-ts_type leapfrog needs a model in second-order form (q_t = p, p_t = a(t, q)): this one has none");
+  PetscCall(VecGetBlockSize(ts->vec_sol, &bs));
+  PetscCheck(bs == 2 * lf->pairs, PetscObjectComm((PetscObject)ts), PETSC_ERR_ARG_WRONG,
+             "-ts_type leapfrog: %" PetscInt_FMT " position/velocity pairs need %" PetscInt_FMT
+             " components per grid point, the state has %" PetscInt_FMT,
+             lf->pairs, 2 * lf->pairs, bs);
+  lf->dof = bs;
+  PetscCall(VecDuplicate(ts->vec_sol, &lf->F));
+  PetscCall(VecDuplicate(ts->vec_sol, &lf->Y0));
+  PetscCall(TSGetAdapt(ts, &ts->adapt));
+  PetscCall(TSAdaptCandidatesClear(ts->adapt));
+  lf->F_valid = false;
+  lf->r_end_step = -1;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode TSReset_Leapfrog(TS ts) {
+  Leapfrog *lf = data(ts);
+  PetscFunctionBegin;
+  PetscCall(VecDestroy(&lf->F));
+  PetscCall(VecDestroy(&lf->Y0));
+  PetscCall(VecDestroy(&lf->W));
+  PetscCall(VecDestroy(&lf->dmu));
+  PetscCall(VecDestroy(&lf->r_end));
+  lf->F_valid = false;
+  lf->r_end_step = -1;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode TSDestroy_Leapfrog(TS ts) {
+  PetscFunctionBegin;
+  PetscCall(TSReset_Leapfrog(ts));
+  delete data(ts);
+  ts->data = nullptr;
+  PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetPairs_C", nullptr));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode TSGetStages_Leapfrog(TS ts, PetscInt *ns, Vec **Y) {
+  Leapfrog *lf = data(ts);
+  PetscFunctionBegin;
+  if (ns) *ns = 1;
+  if (Y) *Y = &lf->Y0;
+  PetscFunctionReturn(0);
+}
+
+// Trapezoidal rule over the step: called by TSSolve after each step with ts->steps = k (the step's
+// start index), Y0 = U_k and the TS holding U_{k+1}.
+PetscErrorCode TSForwardCostIntegral_Leapfrog(TS ts) {
+  Leapfrog *lf = data(ts);
+  TS quadts = ts->quadraturets;
+  const PetscReal dt = ts->ptime - ts->ptime_prev;
+  PetscFunctionBegin;
+  if (!lf->r_end) PetscCall(VecDuplicate(ts->vec_costintegrand, &lf->r_end));
+  if (lf->r_end_step != ts->steps)
+    PetscCall(TSComputeRHSFunction(quadts, ts->ptime_prev, lf->Y0, lf->r_end)); // r(t_k, U_k)
+  PetscCall(VecAXPY(quadts->vec_sol, 0.5 * dt, lf->r_end));
+  PetscCall(TSComputeRHSFunction(quadts, ts->ptime, ts->vec_sol, lf->r_end)); // r(t_{k+1}, U_{k+1})
+  PetscCall(VecAXPY(quadts->vec_sol, 0.5 * dt, lf->r_end));
+  lf->r_end_step = ts->steps + 1;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode TSAdjointSetUp_Leapfrog(TS ts) {
+  Leapfrog *lf = data(ts);
+  PetscFunctionBegin;
+  PetscCheck(!ts->vecs_sensi2, PetscObjectComm((PetscObject)ts), PETSC_ERR_SUP,
+             "-ts_type leapfrog has no second-order adjoint");
+  PetscCheck(!ts->quadraturets || ts->costintegralfwd, PetscObjectComm((PetscObject)ts), PETSC_ERR_SUP,
+             "-ts_type leapfrog accumulates cost integrals in the forward sweep only");
+  if (!lf->W) PetscCall(VecDuplicate(ts->vecs_sensi[0], &lf->W));
+  if (ts->vecs_sensip && !lf->dmu) PetscCall(VecDuplicate(ts->vecs_sensip[0], &lf->dmu));
+  PetscFunctionReturn(0);
+}
+
+// All contributions of time level (t, X): the half-kick of the step to its right (weight
+// w_right, reversed first, so it sees lambda without this level's integrand term), the integrand
+// with quadrature weight w_quad, then the half-kick of the step to its left (w_left), which sees the
+// complete dJ/dU at this level. Without an integrand both half-kicks see the same lambda_p and
+// take one product with weight w_right + w_left.
+PetscErrorCode half_kicks(TS ts, Mat J, PetscReal w) {
+  Leapfrog *lf = data(ts);
+  PetscFunctionBegin;
+  if (w == 0) PetscFunctionReturn(0);
+  for (PetscInt k = 0; k < ts->numcost; ++k) {
+    Vec lambda = ts->vecs_sensi[k];
+    PetscCall(MatMultTranspose(J, lambda, lf->W)); // q rows: A^T lambda_p (G_q = p has no q)
+    if (ts->vecs_sensip) {
+      PetscCall(MatMultTranspose(ts->Jacprhs, lambda, lf->dmu)); // uses lambda_p only: G_q has no theta
+      PetscCall(VecAXPY(ts->vecs_sensip[k], w, lf->dmu));
+    }
+    PetscCall(add_q_rows(*lf, lambda, lf->W, w));
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode adjoint_level(TS ts, PetscReal t, Vec X, PetscReal w_right, PetscReal w_quad, PetscReal w_left) {
+  TS quadts = ts->quadraturets;
+  Mat J, Jpre, Jquad = nullptr;
+  PetscScalar *col;
+  PetscFunctionBegin;
+  PetscCall(TSGetRHSJacobian(ts, &J, &Jpre, nullptr, nullptr));
+  PetscCall(TSComputeRHSJacobian(ts, t, X, J, Jpre));
+  if (ts->vecs_sensip) PetscCall(TSComputeRHSJacobianP(ts, t, X, ts->Jacprhs));
+  if (!quadts) {
+    PetscCall(half_kicks(ts, J, w_right + w_left));
+    PetscFunctionReturn(0);
+  }
+  PetscCall(half_kicks(ts, J, w_right));
+  PetscCall(TSGetRHSJacobian(quadts, &Jquad, nullptr, nullptr, nullptr));
+  PetscCall(TSComputeRHSJacobian(quadts, t, X, Jquad, nullptr));
+  if (ts->vecs_sensip) PetscCall(TSComputeRHSJacobianP(quadts, t, X, quadts->Jacprhs));
+  for (PetscInt k = 0; k < ts->numcost; ++k) {
+    PetscCall(MatDenseGetColumn(Jquad, k, &col));
+    PetscCall(VecPlaceArray(ts->vec_drdu_col, col));
+    PetscCall(VecAXPY(ts->vecs_sensi[k], w_quad, ts->vec_drdu_col));
+    PetscCall(VecResetArray(ts->vec_drdu_col));
+    PetscCall(MatDenseRestoreColumn(Jquad, &col));
+    if (ts->vecs_sensip) {
+      PetscCall(MatDenseGetColumn(quadts->Jacprhs, k, &col));
+      PetscCall(VecPlaceArray(ts->vec_drdp_col, col));
+      PetscCall(VecAXPY(ts->vecs_sensip[k], w_quad, ts->vec_drdp_col));
+      PetscCall(VecResetArray(ts->vec_drdp_col));
+      PetscCall(MatDenseRestoreColumn(quadts->Jacprhs, &col));
+    }
+  }
+  PetscCall(half_kicks(ts, J, w_left));
+  PetscFunctionReturn(0);
+}
+
+// Reverses step k-1 -> k. On entry ts->ptime = t_k, ts->time_step = -(t_k - t_{k-1}),
+// ts->steps = k-1, Y0 = U_{k-1}, and lambda = dJ/dU_k with all of level k's contributions (the
+// first adjoint step, k = n, adds level n's itself: the TS still holds U_n).
+PetscErrorCode TSAdjointStep_Leapfrog(TS ts) {
+  Leapfrog *lf = data(ts);
+  const PetscReal dt = -ts->time_step, tk = ts->ptime;
+  PetscFunctionBegin;
+  if (ts->adjoint_steps == 0) PetscCall(adjoint_level(ts, tk, ts->vec_sol, 0, 0.5 * dt, 0.5 * dt));
+  for (PetscInt k = 0; k < ts->numcost; ++k) PetscCall(drift(*lf, ts->vecs_sensi[k], dt, true));
+  // level k-1: the right half-kick of this step, then (except at t_0) the left one of the step before
+  PetscCall(adjoint_level(ts, tk - dt, lf->Y0, 0.5 * dt, ts->steps == 0 ? 0.5 * dt : dt, ts->steps == 0 ? 0 : 0.5 * dt));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode TSView_Leapfrog(TS ts, PetscViewer viewer) {
+  PetscBool ascii;
+  PetscFunctionBegin;
+  PetscCall(PetscObjectTypeCompare((PetscObject)viewer, PETSCVIEWERASCII, &ascii));
+  if (ascii)
+    PetscCall(PetscViewerASCIIPrintf(viewer, "  Stormer-Verlet (kick-drift-kick), %" PetscInt_FMT " position/velocity pairs\n",
+                                     data(ts)->pairs));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode TSLinearStability_Leapfrog(TS, PetscReal xr, PetscReal xi, PetscReal *yr, PetscReal *yi) {
+  // Not a one-step map of dU/dt = lambda U; the Simulation checks dt * omega_max < 2 instead.
+  PetscFunctionBegin;
+  *yr = 1.0 + xr;
+  *yi = xi;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode set_pairs(TS ts, PetscInt m) {
+  PetscFunctionBegin;
+  data(ts)->pairs = m;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode TSCreate_Leapfrog(TS ts) {
+  PetscFunctionBegin;
+  ts->data = new Leapfrog();
+  ts->ops->setup = TSSetUp_Leapfrog;
+  ts->ops->step = TSStep_Leapfrog;
+  ts->ops->reset = TSReset_Leapfrog;
+  ts->ops->destroy = TSDestroy_Leapfrog;
+  ts->ops->view = TSView_Leapfrog;
+  ts->ops->getstages = TSGetStages_Leapfrog;
+  ts->ops->forwardintegral = TSForwardCostIntegral_Leapfrog;
+  ts->ops->adjointsetup = TSAdjointSetUp_Leapfrog;
+  ts->ops->adjointstep = TSAdjointStep_Leapfrog;
+  ts->ops->linearstability = TSLinearStability_Leapfrog;
+  ts->default_adapt_type = TSADAPTNONE;
+  ts->usessnes = PETSC_FALSE;
+  PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetPairs_C", set_pairs));
+  PetscFunctionReturn(0);
+}
+
+} // namespace
+
+PetscErrorCode register_leapfrog_ts() {
+  PetscFunctionBegin;
+  PetscCall(TSRegister(FLEXIPDE_TSLEAPFROG, TSCreate_Leapfrog)); // replaces itself when repeated
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode leapfrog_set_pairs(TS ts, PetscInt m) {
+  PetscFunctionBegin;
+  PetscTryMethod(ts, "FlexipdeLeapfrogSetPairs_C", (TS, PetscInt), (ts, m));
+  PetscFunctionReturn(0);
+}
+
+bool is_leapfrog(TS ts) {
+  PetscBool match = PETSC_FALSE;
+  if (PetscObjectTypeCompare((PetscObject)ts, FLEXIPDE_TSLEAPFROG, &match)) return false;
+  return match;
+}
+
+} // namespace flexipde
