@@ -129,6 +129,39 @@ INSTANTIATE_TEST_SUITE_P(
                     {"-true_wave_c_bump", "0.1"}},
                    1e-2,
                    4},
+        TaylorCase{"scalar_leapfrog",
+                   {{"-ts_type", "leapfrog"}, {"-wave_c", "0.9"}, {"-true_wave_c", "1.0"}},
+                   1e-2,
+                   4},
+        TaylorCase{"field_leapfrog_fd4",
+                   {{"-ts_type", "leapfrog"},
+                    {"-fd_order", "4"},
+                    {"-wave_c_field", "1"},
+                    {"-wave_c", "0.9"},
+                    {"-true_wave_c", "1.0"},
+                    {"-true_wave_c_profile", "gaussian"},
+                    {"-true_wave_c_bump", "0.1"}},
+                   1e-2,
+                   4},
+        TaylorCase{"field_leapfrog_time_variation",
+                   {{"-ts_type", "leapfrog"},
+                    {"-objective_type", "time_variation"},
+                    {"-wave_c_field", "1"},
+                    {"-wave_c_profile", "linear"},
+                    {"-wave_c_left", "0.85"},
+                    {"-wave_c_right", "0.95"}},
+                   1e-4,
+                   4},
+        TaylorCase{"field_leapfrog_checkpoint",
+                   {{"-ts_type", "leapfrog"},
+                    {"-checkpoint_budget", "6"},
+                    {"-wave_c_field", "1"},
+                    {"-wave_c", "0.9"},
+                    {"-true_wave_c", "1.0"},
+                    {"-true_wave_c_profile", "gaussian"},
+                    {"-true_wave_c_bump", "0.1"}},
+                   1e-2,
+                   4},
         TaylorCase{"field_theta0.7_rest_ic",
                    {{"-ts_type", "theta"},
                     {"-ts_theta_theta", "0.7"},
@@ -232,7 +265,7 @@ TEST_P(InitialStateGradient, TaylorInPulseCentre) {
   EXPECT_LE(r2[n - 1] / r2[n], 4.5);
 }
 
-INSTANTIATE_TEST_SUITE_P(Wave, InitialStateGradient, ::testing::Values("rk", "cn"));
+INSTANTIATE_TEST_SUITE_P(Wave, InitialStateGradient, ::testing::Values("rk", "cn", "leapfrog"));
 
 // J and dJ/dp of the same field-c scene on PETSC_COMM_WORLD and on PETSC_COMM_SELF (each rank runs
 // the serial problem): identical up to round-off, whatever the number of ranks.
@@ -269,4 +302,4 @@ TEST_P(RankComparison, ParallelMatchesSerial) {
   flexipde_test::expect_matches_serial(ts_type, Jpar, Jser, a, b);
 }
 
-INSTANTIATE_TEST_SUITE_P(Wave, RankComparison, ::testing::Values("rk", "cn"));
+INSTANTIATE_TEST_SUITE_P(Wave, RankComparison, ::testing::Values("rk", "cn", "leapfrog"));

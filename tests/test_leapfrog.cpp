@@ -1,0 +1,126 @@
+// The leapfrog TS type (src/core/leapfrog.cpp): it is the seed's leapfrog recurrence, it converges
+// at second order in time, and its gradient does not depend on how the trajectory is kept.
+// (Taylor tests, dJ/dU0 and 1 vs 2 ranks for leapfrog run with the other integrators in
+// test_gradient.cpp.)
+#include "flexipde/scene.hpp"
+#include "test_support.hpp"
+#include <cmath>
+
+using namespace flexipde;
+using flexipde_test::rel_diff;
+using flexipde_test::ScopedOptions;
+
+namespace {
+
+// u(T) of the scene in the options, gathered on every rank (the u component only).
+PetscErrorCode final_u(std::vector<PetscReal> &u, SimulationStats *stats = nullptr) {
+  Scene scene;
+  OwnedVec p, U;
+  std::vector<PetscReal> all;
+  PetscFunctionBeginUser;
+  PetscCall(scene.setup(PETSC_COMM_WORLD));
+  PetscCall(scene.params.create_vec(p.out()));
+  PetscCall(scene.parameters_from_options("", p));
+  PetscCall(scene.sim.create_state(U.out()));
+  PetscCall(scene.sim.forward(p, U));
+  PetscCall(flexipde_test::gather_all(U, all));
+  u.resize(all.size() / 2);
+  for (size_t i = 0; i < u.size(); ++i) u[i] = all[2 * i];
+  if (stats) *stats = scene.sim.stats();
+  PetscFunctionReturn(0);
+}
+
+} // namespace
+
+// The seed scheme written out: u_{k+1} = 2 u_k - u_{k-1} + dt^2 c^2 D2 u_k with the Verlet start
+// u_1 = u_0 + dt v_0 + dt^2/2 c^2 D2 u_0 (D2 the second-order stencil, u = 0 on the walls).
+TEST(Leapfrog, IsTheSeedRecurrence) {
+  const PetscInt n = 201;
+  const PetscReal c = 0.9, T = 0.4, dt = 1e-3, xc = 0.5, w = 0.2;
+  ScopedOptions opts{{"-da_grid_x", "201"}, {"-ts_max_time", "0.4"}, {"-ts_dt", "1e-3"},
+                     {"-ts_type", "leapfrog"},  {"-wave_c", "0.9"},      {"-wave_ic_center", "0.5"},
+                     {"-wave_ic_width", "0.2"}};
+  std::vector<PetscReal> u;
+  SimulationStats st;
+  PETSC_ASSERT_OK(final_u(u, &st));
+  ASSERT_EQ((PetscInt)u.size(), n);
+  EXPECT_EQ(st.steps, 400);
+  EXPECT_STREQ(st.ts_type, "leapfrog");
+
+  const PetscReal h = 1.0 / (n - 1);
+  std::vector<PetscReal> u0(n), v0(n), um(n), uk(n), up(n);
+  for (PetscInt i = 0; i < n; ++i) {
+    const PetscReal s = (i * h - xc) / w, g = std::exp(-s * s);
+    const bool wall = i == 0 || i == n - 1;
+    u0[i] = wall ? 0 : g;
+    v0[i] = wall ? 0 : -c * (-2.0 * s / w * g); // travelling pulse: v0 = -c u0'
+  }
+  auto accel = [&](const std::vector<PetscReal> &q, PetscInt i) {
+    return (i == 0 || i == n - 1) ? 0.0 : c * c * (q[i - 1] - 2 * q[i] + q[i + 1]) / (h * h);
+  };
+  for (PetscInt i = 0; i < n; ++i) uk[i] = u0[i] + dt * v0[i] + 0.5 * dt * dt * accel(u0, i);
+  um = u0;
+  const PetscInt steps = (PetscInt)std::llround(T / dt);
+  for (PetscInt k = 1; k < steps; ++k) {
+    for (PetscInt i = 0; i < n; ++i) up[i] = 2 * uk[i] - um[i] + dt * dt * accel(uk, i);
+    um.swap(uk);
+    uk.swap(up);
+  }
+  PetscReal diff = 0, scale = 0;
+  for (PetscInt i = 0; i < n; ++i) {
+    diff = std::max(diff, std::fabs(u[i] - uk[i]));
+    scale = std::max(scale, std::fabs(uk[i]));
+  }
+  PetscPrintf(PETSC_COMM_WORLD, "  leapfrog vs seed recurrence: max |diff| / max |u| = %.3e\n", (double)(diff / scale));
+  EXPECT_GT(scale, 0.1);
+  EXPECT_LE(diff / scale, 1e-11);
+}
+
+// Second order in time: with the grid fixed, successive differences of u(T) fall 4x per halving.
+TEST(Leapfrog, SecondOrderInTime) {
+  std::vector<std::vector<PetscReal>> u(4);
+  const char *dts[] = {"4e-3", "2e-3", "1e-3", "5e-4"};
+  for (int k = 0; k < 4; ++k) {
+    ScopedOptions opts{{"-da_grid_x", "101"}, {"-ts_max_time", "0.4"}, {"-ts_dt", dts[k]}, {"-ts_type", "leapfrog"},
+                       {"-wave_c", "1.0"}};
+    PETSC_ASSERT_OK(final_u(u[k]));
+  }
+  auto dist = [](const std::vector<PetscReal> &a, const std::vector<PetscReal> &b) {
+    PetscReal d = 0;
+    for (size_t i = 0; i < a.size(); ++i) d = std::max(d, std::fabs(a[i] - b[i]));
+    return d;
+  };
+  const PetscReal e1 = dist(u[0], u[1]), e2 = dist(u[1], u[2]), e3 = dist(u[2], u[3]);
+  PetscPrintf(PETSC_COMM_WORLD, "  leapfrog time differences %.3e %.3e %.3e, ratios %.3f %.3f\n", (double)e1, (double)e2,
+              (double)e3, (double)(e1 / e2), (double)(e2 / e3));
+  EXPECT_NEAR(e1 / e2, 4.0, 0.3); // 3.77: the coarsest step is not yet asymptotic
+  EXPECT_NEAR(e2 / e3, 4.0, 0.2);
+}
+
+// The gradient is the same with full storage (no step re-run) and with binomial checkpointing
+// (steps re-run from a few stored states), also for a time-integrated objective.
+TEST(Leapfrog, CheckpointedGradientEqualsFullStorage) {
+  for (const char *objective : {"l2sq", "time_variation"}) {
+    ScopedOptions opts{{"-da_grid_x", "101"}, {"-ts_max_time", "0.3"}, {"-ts_dt", "2e-3"},  {"-ts_type", "leapfrog"},
+                       {"-wave_c_field", "1"}, {"-wave_c", "0.9"},     {"-true_wave_c", "1"}, {"-objective_type", objective}};
+    PetscReal J[2];
+    OwnedVec g[2];
+    for (int k = 0; k < 2; ++k) {
+      ScopedOptions budget;
+      if (k == 1) budget.set("-checkpoint_budget", "4");
+      flexipde_test::SceneProblem pb;
+      PETSC_ASSERT_OK(pb.setup(PETSC_COMM_WORLD));
+      PETSC_ASSERT_OK(VecDuplicate(pb.p, g[k].out()));
+      PETSC_ASSERT_OK(pb.scene.sim.gradient(pb.p, &J[k], g[k], nullptr));
+      const CheckpointStats &cs = pb.scene.sim.checkpoint_stats();
+      if (k == 0) EXPECT_EQ(cs.recomputed_steps, 0) << "full storage re-runs no leapfrog step";
+      else EXPECT_EQ(cs.recomputed_steps, cs.optimal_recomputations);
+    }
+    const PetscReal dg = rel_diff(g[1], g[0]);
+    PetscPrintf(PETSC_COMM_WORLD, "  leapfrog %s: checkpointed vs full storage: J %.2e, gradient %.2e\n", objective,
+                (double)rel_diff(J[1], J[0]), (double)dg);
+    EXPECT_LE(rel_diff(J[1], J[0]), 1e-14);
+    EXPECT_LE(dg, 1e-13);
+    EXPECT_GT(flexipde_test::norm(g[0]), 0.0);
+  }
+}
