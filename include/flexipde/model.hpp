@@ -55,6 +55,16 @@ public:
   // independent of p (it may depend on t, q and the parameters). 0 when the model has no such form.
   virtual PetscInt second_order_pairs() const { return 0; }
 
+  // Named scalar functionals F(U) of the state (e.g. an energy), for objectives and diagnostics
+  // (collective): F into *value, and dF/dU into dFdU unless it is null. functional_names() lists
+  // the names a model accepts ("" when none); any other name is an error.
+  virtual std::string functional_names() const { return ""; }
+  virtual PetscErrorCode functional(const char *fname, Vec U, PetscReal *value, Vec dFdU) {
+    (void)value, (void)dFdU;
+    SETERRQ(PetscObjectComm((PetscObject)U), PETSC_ERR_ARG_WRONG, "Model %s has no functional '%s'%s%s", name(), fname,
+            functional_names().empty() ? "" : ": choose one of ", functional_names().c_str());
+  }
+
   // U0 = U0(p), and grad += (dU0/dp)^T lambda0.
   virtual PetscErrorCode initial_condition(Vec p, Vec U0) = 0;
   virtual PetscErrorCode initial_condition_transpose(Vec p, Vec lambda0, Vec grad) = 0;

@@ -1,0 +1,540 @@
+// Vlasov-Poisson for electrons on a neutralising ion background, 1D in x and 1D in velocity v.
+//
+//   f_t + v f_x - E f_v = 0,     E_x = 1 - rho,   rho(x) = int f dv,   int E dx = 0
+//
+// Sign convention: electrons of charge -1 and mass 1 (time in 1/omega_p, length in Debye lengths),
+// so the force on them is -E; the ions are a uniform background of density 1. f lives on the
+// phase-space grid (x, v): x periodic on [0, L), v in [-v_max, v_max] (the grid's y direction, not
+// periodic, end points included) with f = 0 beyond it.
+//
+// Space (h = L / N_x, hv = 2 v_max / (N_v - 1)):
+//   x: centred fourth order, periodic: (D_x f)_i = (f_{i-2} - 8f_{i-1} + 8f_{i+1} - f_{i+2}) / 12h
+//   v: the same stencil in conservative flux form, (D_v f)_j = (F_{j+1/2} - F_{j-1/2}) / hv with the
+//      face values F_{j+1/2} = (-f_{j-1} + 7f_j + 7f_{j+1} - f_{j+2}) / 12 between grid points
+//      (f = 0 beyond the ends) and no flux through the two outer faces. Inside it is the centred
+//      stencil above; next to the ends it keeps sum_j (D_v f)_j = 0, so the mass h hv sum f is
+//      conserved to round-off (x periodic, x-sums of D_x vanish too).
+//   rho_i = hv sum_j f_ij, and E = K (1 - rho) with K the spectral zero-mean antiderivative:
+//      (K s)^_m = s^_m / (i kappa_m) for 0 < |m| < N_x/2, and 0 for the mean (and Nyquist) mode.
+//      K is a real antisymmetric circulant, applied as a sum with its kernel K_l = (2/N_x)
+//      sum_m sin(kappa_m x_l) / kappa_m; K 1 = 0, so E = -K rho. rho is summed over v on each
+//      rank and MPI_Allreduce'd (a length-N_x array); each rank evaluates E only at the x it owns
+//      (O(N_x x owned columns)), which is cheap next to the phase-space stencils for N_x <= 512 and
+//      needs no FFT library.
+//
+//   G(f) = -v D_x f + E(f) D_v f
+//   dG/dU d = -v D_x d + E D_v d + dE D_v f,   dE = -hv K S d  (S: sum over v)
+//   (dG/dU)^T y = v D_x y + E D_v^T y + hv K w,   w_i = sum_j y_ij (D_v f)_ij   (K^T = -K, D_x^T = -D_x)
+// dG/dU is a MatShell with MultTranspose (no matrix is stored); the model has no parameter in G, so
+// dG/dp = 0. Integrators: explicit -ts_type rk (an implicit one would need -pc_type none).
+//
+// Initial condition f0 = (1 + alpha cos(k x)) F(v), k = 2 pi m / L (-vlasov_mode m):
+//   -vlasov_ic landau      F = M(v; vt)                                 (defaults k 0.5, alpha 0.01)
+//   -vlasov_ic two_stream  F = [M(v - v0; vt) + M(v + v0; vt sqrt(r))] / 2  (k 0.2, alpha 1e-3, v0 2.4)
+// with M(u; s) = exp(-u^2 / 2s^2) / (sqrt(2 pi) s) and r the temperature ratio T_2 / T_1 of the
+// beams. alpha, vt (and v0, r for two_stream) are the scalar parameters vlasov_alpha, vlasov_vt,
+// vlasov_v0, vlasov_temperature_ratio (options of those names); dU0/dp^T lambda enters the gradient,
+// and the gradient with respect to f0 itself is dJ/dU0 (Simulation::gradient's grad_u0).
+// -vlasov_k sets the default domain length 2 pi / k, -vlasov_vmax the default velocity bounds;
+// -da_grid_x, -da_grid_y, -grid_x1, -grid_y0, -grid_y1 override them.
+//
+// Functionals (Model::functional, for -objective_type functional / functional_integral and for
+// diagnostics): field_energy 0.5 h sum_i E_i^2, mass h hv sum f, momentum h hv sum v f,
+// kinetic_energy 0.5 h hv sum v^2 f, energy (kinetic + field), l2 sqrt(h hv sum f^2).
+//
+// Explicit stability: the spectrum of dG/dU is bounded by i [-R, R] with R = 1.372 (v_max / h +
+// E_max / hv) (1.372 = max of the fourth-order symbol); E_max is the larger of max|E| at t = 0
+// and -vlasov_E_cfl (the field a nonlinear run is expected to reach).
+//
+//   mpiexec --allow-run-as-root --oversubscribe -n 2 ./flexipde -model vlasov -task forward
+//           -da_grid_x 64 -da_grid_y 128 -ts_dt 0.05 -ts_max_time 10        (one line)
+//   mpiexec --allow-run-as-root --oversubscribe -n 2 ./flexipde -model vlasov -vlasov_ic two_stream
+//           -task taylor -da_grid_x 32 -da_grid_y 64 -ts_dt 0.1 -ts_max_time 5
+//           -objective_type functional -objective_functional field_energy
+#include "flexipde/model.hpp"
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <vector>
+
+namespace flexipde {
+namespace {
+
+const char *const ic_names[] = {"landau", "two_stream"};
+enum InitialCondition : PetscInt { LANDAU = 0, TWO_STREAM = 1 };
+
+// Defaults of the two set-ups (named, options override them).
+struct IcDefaults {
+  PetscReal k, alpha, vt, v0, ratio, vmax;
+};
+constexpr IcDefaults landau_defaults{0.5, 0.01, 1.0, 0.0, 1.0, 6.0};
+constexpr IcDefaults two_stream_defaults{0.2, 1e-3, 1.0, 2.4, 1.0, 8.0};
+constexpr PetscInt default_nx = 64, default_nv = 128;
+constexpr PetscReal default_E_cfl = 0.5;
+
+// Face interpolation weights (f_{j-1}, f_j, f_{j+1}, f_{j+2}) of the v flux.
+constexpr PetscReal face_w[4] = {-1.0 / 12, 7.0 / 12, 7.0 / 12, -1.0 / 12};
+
+PetscInt read_ic() {
+  PetscInt ic = LANDAU;
+  (void)PetscOptionsGetEList(nullptr, nullptr, "-vlasov_ic", ic_names, 2, &ic, nullptr);
+  return ic;
+}
+
+PetscReal maxwellian(PetscReal u, PetscReal s) { return std::exp(-0.5 * u * u / (s * s)) / (std::sqrt(2 * PETSC_PI) * s); }
+
+class VlasovModel final : public Model {
+public:
+  const char *name() const override { return "vlasov"; }
+  PetscInt dof() const override { return 1; }
+  const char *component_name(PetscInt) const override { return "f"; }
+  PetscInt stencil_width(MPI_Comm) const override { return 2; }
+  PetscInt dim() const override { return 2; }
+  void grid_defaults(GridOptions &g) const override {
+    const IcDefaults &d = read_ic() == TWO_STREAM ? two_stream_defaults : landau_defaults;
+    PetscReal k = d.k, vmax = d.vmax;
+    (void)PetscOptionsGetReal(nullptr, nullptr, "-vlasov_k", &k, nullptr);
+    (void)PetscOptionsGetReal(nullptr, nullptr, "-vlasov_vmax", &vmax, nullptr);
+    g.periodic = PETSC_TRUE;
+    g.periodic_y = PETSC_FALSE;
+    g.n = default_nx;
+    g.ny = default_nv;
+    g.x0 = 0;
+    g.x1 = k > 0 ? 2 * PETSC_PI / k : 1.0; // setup reports a bad k
+    g.y0 = -vmax;
+    g.y1 = vmax;
+  }
+  std::string functional_names() const override {
+    return "field_energy, mass, momentum, kinetic_energy, energy, l2";
+  }
+
+  PetscErrorCode setup(const Grid &grid, DM state_dm, Parameters &params) override {
+    PetscFunctionBeginUser;
+    grid_ = &grid;
+    dm_ = state_dm;
+    params_ = &params;
+    ic_ = read_ic();
+    const IcDefaults &d = ic_ == TWO_STREAM ? two_stream_defaults : landau_defaults;
+    PetscReal k = d.k, vmax = d.vmax;
+    PetscOptionsBegin(grid.comm(), nullptr, "Vlasov-Poisson model f_t + v f_x - E f_v = 0, E_x = 1 - int f dv",
+                      "Vlasov");
+    PetscCall(PetscOptionsEList("-vlasov_ic", "Initial distribution: landau (one Maxwellian) or two_stream (two beams)",
+                                "Vlasov", ic_names, 2, ic_names[ic_], &ic_, nullptr));
+    PetscCall(PetscOptionsReal("-vlasov_k", "Perturbation wavenumber: sets the default domain length 2 pi / k",
+                               "Vlasov", k, &k, nullptr));
+    PetscCall(PetscOptionsReal("-vlasov_vmax", "Velocity bound: sets the default -grid_y0 -vmax, -grid_y1 vmax",
+                               "Vlasov", vmax, &vmax, nullptr));
+    PetscCall(PetscOptionsInt("-vlasov_mode", "Number m of perturbation periods in the domain (k = 2 pi m / L)",
+                              "Vlasov", mode_, &mode_, nullptr));
+    PetscCall(PetscOptionsReal("-vlasov_E_cfl",
+                               "Largest |E| the explicit stability check assumes (with max|E| at t = 0)", "Vlasov",
+                               E_cfl_, &E_cfl_, nullptr));
+    PetscOptionsEnd();
+    PetscCheck(grid.dim() == 2, grid.comm(), PETSC_ERR_ARG_WRONG, "Model vlasov needs a 2D phase-space grid");
+    PetscCheck(k > 0, grid.comm(), PETSC_ERR_ARG_OUTOFRANGE, "-vlasov_k must be positive, got %g", (double)k);
+    PetscCheck(vmax > 0, grid.comm(), PETSC_ERR_ARG_OUTOFRANGE, "-vlasov_vmax must be positive, got %g", (double)vmax);
+    PetscCheck(mode_ >= 1, grid.comm(), PETSC_ERR_ARG_OUTOFRANGE, "-vlasov_mode must be at least 1, got %" PetscInt_FMT,
+               mode_);
+    PetscCheck(grid.periodic() && !grid.periodic_y(), grid.comm(), PETSC_ERR_ARG_WRONG,
+               "Model vlasov needs x periodic (-grid_periodic 1) and v not periodic (-grid_periodic_y 0)");
+    PetscCheck(grid.stencil_width() >= 2, grid.comm(), PETSC_ERR_PLIB, "Vlasov stencils need a ghost width of 2");
+
+    nx_ = grid.n();
+    nv_ = grid.ny();
+    h_ = grid.h();
+    hv_ = grid.hy();
+    k_ = 2 * PETSC_PI * mode_ / (grid.x1() - grid.x0());
+    alpha_index_ = params.add("vlasov_alpha", ParamKind::Scalar, PETSC_NINFINITY, d.alpha);
+    vt_index_ = params.add("vlasov_vt", ParamKind::Scalar, 0.0, d.vt);
+    if (ic_ == TWO_STREAM) {
+      v0_index_ = params.add("vlasov_v0", ParamKind::Scalar, PETSC_NINFINITY, d.v0);
+      ratio_index_ = params.add("vlasov_temperature_ratio", ParamKind::Scalar, 0.0, d.ratio);
+    }
+
+    // Kernel of the zero-mean antiderivative (see the header).
+    K_.assign(nx_, 0.0);
+    const PetscReal L = grid.x1() - grid.x0();
+    for (PetscInt m = 1; 2 * m < nx_; ++m) {
+      const PetscReal kappa = 2 * PETSC_PI * m / L;
+      for (PetscInt l = 0; l < nx_; ++l) K_[l] += 2.0 / nx_ * std::sin(2 * PETSC_PI * m * l / nx_) / kappa;
+    }
+    rho_.assign(nx_, 0.0);
+    w_.assign(nx_, 0.0);
+    E_.assign(grid.xm(), 0.0);
+    Elin_.assign(grid.xm(), 0.0);
+    dE_.assign(grid.xm(), 0.0);
+    PetscCall(DMCreateLocalVector(dm_, U_local_.out()));
+    PetscCall(DMCreateLocalVector(dm_, X_local_.out()));
+    PetscCall(DMCreateLocalVector(dm_, Ulin_local_.out()));
+    PetscFunctionReturn(0);
+  }
+
+  PetscErrorCode create_jacobian(Mat *J) override {
+    const PetscInt n = grid_->local_points();
+    PetscFunctionBeginUser;
+    PetscCall(MatCreateShell(grid_->comm(), n, n, PETSC_DETERMINE, PETSC_DETERMINE, this, J));
+    PetscCall(MatShellSetOperation(*J, MATOP_MULT, (void (*)(void))j_mult));
+    PetscCall(MatShellSetOperation(*J, MATOP_MULT_TRANSPOSE, (void (*)(void))j_mult_transpose));
+    PetscCall(MatSetUp(*J));
+    PetscFunctionReturn(0);
+  }
+
+  // G does not depend on the parameters (they enter U0 only): dG/dp is a zero shell.
+  PetscErrorCode create_jacobian_p(Mat *Jp) override {
+    PetscFunctionBeginUser;
+    PetscCall(MatCreateShell(grid_->comm(), grid_->local_points(), params_->local_size(), PETSC_DETERMINE,
+                             PETSC_DETERMINE, this, Jp));
+    PetscCall(MatShellSetOperation(*Jp, MATOP_MULT, (void (*)(void))zero_mult));
+    PetscCall(MatShellSetOperation(*Jp, MATOP_MULT_TRANSPOSE, (void (*)(void))zero_mult));
+    PetscFunctionReturn(0);
+  }
+  PetscErrorCode rhs_jacobian_p(PetscReal, Vec, Mat) override { return 0; }
+
+  PetscErrorCode set_parameters(Vec p) override {
+    PetscFunctionBeginUser;
+    PetscCall(params_->scalar(p, alpha_index_, &alpha_));
+    PetscCall(params_->scalar(p, vt_index_, &vt_));
+    PetscCheck(vt_ > 0, grid_->comm(), PETSC_ERR_ARG_OUTOFRANGE, "vlasov_vt (thermal spread) must be positive, got %g",
+               (double)vt_);
+    if (ic_ == TWO_STREAM) {
+      PetscCall(params_->scalar(p, v0_index_, &v0_));
+      PetscCall(params_->scalar(p, ratio_index_, &ratio_));
+      PetscCheck(ratio_ > 0, grid_->comm(), PETSC_ERR_ARG_OUTOFRANGE,
+                 "vlasov_temperature_ratio must be positive, got %g", (double)ratio_);
+    }
+    PetscFunctionReturn(0);
+  }
+
+  PetscErrorCode rhs(PetscReal, Vec U, Vec G) override {
+    PetscFunctionBeginUser;
+    PetscCall(to_local(U, U_local_));
+    const PetscScalar **f;
+    PetscScalar **g;
+    PetscCall(DMDAVecGetArrayRead(dm_, U_local_, &f));
+    PetscCall(field(f, E_));
+    PetscCall(DMDAVecGetArray(dm_, G, &g));
+    const Grid &gr = *grid_;
+    for (PetscInt j = gr.ys(); j < gr.ys() + gr.ym(); ++j) {
+      const PetscReal v = gr.y(j);
+      for (PetscInt i = gr.xs(); i < gr.xs() + gr.xm(); ++i)
+        g[j][i] = -v * dx(f, i, j) + E_[i - gr.xs()] * dv(f, i, j);
+    }
+    PetscCall(DMDAVecRestoreArray(dm_, G, &g));
+    PetscCall(DMDAVecRestoreArrayRead(dm_, U_local_, &f));
+    PetscFunctionReturn(0);
+  }
+
+  // Records the linearisation state: f (ghosted) and E(f).
+  PetscErrorCode rhs_jacobian(PetscReal, Vec U, Mat J) override {
+    const PetscScalar **f;
+    PetscFunctionBeginUser;
+    PetscCall(to_local(U, Ulin_local_));
+    PetscCall(DMDAVecGetArrayRead(dm_, Ulin_local_, &f));
+    PetscCall(field(f, Elin_));
+    PetscCall(DMDAVecRestoreArrayRead(dm_, Ulin_local_, &f));
+    PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY)); // resets any shift/scale a TS applied
+    PetscCall(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
+    PetscFunctionReturn(0);
+  }
+
+  PetscErrorCode spectrum(Spectrum *s) override {
+    PetscReal symbol = 0; // max over theta of the fourth-order first-derivative symbol
+    for (PetscInt q = 0; q <= 1000; ++q) {
+      const PetscReal th = PETSC_PI * q / 1000;
+      symbol = std::max(symbol, (8 * std::sin(th) - std::sin(2 * th)) / 6);
+    }
+    const PetscReal vmax = std::max(std::fabs(grid_->y0()), std::fabs(grid_->y1()));
+    s->imag_radius = symbol * (vmax / h_ + std::max(E0_max_, E_cfl_) / hv_);
+    s->real_radius = 0;
+    return 0;
+  }
+
+  PetscErrorCode initial_condition(Vec p, Vec U0) override {
+    PetscScalar **f;
+    PetscFunctionBeginUser;
+    PetscCall(set_parameters(p));
+    const Grid &g = *grid_;
+    PetscCall(DMDAVecGetArray(dm_, U0, &f));
+    for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j) {
+      const PetscReal F = velocity_profile(g.y(j));
+      for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i) f[j][i] = (1 + alpha_ * std::cos(k_ * g.x(i))) * F;
+    }
+    PetscCall(DMDAVecRestoreArray(dm_, U0, &f));
+    PetscCall(functional("field_energy", U0, nullptr, nullptr)); // sets E_ from U0
+    PetscReal emax = 0;
+    for (PetscReal e : E_) emax = std::max(emax, std::fabs(e));
+    PetscCallMPI(MPI_Allreduce(&emax, &E0_max_, 1, MPIU_REAL, MPI_MAX, g.comm()));
+    PetscFunctionReturn(0);
+  }
+
+  // grad += sum_ij lambda_ij d f0_ij / dp.
+  PetscErrorCode initial_condition_transpose(Vec, Vec lambda0, Vec grad) override {
+    const PetscScalar **l;
+    PetscReal s[4] = {0, 0, 0, 0}; // alpha, vt, v0, ratio
+    PetscFunctionBeginUser;
+    const Grid &g = *grid_;
+    PetscCall(DMDAVecGetArrayRead(dm_, lambda0, &l));
+    for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j) {
+      PetscReal lc = 0, ls = 0; // sum_i lambda cos(k x), sum_i lambda (1 + alpha cos(k x))
+      for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i) {
+        const PetscReal c = std::cos(k_ * g.x(i)), lv = PetscRealPart(l[j][i]);
+        lc += lv * c;
+        ls += lv * (1 + alpha_ * c);
+      }
+      PetscReal dF[3];
+      const PetscReal F = velocity_profile(g.y(j), dF);
+      s[0] += lc * F;
+      for (int q = 0; q < 3; ++q) s[q + 1] += ls * dF[q];
+    }
+    PetscCall(DMDAVecRestoreArrayRead(dm_, lambda0, &l));
+    PetscCall(params_->add_local_sum(grad, alpha_index_, s[0]));
+    PetscCall(params_->add_local_sum(grad, vt_index_, s[1]));
+    if (ic_ == TWO_STREAM) {
+      PetscCall(params_->add_local_sum(grad, v0_index_, s[2]));
+      PetscCall(params_->add_local_sum(grad, ratio_index_, s[3]));
+    }
+    PetscFunctionReturn(0);
+  }
+
+  PetscErrorCode functional(const char *fname, Vec U, PetscReal *value, Vec dFdU) override {
+    enum { FIELD, MASS, MOMENTUM, KINETIC, ENERGY, L2, NONE } which = NONE;
+    const char *names[] = {"field_energy", "mass", "momentum", "kinetic_energy", "energy", "l2"};
+    for (int q = 0; q < 6; ++q)
+      if (!std::strcmp(fname, names[q])) which = static_cast<decltype(which)>(q);
+    PetscFunctionBeginUser;
+    PetscCheck(which != NONE, grid_->comm(), PETSC_ERR_ARG_WRONG,
+               "Model vlasov has no functional '%s': choose one of %s", fname, functional_names().c_str());
+    const Grid &g = *grid_;
+    const PetscReal cell = h_ * hv_;
+    PetscReal W = 0, local[2] = {0, 0}; // field energy; sum of the phase-space moment, sum f^2
+    std::vector<PetscReal> KE;           // K E at the owned x (for dW/df)
+    const bool needs_field = which == FIELD || which == ENERGY;
+    if (needs_field) {
+      const PetscScalar **f;
+      PetscCall(to_local(U, U_local_));
+      PetscCall(DMDAVecGetArrayRead(dm_, U_local_, &f));
+      PetscCall(field(f, E_));
+      PetscCall(DMDAVecRestoreArrayRead(dm_, U_local_, &f));
+      // W = 0.5 h sum_i E_i^2 over all x: the ranks of the first v row each hold a part.
+      PetscReal w = 0;
+      if (g.ys() == 0)
+        for (PetscReal e : E_) w += 0.5 * h_ * e * e;
+      PetscCallMPI(MPI_Allreduce(&w, &W, 1, MPIU_REAL, MPI_SUM, g.comm()));
+      if (dFdU) { // dW/df_ij = h hv (K E)_i: E over all x first
+        std::fill(w_.begin(), w_.end(), 0.0);
+        if (g.ys() == 0)
+          for (PetscInt il = 0; il < g.xm(); ++il) w_[g.xs() + il] = E_[il];
+        PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, w_.data(), (PetscMPIInt)nx_, MPIU_REAL, MPI_SUM, g.comm()));
+        KE.resize(g.xm());
+        apply_K(w_, KE);
+      }
+    }
+    if (which == FIELD) {
+      if (value) *value = W;
+      if (dFdU) {
+        PetscScalar **d;
+        PetscCall(DMDAVecGetArray(dm_, dFdU, &d));
+        for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j)
+          for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i) d[j][i] = cell * KE[i - g.xs()];
+        PetscCall(DMDAVecRestoreArray(dm_, dFdU, &d));
+      }
+      PetscFunctionReturn(0);
+    }
+    // Moments: F = cell sum_ij m(v_j) f_ij (mass, momentum, kinetic energy), or the L2 norm.
+    auto moment = [&](PetscReal v) { return which == MASS ? 1.0 : which == MOMENTUM ? v : 0.5 * v * v; };
+    {
+      const PetscScalar **f;
+      PetscCall(DMDAVecGetArrayRead(dm_, U, &f));
+      for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j) {
+        const PetscReal mv = moment(g.y(j));
+        for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i) {
+          const PetscReal fv = PetscRealPart(f[j][i]);
+          local[0] += cell * mv * fv;
+          local[1] += cell * fv * fv;
+        }
+      }
+      PetscCall(DMDAVecRestoreArrayRead(dm_, U, &f));
+    }
+    PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, local, 2, MPIU_REAL, MPI_SUM, g.comm()));
+    const PetscReal l2 = std::sqrt(local[1]);
+    if (value) *value = which == L2 ? l2 : which == ENERGY ? local[0] + W : local[0];
+    if (dFdU) {
+      PetscScalar **d;
+      const PetscScalar **f = nullptr;
+      if (which == L2) PetscCall(DMDAVecGetArrayRead(dm_, U, &f));
+      PetscCall(DMDAVecGetArray(dm_, dFdU, &d));
+      for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j) {
+        const PetscReal mv = moment(g.y(j));
+        for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i) {
+          if (which == L2) d[j][i] = l2 > 0 ? cell * PetscRealPart(f[j][i]) / l2 : 0.0;
+          else d[j][i] = cell * mv + (which == ENERGY ? cell * KE[i - g.xs()] : 0.0);
+        }
+      }
+      PetscCall(DMDAVecRestoreArray(dm_, dFdU, &d));
+      if (f) PetscCall(DMDAVecRestoreArrayRead(dm_, U, &f));
+    }
+    PetscFunctionReturn(0);
+  }
+
+private:
+  PetscErrorCode to_local(Vec U, Vec Ul) {
+    PetscFunctionBeginUser;
+    PetscCall(VecSet(Ul, 0.0)); // f = 0 beyond the velocity bounds (ghosts the scatter leaves alone)
+    PetscCall(DMGlobalToLocal(dm_, U, INSERT_VALUES, Ul));
+    PetscFunctionReturn(0);
+  }
+
+  // F(v) and, when dF is given, (dF/dvt, dF/dv0, dF/dratio).
+  PetscReal velocity_profile(PetscReal v, PetscReal *dF = nullptr) const {
+    // dM/ds = M (u^2 / s^3 - 1 / s), dM/du = -M u / s^2
+    auto dMds = [](PetscReal u, PetscReal s) { return maxwellian(u, s) * (u * u / (s * s * s) - 1 / s); };
+    if (ic_ == LANDAU) {
+      if (dF) {
+        dF[0] = dMds(v, vt_);
+        dF[1] = dF[2] = 0;
+      }
+      return maxwellian(v, vt_);
+    }
+    const PetscReal s1 = vt_, s2 = vt_ * std::sqrt(ratio_), u1 = v - v0_, u2 = v + v0_;
+    const PetscReal M1 = maxwellian(u1, s1), M2 = maxwellian(u2, s2);
+    if (dF) {
+      dF[0] = 0.5 * (dMds(u1, s1) + dMds(u2, s2) * std::sqrt(ratio_));
+      dF[1] = 0.5 * (M1 * u1 / (s1 * s1) - M2 * u2 / (s2 * s2));
+      dF[2] = 0.5 * dMds(u2, s2) * vt_ / (2 * std::sqrt(ratio_));
+    }
+    return 0.5 * (M1 + M2);
+  }
+
+  // (D_x f)_ij, periodic (ghosts wrap).
+  PetscReal dx(const PetscScalar *const *f, PetscInt i, PetscInt j) const {
+    const PetscScalar *r = f[j];
+    return PetscRealPart(r[i - 2] - 8.0 * r[i - 1] + 8.0 * r[i + 1] - r[i + 2]) / (12 * h_);
+  }
+  // Face value F_{j+1/2} (zero for the outer faces j = -1 and j = N_v - 1).
+  PetscReal face(const PetscScalar *const *f, PetscInt i, PetscInt j) const {
+    if (j < 0 || j > nv_ - 2) return 0;
+    return PetscRealPart(face_w[0] * f[j - 1][i] + face_w[1] * f[j][i] + face_w[2] * f[j + 1][i] + face_w[3] * f[j + 2][i]);
+  }
+  PetscReal dv(const PetscScalar *const *f, PetscInt i, PetscInt j) const {
+    if (j >= 1 && j <= nv_ - 2)
+      return PetscRealPart(f[j - 2][i] - 8.0 * f[j - 1][i] + 8.0 * f[j + 1][i] - f[j + 2][i]) / (12 * hv_);
+    return (face(f, i, j) - face(f, i, j - 1)) / hv_;
+  }
+  // (D_v^T z)_ij = sum over the faces q reading f_j of w (z_q - z_{q+1}) / hv.
+  PetscReal dv_transpose(const PetscScalar *const *z, PetscInt i, PetscInt j) const {
+    if (j >= 2 && j <= nv_ - 3)
+      return -PetscRealPart(z[j - 2][i] - 8.0 * z[j - 1][i] + 8.0 * z[j + 1][i] - z[j + 2][i]) / (12 * hv_);
+    PetscReal s = 0;
+    for (PetscInt m = 0; m < 4; ++m) {
+      const PetscInt q = j + 1 - m; // face q + 1/2 reads f_{q-1+m} = f_j
+      if (q < 0 || q > nv_ - 2) continue;
+      s += face_w[m] * PetscRealPart(z[q][i] - z[q + 1][i]);
+    }
+    return s / hv_;
+  }
+
+  // E at the owned x from the density of f (collective): E = -K rho.
+  PetscErrorCode field(const PetscScalar *const *f, std::vector<PetscReal> &E) {
+    PetscFunctionBeginUser;
+    PetscCall(density(f, rho_));
+    apply_K(rho_, E);
+    for (PetscReal &e : E) e = -e;
+    PetscFunctionReturn(0);
+  }
+  // rho_i = hv sum_j f_ij for all i, summed over the ranks.
+  PetscErrorCode density(const PetscScalar *const *f, std::vector<PetscReal> &rho) {
+    const Grid &g = *grid_;
+    PetscFunctionBeginUser;
+    std::fill(rho.begin(), rho.end(), 0.0);
+    for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j)
+      for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i) rho[i] += hv_ * PetscRealPart(f[j][i]);
+    PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, rho.data(), (PetscMPIInt)nx_, MPIU_REAL, MPI_SUM, g.comm()));
+    PetscFunctionReturn(0);
+  }
+  // out_il = (K s)_i for the owned i = xs + il.
+  void apply_K(const std::vector<PetscReal> &s, std::vector<PetscReal> &out) const {
+    const Grid &g = *grid_;
+    for (PetscInt il = 0; il < g.xm(); ++il) {
+      const PetscInt i = g.xs() + il;
+      PetscReal e = 0;
+      for (PetscInt m = 0; m <= i; ++m) e += K_[i - m] * s[m];
+      for (PetscInt m = i + 1; m < nx_; ++m) e += K_[i - m + nx_] * s[m];
+      out[il] = e;
+    }
+  }
+
+  static PetscErrorCode zero_mult(Mat, Vec, Vec y) { return VecSet(y, 0.0); }
+
+  // y = dG/dU x = -v D_x x + E D_v x + dE D_v f,  dE = -K rho(x)
+  static PetscErrorCode j_mult(Mat J, Vec x, Vec y) {
+    VlasovModel *m;
+    const PetscScalar **xa, **f;
+    PetscScalar **ya;
+    PetscFunctionBeginUser;
+    PetscCall(MatShellGetContext(J, &m));
+    const Grid &g = *m->grid_;
+    PetscCall(m->to_local(x, m->X_local_));
+    PetscCall(DMDAVecGetArrayRead(m->dm_, m->X_local_, &xa));
+    PetscCall(DMDAVecGetArrayRead(m->dm_, m->Ulin_local_, &f));
+    PetscCall(m->field(xa, m->dE_));
+    PetscCall(DMDAVecGetArray(m->dm_, y, &ya));
+    for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j) {
+      const PetscReal v = g.y(j);
+      for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i) {
+        const PetscInt il = i - g.xs();
+        ya[j][i] = -v * m->dx(xa, i, j) + m->Elin_[il] * m->dv(xa, i, j) + m->dE_[il] * m->dv(f, i, j);
+      }
+    }
+    PetscCall(DMDAVecRestoreArray(m->dm_, y, &ya));
+    PetscCall(DMDAVecRestoreArrayRead(m->dm_, m->Ulin_local_, &f));
+    PetscCall(DMDAVecRestoreArrayRead(m->dm_, m->X_local_, &xa));
+    PetscFunctionReturn(0);
+  }
+
+  // y = (dG/dU)^T x = v D_x x + E D_v^T x + hv K w,  w_i = sum_j x_ij (D_v f)_ij
+  static PetscErrorCode j_mult_transpose(Mat J, Vec x, Vec y) {
+    VlasovModel *m;
+    const PetscScalar **xa, **f;
+    PetscScalar **ya;
+    PetscFunctionBeginUser;
+    PetscCall(MatShellGetContext(J, &m));
+    const Grid &g = *m->grid_;
+    PetscCall(m->to_local(x, m->X_local_));
+    PetscCall(DMDAVecGetArrayRead(m->dm_, m->X_local_, &xa));
+    PetscCall(DMDAVecGetArrayRead(m->dm_, m->Ulin_local_, &f));
+    std::fill(m->w_.begin(), m->w_.end(), 0.0);
+    for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j)
+      for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i) m->w_[i] += PetscRealPart(xa[j][i]) * m->dv(f, i, j);
+    PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, m->w_.data(), (PetscMPIInt)m->nx_, MPIU_REAL, MPI_SUM, g.comm()));
+    m->apply_K(m->w_, m->dE_);
+    PetscCall(DMDAVecGetArray(m->dm_, y, &ya));
+    for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j) {
+      const PetscReal v = g.y(j);
+      for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i) {
+        const PetscInt il = i - g.xs();
+        ya[j][i] = v * m->dx(xa, i, j) + m->Elin_[il] * m->dv_transpose(xa, i, j) + m->hv_ * m->dE_[il];
+      }
+    }
+    PetscCall(DMDAVecRestoreArray(m->dm_, y, &ya));
+    PetscCall(DMDAVecRestoreArrayRead(m->dm_, m->Ulin_local_, &f));
+    PetscCall(DMDAVecRestoreArrayRead(m->dm_, m->X_local_, &xa));
+    PetscFunctionReturn(0);
+  }
+
+  const Grid *grid_ = nullptr;
+  DM dm_ = nullptr;
+  Parameters *params_ = nullptr;
+  PetscInt ic_ = LANDAU, mode_ = 1, nx_ = 0, nv_ = 0;
+  PetscReal h_ = 1, hv_ = 1, k_ = 0.5, E_cfl_ = default_E_cfl, E0_max_ = 0;
+  PetscReal alpha_ = 0, vt_ = 1, v0_ = 0, ratio_ = 1;
+  PetscInt alpha_index_ = -1, vt_index_ = -1, v0_index_ = -1, ratio_index_ = -1;
+  std::vector<PetscReal> K_, rho_, w_;    // kernel; length-N_x work arrays
+  std::vector<PetscReal> E_, Elin_, dE_; // at the owned x: E(U) of rhs, E at the linearisation state, work
+  OwnedVec U_local_, X_local_, Ulin_local_;
+};
+
+} // namespace
+
+std::unique_ptr<Model> make_vlasov_model() { return std::make_unique<VlasovModel>(); }
+
+} // namespace flexipde
