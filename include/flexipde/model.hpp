@@ -7,10 +7,12 @@
 #pragma once
 #include "flexipde/grid.hpp"
 #include "flexipde/parameters.hpp"
+#include <complex>
 #include <functional>
 #include <map>
 #include <memory>
 #include <string>
+#include <vector>
 
 namespace flexipde {
 
@@ -18,6 +20,10 @@ namespace flexipde {
 struct Spectrum {
   PetscReal imag_radius = 0; // eigenvalues have |Im| <= imag_radius
   PetscReal real_radius = 0; // and -real_radius <= Re <= 0
+  // Optional, and then used instead of the two radii: the eigenvalues themselves (e.g. the symbol
+  // of a periodic constant-coefficient operator at every mode), or points of the boundary of a set
+  // known to hold them. The Simulation checks |R(dt lambda)| <= 1 at each.
+  std::vector<std::complex<PetscReal>> samples;
 };
 
 class Model {

@@ -169,10 +169,18 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
     PC pc;
     PetscCall(TSGetSNES(ts, &snes));
     PetscCall(SNESGetKSP(snes, &ksp));
-    PetscCall(KSPSetType(ksp, KSPPREONLY));
+    PetscBool shell;
     PetscCall(KSPGetPC(ksp, &pc));
-    PetscCall(PCSetType(pc, PCLU));
-    if (size > 1) PetscCall(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
+    PetscCall(PetscObjectTypeCompare((PetscObject)(Mat)J_, MATSHELL, &shell));
+    if (shell) { // a matrix-free dG/dU (spectral) cannot be factored: unpreconditioned GMRES, tight
+      PetscCall(KSPSetType(ksp, KSPGMRES));
+      PetscCall(PCSetType(pc, PCNONE));
+      PetscCall(KSPSetTolerances(ksp, 1e-13, 1e-50, PETSC_DEFAULT, 2000));
+    } else {
+      PetscCall(KSPSetType(ksp, KSPPREONLY));
+      PetscCall(PCSetType(pc, PCLU));
+      if (size > 1) PetscCall(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
+    }
   }
   if (with_adjoint) {
     // Full storage (every state, solution only), or binomial checkpointing within
@@ -271,6 +279,42 @@ static PetscReal axis_limit(const std::function<std::complex<double>(std::comple
   return zmax;
 }
 
+// Sampled eigenvalues (Spectrum::samples): every |R(dt lambda)| <= 1 at the given dt, else the
+// largest stable dt by bisection (the stable set of these methods is star-shaped along each ray).
+static bool all_stable(const std::function<std::complex<double>(std::complex<double>)> &R,
+                       const std::vector<std::complex<PetscReal>> &ev, double t) {
+  for (const auto &l : ev)
+    if (std::abs(R(t * std::complex<double>(l))) > 1.0 + 1e-12) return false;
+  return true;
+}
+
+static PetscErrorCode check_sampled_stability(const std::function<std::complex<double>(std::complex<double>)> &R,
+                                              const std::string &method, const std::vector<std::complex<PetscReal>> &ev,
+                                              PetscReal dt, MPI_Comm comm) {
+  PetscFunctionBeginUser;
+  if (all_stable(R, ev, dt)) PetscFunctionReturn(0);
+  double lo = 0, hi = dt, rmax = 0;
+  for (int k = 0; k < 60; ++k) {
+    const double mid = 0.5 * (lo + hi);
+    (all_stable(R, ev, mid) ? lo : hi) = mid;
+  }
+  for (const auto &l : ev) rmax = std::max<double>(rmax, std::abs(l));
+  bool real = true, imag = true;
+  for (const auto &l : ev) {
+    if (std::fabs(l.imag()) > 1e-12 * rmax) real = false;
+    if (std::fabs(l.real()) > 1e-12 * rmax) imag = false;
+  }
+  const char *what = imag ? "oscillatory (imaginary)" : real ? "diffusive (negative real)" : "mixed (complex)";
+  PetscCheck(lo * rmax > 1e-2, comm, PETSC_ERR_ARG_OUTOFRANGE,
+             "%s is unstable for this model's %s spectrum at any dt; use -ts_rk_type 3, 4 or 5dp, or an implicit "
+             "-ts_type (cn, beuler)",
+             method.c_str(), what);
+  SETERRQ(comm, PETSC_ERR_ARG_OUTOFRANGE,
+          "Explicit step beyond the stability limit: dt = %g but %s is stable for this model's %s spectrum "
+          "(radius %g, %zu sampled eigenvalues) only up to dt = %g",
+          (double)dt, method.c_str(), what, rmax, ev.size(), lo);
+}
+
 PetscErrorCode Simulation::check_stability(TS ts) {
   TSType type;
   std::function<std::complex<double>(std::complex<double>)> R;
@@ -321,6 +365,8 @@ PetscErrorCode Simulation::check_stability(TS ts) {
   Spectrum sp;
   PetscCall(model_->spectrum(&sp));
   const PetscReal dt = stats_.dt;
+  if (!sp.samples.empty()) PetscCall(check_sampled_stability(R, method, sp.samples, dt, grid_->comm()));
+  if (!sp.samples.empty()) PetscFunctionReturn(0);
   struct Axis {
     const char *what;
     PetscReal radius;

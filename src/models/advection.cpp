@@ -1,49 +1,58 @@
-// Linear advection-diffusion of one scalar on a periodic grid.
+// Linear advection-diffusion of one scalar on a periodic grid, in 1D or 2D.
 //
-//   u_t + a u_x = (D u_x)_x   on [x0, x1) periodic,   u(x, 0) = u0(x; A)
+//   1D (default):        u_t + a u_x         = (D u_x)_x                on [x0, x1) periodic
+//   2D (-advection_dim 2): u_t + a u_x + b u_y = (D u_x)_x + (D u_y)_y    on [x0, x1) x [y0, y1)
+//   u(x, 0) = u0(x; A)
 //
-// The velocity a is a scalar parameter (-advection_a). Diffusion is optional: -advection_diffusion
+// The velocities a (-advection_a) and, in 2D only, b (-advection_b) are scalar parameters. A 1D
+// scene has no b and no second grid direction. Diffusion is optional: -advection_diffusion
 // (default on exactly when -advection_D, -advection_D_field or -advection_D_profile is given) adds
 // the parameter D, one scalar (-advection_D) or a field D(x) (-advection_D_field 1). Without it
-// the scene declares no D and assembles no diffusion stencil.
+// the scene declares no D and assembles no diffusion term. A 2D scene defaults to a 64 x 64 grid,
+// periodic in both directions.
 //
-// Space (h the grid spacing, all stencils periodic):
+// Space (h the grid spacing of the direction, all stencils periodic, applied per direction):
 //   -advection_scheme fd2     (u_x)_i = (u_{i+1} - u_{i-1}) / 2h                          order 2
 //   -advection_scheme fd4     (u_x)_i = (u_{i-2} - 8u_{i-1} + 8u_{i+1} - u_{i+2}) / 12h   order 4
 //   -advection_scheme upwind  (u_x)_i = (u_i - u_{i-1}) / h for a >= 0, (u_{i+1} - u_i) / h
 //                             for a < 0: order 1, monotone (no new extrema on a square pulse)
-//   Diffusion in conservative flux form, G_i = (F_{i+1/2} - F_{i-1/2}) / h for -fd_order 2,
-//   F_f = D_f (u_x)_f at the faces f = i+1/2:
+//   -advection_scheme spectral  Fourier differentiation with FFTW-MPI (include/flexipde/spectral.hpp),
+//                             exponential accuracy for smooth u; N even in every direction
+//   Finite-difference diffusion in conservative flux form, per direction G_i = (F_{i+1/2} - F_{i-1/2})/h
+//   for -fd_order 2, F_f = D_f (u_x)_f at the faces f = i+1/2:
 //     -fd_order 2: (u_x)_f = (u_{i+1} - u_i) / h,  D_f = (D_i + D_{i+1}) / 2
 //     -fd_order 4: (u_x)_f = (u_{i-1} - 27u_i + 27u_{i+1} - u_{i+2}) / 24h,
 //                  D_f = (-D_{i-1} + 9D_i + 9D_{i+1} - D_{i+2}) / 16,
 //                  G_i = (F_{i-3/2} - 27F_{i-1/2} + 27F_{i+1/2} - F_{i+3/2}) / 24h
-//   i.e. G_diff = -B^T diag(D_f) B u with B the face gradient: symmetric, negative semi-definite
-//   while every D_f >= 0, conservative (sum_i G_i = 0) and of the stated order for a smooth
-//   field D too. -fd_order defaults to 4 with fd4 and to 2 otherwise. A scalar D uses the same
-//   operator with D_f = D (for -fd_order 4 its stencil is 7 points wide, not the usual 5).
+//   i.e. G_diff = -sum_d B_d^T diag(D_f) B_d u with B_d the face gradient of direction d: symmetric,
+//   negative semi-definite while every D_f >= 0, conservative and of the stated order for a smooth
+//   field D too. -fd_order defaults to 4 with fd4 and to 2 otherwise.
+//   Spectral diffusion: a scalar D is the multiplier -D |kappa|^2; a field D is
+//   sum_d E_d diag(P D) E_d u with E_d = P d/dx_d, P the 2/3-rule truncation: the product D u_x is
+//   de-aliased (both factors truncated, the product truncated), and the operator stays symmetric
+//   negative semi-definite while P D >= 0 (checked).
 //
-//   G(U; a, D) = A(a, D) U,   A = -a D1 - B^T diag(I D) B         dG/dU = A (assembled, constant)
-//   dG/da = -D1 u                                                 (one column)
-//   dG/dD = -B^T diag(B u) I       (field; a scalar D sums the columns: -B^T B u)
-// The transposes are pointwise products of face gradients, (dG/dD)^T l = -I^T (Bu .* Bl), so dG/dp
-// is a MatShell and a gradient with respect to a field costs no more than one for a scalar.
-// For upwind, dG/da is taken on the side of the current sign of a (one-sided at a = 0).
+//   G(U; a, b, D) = A(a, b, D) U,   A = -a D_x - b D_y + G_diff       dG/dU = A (constant)
+//   dG/da = -D_x u, dG/db = -D_y u                                   (one column each)
+//   dG/dD = -sum_d B_d^T diag(B_d u) I_d (field; a scalar D sums the columns)
+// Finite differences assemble A (AIJ); spectral A is a MatShell with MULT and MULT_TRANSPOSE (the
+// transposed Fourier multiplier), so an implicit integrator solves with unpreconditioned GMRES
+// (the Simulation's default for a shell Jacobian). dG/dp is a MatShell for every scheme. For
+// upwind, dG/da is taken on the side of the current sign of a (one-sided at a = 0).
 //
-// Spectrum (for the explicit stability check): the eigenvalues of A are lambda(theta_k),
-// theta_k = 2 pi k / N, from the stencils' symbols: centred advection is imaginary
-// (|Im| <= |a| 1/h for fd2, 1.372 |a|/h for fd4), diffusion real (>= -D 4/h^2 for order 2,
-// -D (56/24)^2/h^2 for order 4), upwind a circle touching both axes. The Simulation checks the two
-// axes separately, which is exact when the spectrum lies on one axis but not when it lies off
-// both; then both radii are reported as max_k |Re lambda_k| + |Im lambda_k|, the diamond spanned
-// by the axis limits lying inside the stability region of the RK methods (checked for rk 3, 4,
-// 3bs and 5dp in tests/test_advection.cpp). A field D bounds the diffusion part by max D_f times the scalar
-// symbol (field of values), so its bound is a rectangle.
+// Spectrum (for the explicit stability check): with no D or a scalar D, A is a sum of circulants
+// per direction, normal, and its eigenvalues are the symbols lambda(theta_x) + lambda(theta_y),
+// theta_k = 2 pi k / N: the model passes all of them and the Simulation checks |R(dt lambda)| <= 1
+// for each. With a field D the eigenvalues lie in the field of values, inside W(advection) +
+// [-Dmax rho, 0] (rho the largest |symbol|^2 of the face gradients); the model passes the boundary
+// of that set (advection eigenvalues, the same shifted by -Dmax rho, and the two horizontal edges).
 //
-// Initial condition (-advection_ic, profile s(x), u0 = A s(x)):
-//   sinusoid  s = sin(2 pi m (x - x0) / L + phi)     -advection_ic_mode m, -advection_ic_phase phi
-//   gaussian  s = exp(-(d / w)^2)                    d the periodic distance to -advection_ic_center,
-//   square    s = 1 where |d| < w / 2, else 0        w = -advection_ic_width
+// Initial condition (-advection_ic, profile s, u0 = A s):
+//   sinusoid  s = sin(2 pi m (x - x0) / Lx [+ 2 pi m_y (y - y0) / Ly] + phi)
+//             -advection_ic_mode m, -advection_ic_mode_y m_y (2D, default 1), -advection_ic_phase phi
+//   gaussian  s = exp(-|d|^2 / w^2)                  d the periodic distance to the centre
+//   square    s = 1 where |d_x| < w/2 [and |d_y| < w/2], else 0      w = -advection_ic_width
+//   centre -advection_ic_center [-advection_ic_center_y], default the middle of the domain.
 // The amplitude A (-advection_ic_amplitude) is a plain value unless -advection_ic_amplitude_param 1
 // declares it as the scalar parameter advection_ic_amplitude; then dU0/dA = s enters the gradient.
 //
@@ -52,8 +61,15 @@
 //           -advection_ic_amplitude_param 1 -advection_D 0.05 -advection_D_field 1   (one line)
 //   mpiexec -n 2 ./flexipde -model advection -grid_periodic 1 -task gradient -advection_scheme upwind
 //           -advection_a 0.8 -true_advection_a 1 -ts_type cn -ts_dt 1e-3 -ts_max_time 0.5 -check_fd
+//   mpiexec -n 2 ./flexipde -model advection -grid_periodic 1 -grid_x1 6.283185307179586 -da_grid_x 64
+//           -advection_scheme spectral -advection_a 0.8 -true_advection_a 1 -ts_dt 0.01 -ts_max_time 1
+//           -task gradient -check_fd
+//   mpiexec -n 2 ./flexipde -model advection -advection_dim 2 -da_grid_x 32 -da_grid_y 32
+//           -advection_a 0.8 -advection_b 0.5 -true_advection_b 0.6 -advection_D 0.01 -ts_dt 0.005
+//           -ts_max_time 0.2 -task gradient -check_fd
 #include "flexipde/differentiator.hpp"
 #include "flexipde/model.hpp"
+#include "flexipde/spectral.hpp"
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -63,17 +79,22 @@
 namespace flexipde {
 namespace {
 
-const char *const schemes[] = {"fd2", "fd4", "upwind"};
-enum Scheme : PetscInt { FD2 = 0, FD4 = 1, UPWIND = 2 };
+const char *const schemes[] = {"fd2", "fd4", "upwind", "spectral"};
+enum Scheme : PetscInt { FD2 = 0, FD4 = 1, UPWIND = 2, SPECTRAL = 3 };
 const char *const ic_names[] = {"sinusoid", "gaussian", "square"};
 enum InitialCondition : PetscInt { SINUSOID = 0, GAUSSIAN = 1, SQUARE = 2 };
+const char *const velocity_names[2] = {"advection_a", "advection_b"};
 
-// Default diffusivity when diffusion is switched on without a value.
+// Default diffusivity when diffusion is switched on without a value, and the 2D grid's default size.
 constexpr PetscReal default_diffusion = 0.01;
+constexpr PetscInt default_points_2d = 64;
 
-// The choices that fix the stencils. Read before the grid exists (its ghost width depends on
-// them) without registering help, and again in setup with help, from the same defaults.
+using cplx = std::complex<PetscReal>;
+
+// The choices that fix the grid and the stencils. Read before the grid exists (its dimension and
+// ghost width depend on them) without registering help, and again in setup with help.
 struct StencilChoice {
+  PetscInt dim = 1;
   PetscInt scheme = FD2;
   PetscBool diffusion = PETSC_FALSE;
   PetscInt diffusion_order = 2;
@@ -91,7 +112,8 @@ PetscErrorCode diffusion_requested(PetscBool *requested) {
 
 PetscErrorCode read_stencil_choice(StencilChoice &s) {
   PetscFunctionBeginUser;
-  PetscCall(PetscOptionsGetEList(nullptr, nullptr, "-advection_scheme", schemes, 3, &s.scheme, nullptr));
+  PetscCall(PetscOptionsGetInt(nullptr, nullptr, "-advection_dim", &s.dim, nullptr));
+  PetscCall(PetscOptionsGetEList(nullptr, nullptr, "-advection_scheme", schemes, 4, &s.scheme, nullptr));
   PetscCall(diffusion_requested(&s.diffusion));
   PetscCall(PetscOptionsGetBool(nullptr, nullptr, "-advection_diffusion", &s.diffusion, nullptr));
   s.diffusion_order = s.scheme == FD4 ? 4 : 2;
@@ -104,6 +126,7 @@ std::array<PetscReal, 5> first_derivative_weights(PetscInt scheme, PetscReal a) 
   switch (scheme) {
   case FD4: return {1.0 / 12, -8.0 / 12, 0.0, 8.0 / 12, -1.0 / 12};
   case UPWIND: return a >= 0 ? std::array<PetscReal, 5>{0, -1, 1, 0, 0} : std::array<PetscReal, 5>{0, 0, -1, 1, 0};
+  case SPECTRAL: return {0, 0, 0, 0, 0};
   default: return {0.0, -0.5, 0.0, 0.5, 0.0};
   }
 }
@@ -127,8 +150,18 @@ public:
   const char *component_name(PetscInt) const override { return "u"; }
   PetscInt stencil_width(MPI_Comm) const override {
     StencilChoice s;
-    if (read_stencil_choice(s)) return 1; // setup reports the bad option
+    if (quiet_read(s)) return 1; // setup reports the bad option
     return half_width(s);
+  }
+  PetscInt dim() const override {
+    StencilChoice s;
+    if (quiet_read(s)) return 1;
+    return s.dim == 2 ? 2 : 1; // setup refuses other values
+  }
+  void grid_defaults(GridOptions &g) const override {
+    if (dim() != 2) return; // 1D: the grid's own defaults, as before
+    g.n = g.ny = default_points_2d;
+    g.periodic = g.periodic_y = PETSC_TRUE;
   }
 
   PetscErrorCode setup(const Grid &grid, DM state_dm, Parameters &params) override {
@@ -138,18 +171,24 @@ public:
     grid_ = &grid;
     dm_ = state_dm;
     params_ = &params;
+    dim_ = grid.dim();
     const PetscReal L = grid.x1() - grid.x0();
-    center_ = 0.5 * (grid.x0() + grid.x1());
+    center_[0] = 0.5 * (grid.x0() + grid.x1());
+    center_[1] = 0.5 * (grid.y0() + grid.y1());
     width_ = 0.1 * L;
     PetscCall(read_stencil_choice(s));
+    PetscInt dim_opt = s.dim;
     scheme_ = s.scheme;
     diffusion_ = s.diffusion;
-    PetscOptionsBegin(grid.comm(), nullptr, "Advection-diffusion model u_t + a u_x = (D u_x)_x", "Advection");
-    PetscCall(PetscOptionsEList("-advection_scheme", "First derivative of the advection: fd2, fd4 (centred) or upwind",
-                                "Advection", schemes, 3, schemes[s.scheme], &scheme_, nullptr));
+    PetscOptionsBegin(grid.comm(), nullptr, "Advection-diffusion model u_t + a u_x (+ b u_y) = div(D grad u)", "Advection");
+    PetscCall(PetscOptionsInt("-advection_dim", "Space dimension: 1, or 2 (velocity (a, b), grid -da_grid_x x -da_grid_y)",
+                              "Advection", s.dim, &dim_opt, nullptr));
+    PetscCall(PetscOptionsEList("-advection_scheme",
+                                "First derivative of the advection: fd2, fd4 (centred), upwind, or spectral (FFTW)",
+                                "Advection", schemes, 4, schemes[s.scheme], &scheme_, nullptr));
     PetscCall(PetscOptionsBool("-advection_diffusion",
-                               "Add (D u_x)_x with the parameter D (default: on when -advection_D* is given)", "Advection",
-                               s.diffusion, &diffusion_, nullptr));
+                               "Add div(D grad u) with the parameter D (default: on when -advection_D* is given)",
+                               "Advection", s.diffusion, &diffusion_, nullptr));
     PetscCall(PetscOptionsBool("-advection_D_field", "Diffusivity D is a field (one value per grid point), else one scalar",
                                "Advection", D_field_, &D_field_, nullptr));
     PetscCall(PetscOptionsEList("-advection_ic", "Initial profile", "Advection", ic_names, 3, ic_names[ic_], &ic_, nullptr));
@@ -159,36 +198,60 @@ public:
     if (!amplitude_param_)
       PetscCall(PetscOptionsReal("-advection_ic_amplitude", "Amplitude A of u0 = A s(x)", "Advection", amplitude_,
                                  &amplitude_, nullptr));
-    PetscCall(PetscOptionsInt("-advection_ic_mode", "sinusoid: number m of periods in the domain", "Advection", mode_,
-                              &mode_, nullptr));
+    PetscCall(PetscOptionsInt("-advection_ic_mode", "sinusoid: number m of periods in x", "Advection", mode_[0], &mode_[0],
+                              nullptr));
     PetscCall(PetscOptionsReal("-advection_ic_phase", "sinusoid: phase phi", "Advection", phase_, &phase_, nullptr));
-    PetscCall(PetscOptionsReal("-advection_ic_center", "gaussian, square: centre", "Advection", center_, &center_, nullptr));
+    PetscCall(PetscOptionsReal("-advection_ic_center", "gaussian, square: centre (x)", "Advection", center_[0], &center_[0],
+                               nullptr));
+    if (dim_ == 2) {
+      PetscCall(PetscOptionsInt("-advection_ic_mode_y", "sinusoid: number of periods in y", "Advection", mode_[1],
+                                &mode_[1], nullptr));
+      PetscCall(PetscOptionsReal("-advection_ic_center_y", "gaussian, square: centre (y)", "Advection", center_[1],
+                                 &center_[1], nullptr));
+    }
     PetscCall(PetscOptionsReal("-advection_ic_width", "gaussian: width w of exp(-(d/w)^2); square: full width", "Advection",
                                width_, &width_, nullptr));
     PetscOptionsEnd();
-    PetscCheck(grid.periodic(), grid.comm(), PETSC_ERR_ARG_WRONG,
-               "Model advection needs a periodic grid (-grid_periodic 1): inflow and outflow boundaries are not "
-               "implemented");
+    PetscCheck(dim_opt == 1 || dim_opt == 2, grid.comm(), PETSC_ERR_ARG_OUTOFRANGE,
+               "-advection_dim %" PetscInt_FMT " is not offered: choose 1 or 2", dim_opt);
+    PetscCheck(grid.periodic() && (dim_ == 1 || grid.periodic_y()), grid.comm(), PETSC_ERR_ARG_WRONG,
+               "Model advection needs a periodic grid (-grid_periodic 1%s): inflow and outflow boundaries are not "
+               "implemented",
+               dim_ == 2 ? " -grid_periodic_y 1" : "");
     PetscCheck(width_ > 0, grid.comm(), PETSC_ERR_ARG_OUTOFRANGE, "-advection_ic_width must be positive, got %g",
                (double)width_);
-    if (diffusion_) {
+    if (diffusion_ && scheme_ != SPECTRAL) {
       PetscCall(SecondDerivative::from_options(grid.comm(), nullptr, scheme_ == FD4 ? 4 : 2, order_reader));
       face_ = face_stencil(order_reader.order());
     }
     { // the grid was made for the choice read before setup; -help or a prefix must not change it
-      StencilChoice now{scheme_, diffusion_, diffusion_ ? order_reader.order() : 2};
-      PetscCheck(half_width(now) <= grid.stencil_width(), grid.comm(), PETSC_ERR_PLIB,
-                 "Advection stencil half-width %" PetscInt_FMT " exceeds the grid's ghost width %" PetscInt_FMT,
-                 half_width(now), grid.stencil_width());
+      StencilChoice now{dim_, scheme_, diffusion_, diffusion_ ? order_reader.order() : 2};
+      PetscCheck(half_width(now) <= grid.stencil_width() && dim_opt == dim_, grid.comm(), PETSC_ERR_PLIB,
+                 "Advection stencil half-width %" PetscInt_FMT " or dimension %" PetscInt_FMT
+                 " differs from the grid's (%" PetscInt_FMT ", %" PetscInt_FMT ")",
+                 half_width(now), dim_opt, grid.stencil_width(), dim_);
     }
+    if (scheme_ == SPECTRAL) PetscCall(spectral_.setup(grid));
 
-    a_index_ = params.add("advection_a", ParamKind::Scalar);
+    for (PetscInt d = 0; d < dim_; ++d) vel_index_[d] = params.add(velocity_names[d], ParamKind::Scalar);
     if (diffusion_)
       D_index_ = params.add("advection_D", D_field_ ? ParamKind::Field : ParamKind::Scalar, 0.0, default_diffusion);
     if (amplitude_param_) A_index_ = params.add("advection_ic_amplitude", ParamKind::Scalar, PETSC_NINFINITY, amplitude_);
 
-    PetscCall(DMCreateLocalVector(dm_, U_local_.out()));
-    PetscCall(DMCreateLocalVector(dm_, X_local_.out()));
+    h_[0] = grid.h();
+    h_[1] = dim_ == 2 ? grid.hy() : 1.0;
+    PetscCall(DMDAGetGhostCorners(dm_, &gxs_, &gys_, nullptr, &gxm_, nullptr, nullptr));
+    if (dim_ == 1) gys_ = 0;
+    stride_[0] = 1;
+    stride_[1] = gxm_;
+    if (scheme_ == SPECTRAL) {
+      for (auto *v : {&t1_, &t2_, &t3_}) PetscCall(DMCreateGlobalVector(grid.dm(), v->out()));
+      if (diffusion_ && D_field_)
+        for (PetscInt d = 0; d < dim_; ++d) PetscCall(DMCreateGlobalVector(grid.dm(), w_[d].out()));
+    } else {
+      PetscCall(DMCreateLocalVector(dm_, U_local_.out()));
+      PetscCall(DMCreateLocalVector(dm_, X_local_.out()));
+    }
     if (diffusion_) {
       PetscCall(DMCreateGlobalVector(grid.dm(), D_.out()));
       PetscCall(DMCreateLocalVector(grid.dm(), D_local_.out()));
@@ -198,14 +261,29 @@ public:
       }
     }
     PetscCall(create_operator(dm_));
-    dGda_.assign(grid.xm(), 0.0);
-    dGdD_.assign(grid.xm(), 0.0);
+    for (PetscInt d = 0; d < dim_; ++d) dGdv_[d].assign(grid.local_points(), 0.0);
+    dGdD_.assign(grid.local_points(), 0.0);
+    PetscFunctionReturn(0);
+  }
+
+  // Spectral: a MatShell (the operator is dense in physical space). Finite differences: AIJ.
+  PetscErrorCode create_jacobian(Mat *J) override {
+    PetscFunctionBeginUser;
+    if (scheme_ != SPECTRAL) {
+      PetscCall(LinearModel::create_jacobian(J));
+      PetscFunctionReturn(0);
+    }
+    const PetscInt n = grid_->local_points();
+    PetscCall(MatCreateShell(grid_->comm(), n, n, PETSC_DETERMINE, PETSC_DETERMINE, this, J));
+    PetscCall(MatShellSetOperation(*J, MATOP_MULT, (void (*)(void))spectral_mult));
+    PetscCall(MatShellSetOperation(*J, MATOP_MULT_TRANSPOSE, (void (*)(void))spectral_mult_transpose));
     PetscFunctionReturn(0);
   }
 
   PetscErrorCode create_jacobian_p(Mat *Jp) override {
     PetscFunctionBeginUser;
-    PetscCall(MatCreateShell(grid_->comm(), grid_->xm(), params_->local_size(), PETSC_DETERMINE, PETSC_DETERMINE, this, Jp));
+    PetscCall(MatCreateShell(grid_->comm(), grid_->local_points(), params_->local_size(), PETSC_DETERMINE, PETSC_DETERMINE,
+                             this, Jp));
     PetscCall(MatShellSetOperation(*Jp, MATOP_MULT, (void (*)(void))jp_mult));
     PetscCall(MatShellSetOperation(*Jp, MATOP_MULT_TRANSPOSE, (void (*)(void))jp_mult_transpose));
     PetscFunctionReturn(0);
@@ -213,89 +291,104 @@ public:
 
   PetscErrorCode set_parameters(Vec p) override {
     PetscFunctionBeginUser;
-    PetscCall(params_->scalar(p, a_index_, &a_));
+    for (PetscInt d = 0; d < dim_; ++d) {
+      PetscCall(params_->scalar(p, vel_index_[d], &vel_[d]));
+      w1_[d] = first_derivative_weights(scheme_, vel_[d]);
+    }
     if (diffusion_) {
       if (D_field_) PetscCall(params_->get_field(p, D_index_, D_));
       else {
-        PetscReal D;
-        PetscCall(params_->scalar(p, D_index_, &D));
-        PetscCall(VecSet(D_, D));
+        PetscCall(params_->scalar(p, D_index_, &D_scalar_));
+        PetscCall(VecSet(D_, D_scalar_));
       }
       PetscReal Dmin;
       PetscCall(VecMin(D_, nullptr, &Dmin));
       PetscCheck(Dmin >= 0, grid_->comm(), PETSC_ERR_ARG_OUTOFRANGE, "Diffusivity must be non-negative, found D = %g",
                  (double)Dmin);
-      PetscCall(DMGlobalToLocal(grid_->dm(), D_, INSERT_VALUES, D_local_));
-      PetscCall(face_diffusivity_range());
+      if (scheme_ == SPECTRAL) PetscCall(spectral_diffusivity());
+      else {
+        PetscCall(DMGlobalToLocal(grid_->dm(), D_, INSERT_VALUES, D_local_));
+        PetscCall(face_diffusivity_range());
+      }
     }
     PetscCall(assemble(A_));
     PetscFunctionReturn(0);
   }
 
-  // Records what the shell needs at this state: -D1 u (the column of a), the ghosted u for the
-  // face gradients of a field D, and -B^T B u (the column of a scalar D).
+  // Records what the dG/dp shell needs at this state: -D_d u (the velocity columns), -B^T B u (the
+  // column of a scalar D), and for a field D the ghosted u (FD) or the de-aliased E_d u (spectral).
   PetscErrorCode rhs_jacobian_p(PetscReal, Vec U, Mat Jp) override {
     PetscFunctionBeginUser;
-    PetscCall(DMGlobalToLocal(dm_, U, INSERT_VALUES, U_local_));
-    {
-      const PetscScalar *u;
-      PetscCall(DMDAVecGetArrayRead(dm_, U_local_, &u));
-      const auto w = first_derivative_weights(scheme_, a_);
-      const PetscReal ih = 1.0 / grid_->h();
-      for (PetscInt il = 0; il < grid_->xm(); ++il) {
-        const PetscInt i = grid_->xs() + il;
-        PetscReal d1 = 0;
-        for (PetscInt k = -2; k <= 2; ++k) // zero weights may lie beyond the ghosts: skip them
-          if (w[k + 2] != 0) d1 += w[k + 2] * PetscRealPart(u[i + k]);
-        dGda_[il] = -d1 * ih;
-        if (diffusion_ && !D_field_) {
-          PetscReal g = 0;
-          for (PetscInt m = 0; m < face_.width; ++m) {
-            const PetscInt f = i - face_.offset - m; // faces whose gradient reads u_i
-            g -= face_.grad[m] * face_gradient(u, f) * ih * ih;
-          }
-          dGdD_[il] = g;
-        }
-      }
-      PetscCall(DMDAVecRestoreArrayRead(dm_, U_local_, &u));
-    }
+    if (scheme_ == SPECTRAL) PetscCall(spectral_columns(U));
+    else PetscCall(fd_columns(U));
     PetscCall(MatAssemblyBegin(Jp, MAT_FINAL_ASSEMBLY)); // resets any scaling TS applied last time
     PetscCall(MatAssemblyEnd(Jp, MAT_FINAL_ASSEMBLY));
     PetscFunctionReturn(0);
   }
 
   PetscErrorCode spectrum(Spectrum *s) override {
-    const PetscInt n = grid_->n();
-    const PetscReal h = grid_->h();
-    const auto w = first_derivative_weights(scheme_, a_);
-    // A scalar D makes A circulant (normal): its eigenvalues are the symbols below. A field D is
-    // bounded through the field of values: the diffusion part lies in [-Dmax |b|^2, 0].
-    const PetscReal D = diffusion_ ? Dface_max_ : 0.0;
-    PetscReal re = 0, im = 0, l1 = 0, adv_l1 = 0, diff = 0;
-    for (PetscInt k = 0; k < n; ++k) {
-      const PetscReal th = 2 * PETSC_PI * k / n;
-      std::complex<PetscReal> adv = 0, b = 0;
-      for (PetscInt j = -2; j <= 2; ++j) adv += w[j + 2] * std::polar<PetscReal>(1.0, j * th);
-      adv *= -a_ / h;
-      if (diffusion_)
-        for (PetscInt m = 0; m < face_.width; ++m) b += face_.grad[m] * std::polar<PetscReal>(1.0, (face_.offset + m) * th);
-      const PetscReal d = -D * std::norm(b) / (h * h);
-      const std::complex<PetscReal> lambda = adv + d;
-      re = std::max(re, std::fabs(lambda.real()));
-      im = std::max(im, std::fabs(lambda.imag()));
-      l1 = std::max(l1, std::fabs(lambda.real()) + std::fabs(lambda.imag()));
-      adv_l1 = std::max(adv_l1, std::fabs(adv.real()) + std::fabs(adv.imag()));
-      diff = std::max(diff, -d);
+    PetscFunctionBeginUser;
+    // Per-direction symbols of advection and of the (scalar-coefficient) diffusion, per mode.
+    std::vector<cplx> adv[2];
+    std::vector<PetscReal> diff[2];
+    PetscReal diff_max = 0; // sum over directions of the largest |diffusion symbol| per unit D
+    for (PetscInt d = 0; d < dim_; ++d) {
+      const PetscInt n = d == 0 ? grid_->n() : grid_->ny();
+      const PetscReal L = d == 0 ? grid_->x1() - grid_->x0() : grid_->y1() - grid_->y0();
+      adv[d].resize(n);
+      diff[d].resize(n);
+      PetscReal dmax = 0;
+      for (PetscInt k = 0; k < n; ++k) {
+        if (scheme_ == SPECTRAL) {
+          const PetscInt ks = k < n / 2 ? k : k - n;
+          const PetscReal w = 2 * PETSC_PI * ks / L;
+          adv[d][k] = ks == -n / 2 ? cplx(0) : cplx(0, -vel_[d] * w); // Nyquist: odd part 0
+          diff[d][k] = (!diffusion_ ? 0 : D_field_ ? (3 * std::abs(ks) < n ? w * w : 0) : w * w);
+        } else {
+          const PetscReal th = 2 * PETSC_PI * k / n;
+          cplx a = 0, b = 0;
+          for (PetscInt j = -2; j <= 2; ++j) a += w1_[d][j + 2] * std::polar<PetscReal>(1.0, j * th);
+          adv[d][k] = -vel_[d] / h_[d] * a;
+          if (diffusion_)
+            for (PetscInt m = 0; m < face_.width; ++m) b += face_.grad[m] * std::polar<PetscReal>(1.0, (face_.offset + m) * th);
+          diff[d][k] = std::norm(b) / (h_[d] * h_[d]);
+        }
+        dmax = std::max(dmax, diff[d][k]);
+      }
+      diff_max += dmax;
     }
-    if (diffusion_ && D_field_ && a_ != 0) l1 = adv_l1 + diff;
-    const PetscReal tiny = 1e-12 * l1;
-    if (re <= tiny || im <= tiny) { // on one axis: the axis check is exact
-      s->imag_radius = im <= tiny ? 0 : im;
-      s->real_radius = re <= tiny ? 0 : re;
-    } else {
-      s->imag_radius = s->real_radius = l1;
+    const PetscInt nx = grid_->n(), ny = dim_ == 2 ? grid_->ny() : 1;
+    auto &ev = s->samples;
+    ev.clear();
+    ev.reserve((size_t)nx * ny);
+    const bool field = diffusion_ && D_field_;
+    const PetscReal D = diffusion_ && !field ? D_scalar_ : 0.0;
+    for (PetscInt ky = 0; ky < ny; ++ky)
+      for (PetscInt kx = 0; kx < nx; ++kx) {
+        cplx l = adv[0][kx] - D * diff[0][kx];
+        if (dim_ == 2) l += adv[1][ky] - D * diff[1][ky];
+        ev.push_back(l);
+      }
+    if (field) { // boundary of W(advection) + [-shift, 0]
+      const PetscReal shift = Dmax_ * diff_max;
+      size_t top = 0, bottom = 0;
+      const size_t nadv = ev.size();
+      for (size_t q = 0; q < nadv; ++q) {
+        if (ev[q].imag() > ev[top].imag()) top = q;
+        if (ev[q].imag() < ev[bottom].imag()) bottom = q;
+        ev.push_back(ev[q] - shift);
+      }
+      for (int t = 1; t < 64; ++t) {
+        ev.push_back(ev[top] - shift * t / 64.0);
+        ev.push_back(ev[bottom] - shift * t / 64.0);
+      }
     }
-    return 0;
+    s->imag_radius = s->real_radius = 0;
+    for (const cplx &l : ev) {
+      s->imag_radius = std::max(s->imag_radius, std::fabs(l.imag()));
+      s->real_radius = std::max(s->real_radius, std::fabs(l.real()));
+    }
+    PetscFunctionReturn(0);
   }
 
   PetscErrorCode initial_condition(Vec p, Vec U0) override {
@@ -305,7 +398,9 @@ public:
     if (amplitude_param_) PetscCall(params_->scalar(p, A_index_, &A));
     Array U(U0);
     PetscCall(U.error());
-    for (PetscInt il = 0; il < grid_->xm(); ++il) U[il] = A * profile(grid_->x(grid_->xs() + il));
+    PetscInt il = 0;
+    for (PetscInt j = grid_->ys(); j < grid_->ys() + grid_->ym(); ++j)
+      for (PetscInt i = grid_->xs(); i < grid_->xs() + grid_->xm(); ++i) U[il++] = A * profile(i, j);
     PetscFunctionReturn(0);
   }
 
@@ -316,38 +411,62 @@ public:
     {
       ConstArray L(lambda0);
       PetscCall(L.error());
-      for (PetscInt il = 0; il < grid_->xm(); ++il) local += profile(grid_->x(grid_->xs() + il)) * PetscRealPart(L[il]);
+      PetscInt il = 0;
+      for (PetscInt j = grid_->ys(); j < grid_->ys() + grid_->ym(); ++j)
+        for (PetscInt i = grid_->xs(); i < grid_->xs() + grid_->xm(); ++i) local += profile(i, j) * PetscRealPart(L[il++]);
     }
     PetscCall(params_->add_local_sum(grad, A_index_, local));
     PetscFunctionReturn(0);
   }
 
 private:
+  // The early reads (before the grid exists) stay silent on a bad option: setup reports it once.
+  static PetscErrorCode quiet_read(StencilChoice &s) {
+    if (PetscPushErrorHandler(PetscReturnErrorHandler, nullptr)) return 1;
+    const PetscErrorCode err = read_stencil_choice(s);
+    (void)PetscPopErrorHandler();
+    return err;
+  }
   static PetscInt half_width(const StencilChoice &s) {
+    if (s.scheme == SPECTRAL) return 1; // no stencil; the DMDA wants some ghost width
     const PetscInt adv = s.scheme == FD4 ? 2 : 1;
     const PetscInt diff = s.diffusion ? (s.diffusion_order == 4 ? 3 : 1) : 0;
     return std::max(adv, diff);
   }
 
-  PetscReal profile(PetscReal x) const {
-    const PetscReal L = grid_->x1() - grid_->x0();
-    if (ic_ == SINUSOID) return std::sin(2 * PETSC_PI * mode_ * (x - grid_->x0()) / L + phase_);
-    PetscReal d = x - center_;
-    d -= L * std::floor(d / L + 0.5); // periodic distance in [-L/2, L/2)
-    if (ic_ == GAUSSIAN) return std::exp(-(d / width_) * (d / width_));
-    return std::fabs(d) < 0.5 * width_ ? 1.0 : 0.0;
+  PetscReal profile(PetscInt i, PetscInt j) const {
+    const PetscReal x = grid_->x(i), Lx = grid_->x1() - grid_->x0();
+    const PetscReal y = dim_ == 2 ? grid_->y(j) : 0.0, Ly = grid_->y1() - grid_->y0();
+    if (ic_ == SINUSOID) {
+      PetscReal arg = 2 * PETSC_PI * mode_[0] * (x - grid_->x0()) / Lx + phase_;
+      if (dim_ == 2) arg += 2 * PETSC_PI * mode_[1] * (y - grid_->y0()) / Ly;
+      return std::sin(arg);
+    }
+    auto periodic_distance = [](PetscReal d, PetscReal L) { return d - L * std::floor(d / L + 0.5); }; // [-L/2, L/2)
+    const PetscReal dx = periodic_distance(x - center_[0], Lx), dy = dim_ == 2 ? periodic_distance(y - center_[1], Ly) : 0;
+    if (ic_ == GAUSSIAN) return std::exp(-(dx * dx + dy * dy) / (width_ * width_));
+    return std::fabs(dx) < 0.5 * width_ && std::fabs(dy) < 0.5 * width_ ? 1.0 : 0.0;
   }
 
-  // Face gradient (B u)_f without the 1/h, on a ghosted array indexed by global position.
-  PetscReal face_gradient(const PetscScalar *u, PetscInt f) const {
+  // Position of point (i, j) in a ghosted local array (x fastest).
+  PetscInt ghost_index(PetscInt i, PetscInt j) const { return (j - gys_) * gxm_ + (i - gxs_); }
+  // Face gradient (B_d u)_f without the 1/h, at the face after the cell with ghosted index gf.
+  PetscReal face_gradient(const PetscScalar *u, PetscInt gf, PetscInt d) const {
     PetscReal g = 0;
-    for (PetscInt m = 0; m < face_.width; ++m) g += face_.grad[m] * PetscRealPart(u[f + face_.offset + m]);
+    for (PetscInt m = 0; m < face_.width; ++m) g += face_.grad[m] * PetscRealPart(u[gf + (face_.offset + m) * stride_[d]]);
     return g;
   }
-  PetscReal face_value(const PetscScalar *D, PetscInt f) const {
+  PetscReal face_value(const PetscScalar *D, PetscInt gf, PetscInt d) const {
     PetscReal v = 0;
-    for (PetscInt m = 0; m < face_.width; ++m) v += face_.interp[m] * PetscRealPart(D[f + face_.offset + m]);
+    for (PetscInt m = 0; m < face_.width; ++m) v += face_.interp[m] * PetscRealPart(D[gf + (face_.offset + m) * stride_[d]]);
     return v;
+  }
+  // (D_d u) at ghosted index g, with the 1/h.
+  PetscReal first_derivative(const PetscScalar *u, PetscInt g, PetscInt d) const {
+    PetscReal s = 0;
+    for (PetscInt k = -2; k <= 2; ++k) // zero weights may lie beyond the ghosts: skip them
+      if (w1_[d][k + 2] != 0) s += w1_[d][k + 2] * PetscRealPart(u[g + k * stride_[d]]);
+    return s / h_[d];
   }
 
   // Largest face diffusivity (for the spectrum) and a check that none is negative: a negative
@@ -356,67 +475,175 @@ private:
     const PetscScalar *D;
     PetscReal mm[2] = {PETSC_MAX_REAL, 0}; // min, max
     PetscFunctionBeginUser;
-    PetscCall(DMDAVecGetArrayRead(grid_->dm(), D_local_, &D));
-    for (PetscInt f = grid_->xs(); f < grid_->xs() + grid_->xm(); ++f) {
-      const PetscReal v = face_value(D, f);
-      mm[0] = std::min(mm[0], v);
-      mm[1] = std::max(mm[1], v);
-    }
-    PetscCall(DMDAVecRestoreArrayRead(grid_->dm(), D_local_, &D));
+    PetscCall(VecGetArrayRead(D_local_, &D));
+    for (PetscInt j = grid_->ys(); j < grid_->ys() + grid_->ym(); ++j)
+      for (PetscInt i = grid_->xs(); i < grid_->xs() + grid_->xm(); ++i)
+        for (PetscInt d = 0; d < dim_; ++d) {
+          const PetscReal v = face_value(D, ghost_index(i, j), d);
+          mm[0] = std::min(mm[0], v);
+          mm[1] = std::max(mm[1], v);
+        }
+    PetscCall(VecRestoreArrayRead(D_local_, &D));
     mm[0] = -mm[0];
     PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, mm, 2, MPIU_REAL, MPI_MAX, grid_->comm()));
     PetscCheck(-mm[0] >= 0, grid_->comm(), PETSC_ERR_ARG_OUTOFRANGE,
                "-fd_order 4 interpolates D to the cell faces with weights (-1, 9, 9, -1)/16, which gives a negative "
                "face diffusivity %g here: smooth the field D or use -fd_order 2",
                (double)-mm[0]);
-    Dface_max_ = mm[1];
+    Dmax_ = mm[1];
+    PetscFunctionReturn(0);
+  }
+
+  // Spectral field D: its 2/3-rule truncation P D multiplies the de-aliased gradient.
+  PetscErrorCode spectral_diffusivity() {
+    PetscReal lo;
+    PetscFunctionBeginUser;
+    if (!D_field_) {
+      Dmax_ = D_scalar_;
+      PetscFunctionReturn(0);
+    }
+    PetscCall(spectral_.dealias(D_, D_));
+    PetscCall(VecMin(D_, nullptr, &lo));
+    PetscCall(VecMax(D_, nullptr, &Dmax_));
+    PetscCheck(lo >= 0, grid_->comm(), PETSC_ERR_ARG_OUTOFRANGE,
+               "The 2/3-rule truncation of the field D (spectral diffusion) is negative somewhere (%g): smooth D or "
+               "raise it away from 0",
+               (double)lo);
     PetscFunctionReturn(0);
   }
 
   PetscErrorCode assemble(Mat A) override {
-    const PetscInt xs = grid_->xs(), xm = grid_->xm(), n = grid_->n(), r = grid_->stencil_width();
-    const PetscReal ih = 1.0 / grid_->h();
-    const auto w = first_derivative_weights(scheme_, a_);
-    const PetscScalar *D = nullptr;
-    std::vector<PetscInt> cols(2 * r + 1);
-    std::vector<PetscScalar> vals(2 * r + 1), row(2 * r + 1);
-    std::vector<char> used(2 * r + 1);
     PetscFunctionBeginUser;
+    if (scheme_ == SPECTRAL) { // the shell reads the model's parameters; assembly resets TS's shift
+      PetscCall(MatAssemblyBegin(A, MAT_FINAL_ASSEMBLY));
+      PetscCall(MatAssemblyEnd(A, MAT_FINAL_ASSEMBLY));
+      PetscFunctionReturn(0);
+    }
+    const PetscInt r = grid_->stencil_width(), w = 2 * r + 1;
+    const PetscScalar *D = nullptr;
+    std::vector<MatStencil> cols(dim_ * w);
+    std::vector<PetscScalar> vals(dim_ * w), row(dim_ * w);
+    std::vector<char> used(dim_ * w);
     PetscCall(MatZeroEntries(A));
-    if (diffusion_) PetscCall(DMDAVecGetArrayRead(grid_->dm(), D_local_, &D));
-    for (PetscInt i = xs; i < xs + xm; ++i) {
-      // Row i by offset k = j - i in -r..r (distinct columns: the grid has at least 2r + 3 points).
-      // The diagonal is always stored so that an implicit TS's shift finds it.
-      std::fill(row.begin(), row.end(), 0.0);
-      std::fill(used.begin(), used.end(), 0);
-      used[r] = 1;
-      for (PetscInt k = -2; k <= 2; ++k)
-        if (w[k + 2] != 0) {
-          row[k + r] -= a_ * w[k + 2] * ih;
-          used[k + r] = 1;
-        }
-      if (diffusion_) {
-        for (PetscInt m = 0; m < face_.width; ++m) { // -B^T diag(D_f) B: faces f whose gradient reads u_i
-          const PetscInt f = i - face_.offset - m;
-          const PetscReal c = -face_.grad[m] * face_value(D, f) * ih * ih;
-          for (PetscInt q = 0; q < face_.width; ++q) {
-            row[q - m + r] += c * face_.grad[q];
-            used[q - m + r] = 1;
+    if (diffusion_) PetscCall(VecGetArrayRead(D_local_, &D));
+    for (PetscInt j = grid_->ys(); j < grid_->ys() + grid_->ym(); ++j)
+      for (PetscInt i = grid_->xs(); i < grid_->xs() + grid_->xm(); ++i) {
+        // Row (i, j) by direction d and offset k in -r..r: entry d * w + k + r; the centre is kept in
+        // direction 0 (distinct columns: the grid has at least 2r + 3 points per direction). The
+        // diagonal is always stored so that an implicit TS's shift finds it.
+        std::fill(row.begin(), row.end(), 0.0);
+        std::fill(used.begin(), used.end(), 0);
+        auto add = [&](PetscInt d, PetscInt k, PetscReal v) {
+          const PetscInt q = (k == 0 ? 0 : d * w) + k + r;
+          row[q] += v;
+          used[q] = 1;
+        };
+        used[r] = 1;
+        const PetscInt g = ghost_index(i, j);
+        for (PetscInt d = 0; d < dim_; ++d) {
+          for (PetscInt k = -2; k <= 2; ++k)
+            if (w1_[d][k + 2] != 0) add(d, k, -vel_[d] * w1_[d][k + 2] / h_[d]);
+          if (!diffusion_) continue;
+          const PetscReal ih2 = 1.0 / (h_[d] * h_[d]);
+          for (PetscInt m = 0; m < face_.width; ++m) { // -B^T diag(D_f) B: faces f whose gradient reads u_(i,j)
+            const PetscInt gf = g - (face_.offset + m) * stride_[d];
+            const PetscReal c = -face_.grad[m] * face_value(D, gf, d) * ih2;
+            for (PetscInt q = 0; q < face_.width; ++q) add(d, q - m, c * face_.grad[q]);
           }
         }
+        MatStencil rowst = {0, j, i, 0};
+        PetscInt cnt = 0;
+        for (PetscInt d = 0; d < dim_; ++d)
+          for (PetscInt k = -r; k <= r; ++k) {
+            const PetscInt q = d * w + k + r;
+            if (!used[q]) continue;
+            cols[cnt] = d == 0 ? MatStencil{0, j, i + k, 0} : MatStencil{0, j + k, i, 0};
+            vals[cnt] = row[q];
+            ++cnt;
+          }
+        PetscCall(MatSetValuesStencil(A, 1, &rowst, cnt, cols.data(), vals.data(), INSERT_VALUES));
       }
-      PetscInt cnt = 0;
-      for (PetscInt k = -r; k <= r; ++k) {
-        if (!used[k + r]) continue;
-        cols[cnt] = ((i + k) % n + n) % n;
-        vals[cnt] = row[k + r];
-        ++cnt;
-      }
-      PetscCall(MatSetValues(A, 1, &i, cnt, cols.data(), vals.data(), INSERT_VALUES));
-    }
-    if (diffusion_) PetscCall(DMDAVecRestoreArrayRead(grid_->dm(), D_local_, &D));
+    if (diffusion_) PetscCall(VecRestoreArrayRead(D_local_, &D));
     PetscCall(MatAssemblyBegin(A, MAT_FINAL_ASSEMBLY));
     PetscCall(MatAssemblyEnd(A, MAT_FINAL_ASSEMBLY));
+    PetscFunctionReturn(0);
+  }
+
+  // The constant-coefficient part of the spectral operator as one Fourier multiplier.
+  SpectralDifferentiator::Multiplier spectral_symbol() const {
+    const PetscReal a = vel_[0], b = dim_ == 2 ? vel_[1] : 0.0, D = diffusion_ && !D_field_ ? D_scalar_ : 0.0;
+    return [=](const FourierMode &k) { return cplx(-D * (k.wx * k.wx + k.wy * k.wy), -(a * k.wx + b * k.wy)); };
+  }
+
+  // y = A x (or A^T x) for the spectral scheme.
+  PetscErrorCode spectral_apply(Vec x, Vec y, bool transpose) {
+    PetscFunctionBeginUser;
+    PetscCall(spectral_.apply(spectral_symbol(), x, y, transpose));
+    if (diffusion_ && D_field_) // sum_d E_d diag(P D) E_d x, E_d = P d/dx_d (transpose: E_d^T on both sides)
+      for (PetscInt d = 0; d < dim_; ++d) {
+        PetscCall(spectral_.derivative(d, 1, x, t1_, true, transpose));
+        PetscCall(VecPointwiseMult(t1_, t1_, D_));
+        PetscCall(spectral_.derivative(d, 1, t1_, t2_, true, transpose));
+        PetscCall(VecAXPY(y, 1.0, t2_));
+      }
+    PetscFunctionReturn(0);
+  }
+  static PetscErrorCode spectral_mult(Mat A, Vec x, Vec y) {
+    AdvectionModel *m;
+    PetscFunctionBeginUser;
+    PetscCall(MatShellGetContext(A, &m));
+    PetscCall(m->spectral_apply(x, y, false));
+    PetscFunctionReturn(0);
+  }
+  static PetscErrorCode spectral_mult_transpose(Mat A, Vec x, Vec y) {
+    AdvectionModel *m;
+    PetscFunctionBeginUser;
+    PetscCall(MatShellGetContext(A, &m));
+    PetscCall(m->spectral_apply(x, y, true));
+    PetscFunctionReturn(0);
+  }
+
+  PetscErrorCode fd_columns(Vec U) {
+    const PetscScalar *u;
+    PetscFunctionBeginUser;
+    PetscCall(DMGlobalToLocal(dm_, U, INSERT_VALUES, U_local_));
+    PetscCall(VecGetArrayRead(U_local_, &u));
+    PetscInt il = 0;
+    for (PetscInt j = grid_->ys(); j < grid_->ys() + grid_->ym(); ++j)
+      for (PetscInt i = grid_->xs(); i < grid_->xs() + grid_->xm(); ++i, ++il) {
+        const PetscInt g = ghost_index(i, j);
+        PetscReal dD = 0;
+        for (PetscInt d = 0; d < dim_; ++d) {
+          dGdv_[d][il] = -first_derivative(u, g, d);
+          if (!diffusion_ || D_field_) continue;
+          for (PetscInt m = 0; m < face_.width; ++m) {
+            const PetscInt gf = g - (face_.offset + m) * stride_[d]; // faces whose gradient reads u_(i,j)
+            dD -= face_.grad[m] * face_gradient(u, gf, d) / (h_[d] * h_[d]);
+          }
+        }
+        dGdD_[il] = dD;
+      }
+    PetscCall(VecRestoreArrayRead(U_local_, &u));
+    PetscFunctionReturn(0);
+  }
+
+  PetscErrorCode spectral_columns(Vec U) {
+    PetscFunctionBeginUser;
+    for (PetscInt d = 0; d < dim_; ++d) {
+      PetscCall(spectral_.derivative(d, 1, U, t1_));
+      ConstArray a(t1_);
+      PetscCall(a.error());
+      for (PetscInt il = 0; il < grid_->local_points(); ++il) dGdv_[d][il] = -PetscRealPart(a[il]);
+    }
+    if (!diffusion_) PetscFunctionReturn(0);
+    if (D_field_) {
+      for (PetscInt d = 0; d < dim_; ++d) PetscCall(spectral_.derivative(d, 1, U, w_[d], true));
+    } else {
+      PetscCall(spectral_.apply([](const FourierMode &k) { return cplx(-(k.wx * k.wx + k.wy * k.wy)); }, U, t1_));
+      ConstArray a(t1_);
+      PetscCall(a.error());
+      for (PetscInt il = 0; il < grid_->local_points(); ++il) dGdD_[il] = PetscRealPart(a[il]);
+    }
     PetscFunctionReturn(0);
   }
 
@@ -426,37 +653,53 @@ private:
     PetscFunctionBeginUser;
     PetscCall(MatShellGetContext(Jp, &m));
     const Grid &g = *m->grid_;
-    PetscReal da, dD = 0;
-    PetscCall(m->params_->scalar(x, m->a_index_, &da));
-    if (m->diffusion_ && !m->D_field_) PetscCall(m->params_->scalar(x, m->D_index_, &dD));
-    const PetscScalar *u = nullptr, *ddl = nullptr;
-    if (m->diffusion_ && m->D_field_) {
-      PetscCall(m->params_->get_field(x, m->D_index_, m->dD_));
-      PetscCall(DMGlobalToLocal(g.dm(), m->dD_, INSERT_VALUES, m->dD_local_));
-      PetscCall(DMDAVecGetArrayRead(g.dm(), m->dD_local_, &ddl));
-      PetscCall(DMDAVecGetArrayRead(m->dm_, m->U_local_, &u));
-    }
+    PetscReal dv[2] = {0, 0}, dD = 0;
+    for (PetscInt d = 0; d < m->dim_; ++d) PetscCall(m->params_->scalar(x, m->vel_index_[d], &dv[d]));
+    const bool field = m->diffusion_ && m->D_field_;
+    if (m->diffusion_ && !field) PetscCall(m->params_->scalar(x, m->D_index_, &dD));
     {
       Array Y(y);
       PetscCall(Y.error());
-      const PetscReal ih = 1.0 / g.h();
-      for (PetscInt il = 0; il < g.xm(); ++il) {
-        PetscReal v = m->dGda_[il] * da;
-        if (m->diffusion_ && !m->D_field_) v += m->dGdD_[il] * dD;
-        if (ddl) { // -B^T (B u .* I dD)
-          const PetscInt i = g.xs() + il;
-          for (PetscInt q = 0; q < m->face_.width; ++q) {
-            const PetscInt f = i - m->face_.offset - q;
-            v -= m->face_.grad[q] * ih * m->face_gradient(u, f) * ih * m->face_value(ddl, f);
-          }
-        }
+      for (PetscInt il = 0; il < g.local_points(); ++il) {
+        PetscReal v = m->dGdD_[il] * dD;
+        for (PetscInt d = 0; d < m->dim_; ++d) v += m->dGdv_[d][il] * dv[d];
         Y[il] = v;
       }
     }
-    if (ddl) {
-      PetscCall(DMDAVecRestoreArrayRead(g.dm(), m->dD_local_, &ddl));
-      PetscCall(DMDAVecRestoreArrayRead(m->dm_, m->U_local_, &u));
+    if (!field) PetscFunctionReturn(0);
+    PetscCall(m->params_->get_field(x, m->D_index_, m->dD_));
+    if (m->scheme_ == SPECTRAL) { // sum_d E_d ((P dD) .* E_d u)
+      PetscCall(m->spectral_.dealias(m->dD_, m->t3_));
+      for (PetscInt d = 0; d < m->dim_; ++d) {
+        PetscCall(VecPointwiseMult(m->t1_, m->t3_, m->w_[d]));
+        PetscCall(m->spectral_.derivative(d, 1, m->t1_, m->t2_, true));
+        PetscCall(VecAXPY(y, 1.0, m->t2_));
+      }
+      PetscFunctionReturn(0);
     }
+    // -sum_d B_d^T (B_d u .* I_d dD)
+    const PetscScalar *u, *ddl;
+    PetscCall(DMGlobalToLocal(g.dm(), m->dD_, INSERT_VALUES, m->dD_local_));
+    PetscCall(VecGetArrayRead(m->dD_local_, &ddl));
+    PetscCall(VecGetArrayRead(m->U_local_, &u));
+    {
+      Array Y(y);
+      PetscCall(Y.error());
+      PetscInt il = 0;
+      for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j)
+        for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i, ++il) {
+          const PetscInt gc = m->ghost_index(i, j);
+          PetscReal v = 0;
+          for (PetscInt d = 0; d < m->dim_; ++d)
+            for (PetscInt q = 0; q < m->face_.width; ++q) {
+              const PetscInt gf = gc - (m->face_.offset + q) * m->stride_[d];
+              v -= m->face_.grad[q] * m->face_gradient(u, gf, d) * m->face_value(ddl, gf, d) / (m->h_[d] * m->h_[d]);
+            }
+          Y[il] += v;
+        }
+    }
+    PetscCall(VecRestoreArrayRead(m->dD_local_, &ddl));
+    PetscCall(VecRestoreArrayRead(m->U_local_, &u));
     PetscFunctionReturn(0);
   }
 
@@ -466,54 +709,72 @@ private:
     PetscFunctionBeginUser;
     PetscCall(MatShellGetContext(Jp, &m));
     const Grid &g = *m->grid_;
-    PetscReal sa = 0, sD = 0;
+    PetscReal sv[2] = {0, 0}, sD = 0;
+    const bool field = m->diffusion_ && m->D_field_;
     PetscCall(VecSet(y, 0.0));
     {
       ConstArray X(x);
       PetscCall(X.error());
-      for (PetscInt il = 0; il < g.xm(); ++il) {
-        sa += m->dGda_[il] * PetscRealPart(X[il]);
-        if (m->diffusion_ && !m->D_field_) sD += m->dGdD_[il] * PetscRealPart(X[il]);
+      for (PetscInt il = 0; il < g.local_points(); ++il) {
+        for (PetscInt d = 0; d < m->dim_; ++d) sv[d] += m->dGdv_[d][il] * PetscRealPart(X[il]);
+        sD += m->dGdD_[il] * PetscRealPart(X[il]);
       }
     }
-    PetscCall(m->params_->add_local_sum(y, m->a_index_, sa));
-    if (m->diffusion_ && !m->D_field_) PetscCall(m->params_->add_local_sum(y, m->D_index_, sD));
-    if (m->diffusion_ && m->D_field_) { // -I^T (B u .* B x): faces around each owned D_k
+    for (PetscInt d = 0; d < m->dim_; ++d) PetscCall(m->params_->add_local_sum(y, m->vel_index_[d], sv[d]));
+    if (m->diffusion_ && !field) PetscCall(m->params_->add_local_sum(y, m->D_index_, sD));
+    if (!field) PetscFunctionReturn(0);
+    std::vector<PetscReal> gD(g.local_points(), 0.0);
+    if (m->scheme_ == SPECTRAL) { // sum_d P (E_d u .* E_d^T x)
+      PetscCall(VecSet(m->t3_, 0.0));
+      for (PetscInt d = 0; d < m->dim_; ++d) {
+        PetscCall(m->spectral_.derivative(d, 1, x, m->t1_, true, true));
+        PetscCall(VecPointwiseMult(m->t1_, m->t1_, m->w_[d]));
+        PetscCall(VecAXPY(m->t3_, 1.0, m->t1_));
+      }
+      PetscCall(m->spectral_.dealias(m->t3_, m->t3_));
+      ConstArray a(m->t3_);
+      PetscCall(a.error());
+      for (PetscInt il = 0; il < g.local_points(); ++il) gD[il] = PetscRealPart(a[il]);
+    } else { // -sum_d I_d^T (B_d u .* B_d x): faces around each owned D_k
       const PetscScalar *u, *xl;
       PetscCall(DMGlobalToLocal(m->dm_, x, INSERT_VALUES, m->X_local_));
-      PetscCall(DMDAVecGetArrayRead(m->dm_, m->U_local_, &u));
-      PetscCall(DMDAVecGetArrayRead(m->dm_, m->X_local_, &xl));
-      const ParamInfo &pi = m->params_->info(m->D_index_);
-      const PetscReal ih2 = 1.0 / (g.h() * g.h());
-      {
-        Array Y(y);
-        PetscCall(Y.error());
-        for (PetscInt il = 0; il < pi.local_size; ++il) {
-          const PetscInt k = g.xs() + il;
-          PetscReal v = 0;
-          for (PetscInt q = 0; q < m->face_.width; ++q) {
-            const PetscInt f = k - m->face_.offset - q;
-            v -= m->face_.interp[q] * m->face_gradient(u, f) * m->face_gradient(xl, f) * ih2;
-          }
-          Y[pi.local_offset + il] = v;
+      PetscCall(VecGetArrayRead(m->U_local_, &u));
+      PetscCall(VecGetArrayRead(m->X_local_, &xl));
+      PetscInt il = 0;
+      for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j)
+        for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i, ++il) {
+          const PetscInt gk = m->ghost_index(i, j);
+          for (PetscInt d = 0; d < m->dim_; ++d)
+            for (PetscInt q = 0; q < m->face_.width; ++q) {
+              const PetscInt gf = gk - (m->face_.offset + q) * m->stride_[d];
+              gD[il] -= m->face_.interp[q] * m->face_gradient(u, gf, d) * m->face_gradient(xl, gf, d) /
+                        (m->h_[d] * m->h_[d]);
+            }
         }
-      }
-      PetscCall(DMDAVecRestoreArrayRead(m->dm_, m->U_local_, &u));
-      PetscCall(DMDAVecRestoreArrayRead(m->dm_, m->X_local_, &xl));
+      PetscCall(VecRestoreArrayRead(m->U_local_, &u));
+      PetscCall(VecRestoreArrayRead(m->X_local_, &xl));
     }
+    PetscCall(m->params_->add_pointwise(y, m->D_index_, gD));
     PetscFunctionReturn(0);
   }
 
   const Grid *grid_ = nullptr;
   DM dm_ = nullptr;
   Parameters *params_ = nullptr;
-  PetscInt scheme_ = FD2, ic_ = SINUSOID, mode_ = 1;
+  PetscInt dim_ = 1;
+  PetscInt scheme_ = FD2, ic_ = SINUSOID, mode_[2] = {1, 1};
   PetscBool diffusion_ = PETSC_FALSE, D_field_ = PETSC_FALSE, amplitude_param_ = PETSC_FALSE;
   FaceStencil face_ = face_stencil(2);
-  PetscInt a_index_ = -1, D_index_ = -1, A_index_ = -1;
-  PetscReal a_ = 0, Dface_max_ = 0, amplitude_ = 1.0, phase_ = 0, center_ = 0, width_ = 0;
+  PetscInt vel_index_[2] = {-1, -1}, D_index_ = -1, A_index_ = -1;
+  PetscReal vel_[2] = {0, 0}, h_[2] = {1, 1}, D_scalar_ = 0, Dmax_ = 0;
+  std::array<PetscReal, 5> w1_[2] = {first_derivative_weights(FD2, 0), first_derivative_weights(FD2, 0)};
+  PetscReal amplitude_ = 1.0, phase_ = 0, center_[2] = {0, 0}, width_ = 0;
+  PetscInt gxs_ = 0, gys_ = 0, gxm_ = 1, stride_[2] = {1, 1};
+  // D_: the diffusivity per grid point (spectral field: its 2/3 truncation P D).
   OwnedVec D_, D_local_, dD_, dD_local_, U_local_, X_local_;
-  std::vector<PetscReal> dGda_, dGdD_;
+  SpectralDifferentiator spectral_;
+  OwnedVec t1_, t2_, t3_, w_[2]; // spectral work vectors; w_[d] = E_d u for a field D
+  std::vector<PetscReal> dGdv_[2], dGdD_;
 };
 
 } // namespace

@@ -1,0 +1,75 @@
+// Fourier (pseudo-)spectral differentiation on periodic directions of a Grid, distributed with
+// FFTW-MPI.
+//
+// For a grid function u on N points of a periodic direction of length L, with the DFT
+// u^_k = sum_j u_j exp(-2 pi i j k / N) and the signed mode number k in [-N/2, N/2), a Fourier
+// multiplier m applies
+//     (M u)_j = Re( (1/N) sum_k m(kappa_k) u^_k exp(2 pi i j k / N) ),   kappa_k = 2 pi k / L,
+// e.g. m = i kappa (d/dx), m = -kappa^2 (d^2/dx^2), m = 1 for |k| < N/3 and 0 otherwise (the 2/3
+// de-aliasing filter). Taking the real part symmetrises the multiplier: M has the eigenvalues
+// (m(k) + conj(m(-k)))/2, so an odd derivative has a zero Nyquist mode and is exactly
+// skew-symmetric, and M is a real operator. Its transpose is the multiplier conj(m) (the DFT matrix
+// is symmetric and F^{-1} = conj(F)/N), which apply(..., transpose = true) uses: this is what an
+// adjoint needs, and what tests/test_spectral.cpp checks by the dot-product identity.
+//
+// Transforms (chosen by the grid and `x_only`):
+//   1D grid                 FFTW-MPI 1D complex DFT, distributed over the ranks (FFTW's own
+//                           input and output layouts, reached by VecScatters from the DMDA layout)
+//   2D grid                 FFTW-MPI 2D complex DFT on y-slabs (both directions periodic)
+//   2D grid, x_only = true  the same y-slabs, each rank transforming its whole x-lines with serial
+//                           FFTW: d/dx on a grid whose y direction need not be periodic (e.g. the
+//                           velocity of a 1D1V phase space)
+// The data are real; the complex transforms cost a factor ~2 over real-to-complex ones, which is
+// what buys one code path for 1D and 2D and FFTW-MPI's 1D distribution (real 1D MPI transforms do
+// not exist in FFTW). N must be even in every transformed direction.
+#pragma once
+#include "flexipde/grid.hpp"
+#include <complex>
+#include <functional>
+#include <memory>
+
+namespace flexipde {
+
+// One Fourier mode: signed mode numbers (ky = 0 for a 1D or x-only transform), the wavenumbers
+// 2 pi k / L, and whether the 2/3 rule keeps it (3|k| < N in every transformed direction).
+struct FourierMode {
+  PetscInt kx = 0, ky = 0;
+  PetscReal wx = 0, wy = 0;
+  bool kept = true;
+};
+
+class SpectralDifferentiator {
+public:
+  using Multiplier = std::function<std::complex<PetscReal>(const FourierMode &)>;
+
+  SpectralDifferentiator();
+  ~SpectralDifferentiator();
+  SpectralDifferentiator(SpectralDifferentiator &&) noexcept;
+  SpectralDifferentiator &operator=(SpectralDifferentiator &&) noexcept;
+
+  // Collective. u and y of apply() are global Vecs of grid.dm() (one value per grid point). The
+  // grid must be periodic in every transformed direction with an even number of points there.
+  PetscErrorCode setup(const Grid &grid, bool x_only = false);
+  bool ready() const { return impl_ != nullptr; }
+
+  // y = M u (or M^T u); y may be u.
+  PetscErrorCode apply(const Multiplier &m, Vec u, Vec y, bool transpose = false) const;
+  // y = d^order u / d(x or y)^order (dir 0 = x, 1 = y), optionally de-aliased by the 2/3 rule.
+  PetscErrorCode derivative(PetscInt dir, PetscInt order, Vec u, Vec y, bool dealias = false, bool transpose = false) const;
+  // y = the 2/3-rule truncation of u (symmetric, a projection).
+  PetscErrorCode dealias(Vec u, Vec y) const;
+  // The multiplier of d^order/d(dir)^order: (i kappa)^order.
+  static std::complex<PetscReal> derivative_symbol(const FourierMode &k, PetscInt dir, PetscInt order);
+  // Largest |kappa| of a derivative along dir (the Nyquist mode excluded: its odd derivative is 0).
+  PetscReal max_wavenumber(PetscInt dir) const;
+
+  // A MatShell y = d^order u / d(dir)^order with MULT and MULT_TRANSPOSE (it refers to this
+  // object, which must outlive it).
+  PetscErrorCode create_derivative_mat(PetscInt dir, PetscInt order, Mat *A) const;
+
+private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+} // namespace flexipde

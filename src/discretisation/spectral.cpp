@@ -1,0 +1,316 @@
+// FFTW-MPI spectral differentiation (see include/flexipde/spectral.hpp for the mathematics).
+//
+// Data path of apply(): DMDA global Vec --VecScatter--> forward-input layout (complex, imaginary
+// parts 0) --FFTW--> forward-output layout --multiply by m(k)/N--> [VecScatter to the backward
+// input layout when FFTW's 1D layouts differ] --FFTW--> backward output --VecScatter of the real
+// parts--> DMDA global Vec. FFTW-MPI distributes every layout in contiguous blocks of the natural
+// (x fastest) ordering in rank order, so a complex entry with natural index g sits at entries 2g
+// (real) and 2g+1 (imaginary) of a PETSc Vec wrapped around the FFTW buffer.
+#include "flexipde/spectral.hpp"
+#include <fftw3-mpi.h>
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#if defined(PETSC_USE_COMPLEX) || !defined(PETSC_USE_REAL_DOUBLE)
+#error "spectral.cpp wraps FFTW's double-complex buffers as real double PETSc Vecs"
+#endif
+
+namespace flexipde {
+
+namespace {
+struct Layout {
+  ptrdiff_t start = 0, count = 0; // complex entries, natural ordering
+  bool operator==(const Layout &o) const { return start == o.start && count == o.count; }
+};
+} // namespace
+
+struct SpectralDifferentiator::Impl {
+  MPI_Comm comm = MPI_COMM_NULL;
+  PetscInt rank_dims = 1; // transformed directions: 1 (1D grid or x-only) or 2
+  bool x_only = false;
+  PetscInt nx = 0, ny = 1, nlocal = 0;
+  PetscReal Lx = 1, Ly = 1, norm = 1;
+  Layout fin, fout, bin, bout;
+  fftw_complex *a_in = nullptr, *a_out = nullptr, *b_in = nullptr, *b_out = nullptr;
+  bool same_mid = true; // backward input layout == forward output layout on every rank
+  fftw_plan fwd = nullptr, bwd = nullptr;
+  OwnedVec v_fin, v_fout, v_bin, v_bout;
+  OwnedScatter to_fft, relayout, from_fft;
+
+  ~Impl() {
+    if (fwd) fftw_destroy_plan(fwd);
+    if (bwd) fftw_destroy_plan(bwd);
+    fftw_free(a_in);
+    fftw_free(a_out);
+    if (!same_mid) fftw_free(b_in);
+    fftw_free(b_out);
+  }
+  FourierMode mode(ptrdiff_t g) const {
+    FourierMode k;
+    const PetscInt ix = rank_dims == 1 && !x_only ? (PetscInt)g : (PetscInt)(g % nx);
+    k.kx = ix < nx / 2 ? ix : ix - nx;
+    k.wx = 2 * PETSC_PI * k.kx / Lx;
+    k.kept = 3 * std::abs(k.kx) < nx;
+    if (rank_dims == 2) {
+      const PetscInt iy = (PetscInt)(g / nx);
+      k.ky = iy < ny / 2 ? iy : iy - ny;
+      k.wy = 2 * PETSC_PI * k.ky / Ly;
+      k.kept = k.kept && 3 * std::abs(k.ky) < ny;
+    }
+    return k;
+  }
+};
+
+namespace {
+
+PetscErrorCode wrap(MPI_Comm comm, fftw_complex *buf, const Layout &l, Vec *v) {
+  PetscInt lo;
+  PetscFunctionBeginUser;
+  PetscCall(VecCreateMPIWithArray(comm, 1, 2 * (PetscInt)l.count, PETSC_DECIDE, reinterpret_cast<PetscScalar *>(buf), v));
+  PetscCall(VecGetOwnershipRange(*v, &lo, nullptr));
+  PetscCheck(lo == 2 * (PetscInt)l.start, comm, PETSC_ERR_PLIB, "FFTW layout is not in rank order");
+  PetscFunctionReturn(0);
+}
+
+// Natural indices g of a layout, and the DMDA (PETSc-ordered) global indices of the same points.
+PetscErrorCode layout_indices(DM dm, const Layout &l, std::vector<PetscInt> &natural, std::vector<PetscInt> &petsc) {
+  AO ao;
+  PetscFunctionBeginUser;
+  natural.resize(l.count);
+  for (ptrdiff_t p = 0; p < l.count; ++p) natural[p] = (PetscInt)(l.start + p);
+  petsc = natural;
+  PetscCall(DMDAGetAO(dm, &ao));
+  PetscCall(AOApplicationToPetsc(ao, (PetscInt)petsc.size(), petsc.data()));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode make_is(MPI_Comm comm, const std::vector<PetscInt> &idx, IS *is) {
+  PetscFunctionBeginUser;
+  PetscCall(ISCreateGeneral(comm, (PetscInt)idx.size(), idx.data(), PETSC_COPY_VALUES, is));
+  PetscFunctionReturn(0);
+}
+
+// FFTW wrote into the array behind v: a get/restore pair tells PETSc (its state moves on).
+PetscErrorCode touched(Vec v) {
+  PetscScalar *a;
+  PetscFunctionBeginUser;
+  PetscCall(VecGetArray(v, &a));
+  PetscCall(VecRestoreArray(v, &a));
+  PetscFunctionReturn(0);
+}
+
+struct DerivativeShell {
+  const SpectralDifferentiator *d;
+  PetscInt dir, order;
+};
+
+PetscErrorCode shell_mult(Mat A, Vec x, Vec y) {
+  DerivativeShell *s;
+  PetscFunctionBeginUser;
+  PetscCall(MatShellGetContext(A, &s));
+  PetscCall(s->d->derivative(s->dir, s->order, x, y, false, false));
+  PetscFunctionReturn(0);
+}
+PetscErrorCode shell_mult_transpose(Mat A, Vec x, Vec y) {
+  DerivativeShell *s;
+  PetscFunctionBeginUser;
+  PetscCall(MatShellGetContext(A, &s));
+  PetscCall(s->d->derivative(s->dir, s->order, x, y, false, true));
+  PetscFunctionReturn(0);
+}
+PetscErrorCode shell_destroy(Mat A) {
+  DerivativeShell *s;
+  PetscFunctionBeginUser;
+  PetscCall(MatShellGetContext(A, &s));
+  delete s;
+  PetscFunctionReturn(0);
+}
+
+} // namespace
+
+SpectralDifferentiator::SpectralDifferentiator() = default;
+SpectralDifferentiator::~SpectralDifferentiator() = default;
+SpectralDifferentiator::SpectralDifferentiator(SpectralDifferentiator &&) noexcept = default;
+SpectralDifferentiator &SpectralDifferentiator::operator=(SpectralDifferentiator &&) noexcept = default;
+
+PetscErrorCode SpectralDifferentiator::setup(const Grid &grid, bool x_only) {
+  static bool fftw_mpi_ready = false;
+  MPI_Comm comm = grid.comm();
+  PetscMPIInt size;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_size(comm, &size));
+  if (!fftw_mpi_ready) {
+    fftw_mpi_init();
+    fftw_mpi_ready = true;
+  }
+  auto im = std::make_unique<Impl>();
+  im->comm = comm;
+  im->x_only = grid.dim() == 2 && x_only;
+  im->rank_dims = grid.dim() == 2 && !x_only ? 2 : 1;
+  im->nx = grid.n();
+  im->ny = grid.dim() == 2 ? grid.ny() : 1;
+  im->nlocal = grid.local_points();
+  im->Lx = grid.x1() - grid.x0();
+  im->Ly = grid.y1() - grid.y0();
+  PetscCheck(grid.periodic(), comm, PETSC_ERR_ARG_WRONG, "Spectral differentiation needs a periodic grid in x (-grid_periodic 1)");
+  PetscCheck(im->nx % 2 == 0, comm, PETSC_ERR_ARG_OUTOFRANGE,
+             "Spectral differentiation needs an even number of points, got -da_grid_x %" PetscInt_FMT, im->nx);
+  if (im->rank_dims == 2) {
+    PetscCheck(grid.periodic_y(), comm, PETSC_ERR_ARG_WRONG,
+               "Spectral differentiation in x and y needs a periodic grid in y too (-grid_periodic_y 1)");
+    PetscCheck(im->ny % 2 == 0, comm, PETSC_ERR_ARG_OUTOFRANGE,
+               "Spectral differentiation needs an even number of points, got -da_grid_y %" PetscInt_FMT, im->ny);
+  }
+  ptrdiff_t alloc = 1;
+  if (grid.dim() == 1) {
+    ptrdiff_t ni, is, no, os, bni, bis, bno, bos;
+    alloc = std::max(alloc, fftw_mpi_local_size_1d(im->nx, comm, FFTW_FORWARD, FFTW_ESTIMATE, &ni, &is, &no, &os));
+    alloc = std::max(alloc, fftw_mpi_local_size_1d(im->nx, comm, FFTW_BACKWARD, FFTW_ESTIMATE, &bni, &bis, &bno, &bos));
+    im->fin = {is, ni};
+    im->fout = {os, no};
+    im->bin = {bis, bni};
+    im->bout = {bos, bno};
+    im->norm = im->nx;
+  } else {
+    ptrdiff_t n0, s0;
+    alloc = std::max(alloc, fftw_mpi_local_size_2d(im->ny, im->nx, comm, &n0, &s0));
+    im->fin = im->fout = im->bin = im->bout = Layout{s0 * im->nx, n0 * im->nx};
+    im->norm = im->rank_dims == 2 ? (PetscReal)im->nx * im->ny : im->nx;
+  }
+  int same = im->fout == im->bin;
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &same, 1, MPI_INT, MPI_LAND, comm));
+  im->same_mid = same;
+  im->a_in = fftw_alloc_complex(alloc);
+  im->a_out = fftw_alloc_complex(alloc);
+  im->b_in = im->same_mid ? im->a_out : fftw_alloc_complex(alloc);
+  im->b_out = fftw_alloc_complex(alloc);
+  PetscCheck(im->a_in && im->a_out && im->b_in && im->b_out, comm, PETSC_ERR_MEM, "FFTW could not allocate its buffers");
+  if (grid.dim() == 1) {
+    im->fwd = fftw_mpi_plan_dft_1d(im->nx, im->a_in, im->a_out, comm, FFTW_FORWARD, FFTW_ESTIMATE);
+    im->bwd = fftw_mpi_plan_dft_1d(im->nx, im->b_in, im->b_out, comm, FFTW_BACKWARD, FFTW_ESTIMATE);
+  } else if (im->rank_dims == 2) {
+    im->fwd = fftw_mpi_plan_dft_2d(im->ny, im->nx, im->a_in, im->a_out, comm, FFTW_FORWARD, FFTW_ESTIMATE);
+    im->bwd = fftw_mpi_plan_dft_2d(im->ny, im->nx, im->b_in, im->b_out, comm, FFTW_BACKWARD, FFTW_ESTIMATE);
+  } else if (im->fin.count > 0) { // x-lines: serial transforms of the rows this rank holds
+    const int n = (int)im->nx, rows = (int)(im->fin.count / im->nx);
+    im->fwd = fftw_plan_many_dft(1, &n, rows, im->a_in, nullptr, 1, n, im->a_out, nullptr, 1, n, FFTW_FORWARD, FFTW_ESTIMATE);
+    im->bwd = fftw_plan_many_dft(1, &n, rows, im->b_in, nullptr, 1, n, im->b_out, nullptr, 1, n, FFTW_BACKWARD, FFTW_ESTIMATE);
+  }
+  int planned = (im->fwd && im->bwd) || (im->x_only && im->fin.count == 0);
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &planned, 1, MPI_INT, MPI_LAND, comm));
+  PetscCheck(planned, comm, PETSC_ERR_SUP,
+             "FFTW-MPI cannot distribute a transform of %" PetscInt_FMT " x %" PetscInt_FMT " points over %d ranks; "
+             "choose a number of points with small prime factors (e.g. a power of 2)",
+             im->nx, im->ny, (int)size);
+
+  PetscCall(wrap(comm, im->a_in, im->fin, im->v_fin.out()));
+  PetscCall(wrap(comm, im->a_out, im->fout, im->v_fout.out()));
+  PetscCall(wrap(comm, im->b_in, im->bin, im->v_bin.out()));
+  PetscCall(wrap(comm, im->b_out, im->bout, im->v_bout.out()));
+  OwnedVec g;
+  PetscCall(DMCreateGlobalVector(grid.dm(), g.out()));
+  std::vector<PetscInt> nat, pet, twice;
+  { // DMDA -> real parts of the forward input
+    OwnedIS from, to;
+    PetscCall(layout_indices(grid.dm(), im->fin, nat, pet));
+    twice.resize(nat.size());
+    for (size_t p = 0; p < nat.size(); ++p) twice[p] = 2 * nat[p];
+    PetscCall(make_is(comm, pet, from.out()));
+    PetscCall(make_is(comm, twice, to.out()));
+    PetscCall(VecScatterCreate(g, from, im->v_fin, to, im->to_fft.out()));
+  }
+  { // real parts of the backward output -> DMDA
+    OwnedIS from, to;
+    PetscCall(layout_indices(grid.dm(), im->bout, nat, pet));
+    twice.resize(nat.size());
+    for (size_t p = 0; p < nat.size(); ++p) twice[p] = 2 * nat[p];
+    PetscCall(make_is(comm, twice, from.out()));
+    PetscCall(make_is(comm, pet, to.out()));
+    PetscCall(VecScatterCreate(im->v_bout, from, g, to, im->from_fft.out()));
+  }
+  if (!im->same_mid) { // forward output -> backward input, real and imaginary parts
+    OwnedIS is;
+    std::vector<PetscInt> both(2 * im->bin.count);
+    for (ptrdiff_t p = 0; p < im->bin.count; ++p) {
+      both[2 * p] = 2 * (PetscInt)(im->bin.start + p);
+      both[2 * p + 1] = both[2 * p] + 1;
+    }
+    PetscCall(make_is(comm, both, is.out()));
+    PetscCall(VecScatterCreate(im->v_fout, is, im->v_bin, is, im->relayout.out()));
+  }
+  impl_ = std::move(im);
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SpectralDifferentiator::apply(const Multiplier &m, Vec u, Vec y, bool transpose) const {
+  Impl &im = *impl_;
+  PetscFunctionBeginUser;
+  PetscCall(VecSet(im.v_fin, 0.0));
+  PetscCall(VecScatterBegin(im.to_fft, u, im.v_fin, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecScatterEnd(im.to_fft, u, im.v_fin, INSERT_VALUES, SCATTER_FORWARD));
+  if (im.fwd) fftw_execute(im.fwd);
+  for (ptrdiff_t p = 0; p < im.fout.count; ++p) {
+    std::complex<PetscReal> f = m(im.mode(im.fout.start + p));
+    if (transpose) f = std::conj(f);
+    f /= im.norm;
+    const std::complex<PetscReal> v(im.a_out[p][0], im.a_out[p][1]);
+    const std::complex<PetscReal> w = f * v;
+    im.a_out[p][0] = w.real();
+    im.a_out[p][1] = w.imag();
+  }
+  if (!im.same_mid) {
+    PetscCall(touched(im.v_fout));
+    PetscCall(VecScatterBegin(im.relayout, im.v_fout, im.v_bin, INSERT_VALUES, SCATTER_FORWARD));
+    PetscCall(VecScatterEnd(im.relayout, im.v_fout, im.v_bin, INSERT_VALUES, SCATTER_FORWARD));
+  }
+  if (im.bwd) fftw_execute(im.bwd);
+  PetscCall(touched(im.v_bout));
+  PetscCall(VecScatterBegin(im.from_fft, im.v_bout, y, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecScatterEnd(im.from_fft, im.v_bout, y, INSERT_VALUES, SCATTER_FORWARD));
+  PetscFunctionReturn(0);
+}
+
+std::complex<PetscReal> SpectralDifferentiator::derivative_symbol(const FourierMode &k, PetscInt dir, PetscInt order) {
+  const std::complex<PetscReal> ik(0, dir == 0 ? k.wx : k.wy);
+  std::complex<PetscReal> f = 1;
+  for (PetscInt q = 0; q < order; ++q) f *= ik;
+  return f;
+}
+
+PetscErrorCode SpectralDifferentiator::derivative(PetscInt dir, PetscInt order, Vec u, Vec y, bool dealias,
+                                                  bool transpose) const {
+  PetscFunctionBeginUser;
+  PetscCheck(dir == 0 || (dir == 1 && impl_->rank_dims == 2), impl_->comm, PETSC_ERR_ARG_OUTOFRANGE,
+             "Spectral derivative along direction %" PetscInt_FMT " is not transformed here", dir);
+  PetscCall(apply(
+      [=](const FourierMode &k) {
+        return dealias && !k.kept ? std::complex<PetscReal>(0) : derivative_symbol(k, dir, order);
+      },
+      u, y, transpose));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SpectralDifferentiator::dealias(Vec u, Vec y) const {
+  PetscFunctionBeginUser;
+  PetscCall(apply([](const FourierMode &k) { return std::complex<PetscReal>(k.kept ? 1.0 : 0.0); }, u, y));
+  PetscFunctionReturn(0);
+}
+
+PetscReal SpectralDifferentiator::max_wavenumber(PetscInt dir) const {
+  const PetscInt n = dir == 0 ? impl_->nx : impl_->ny;
+  const PetscReal L = dir == 0 ? impl_->Lx : impl_->Ly;
+  return 2 * PETSC_PI * (n / 2 - 1) / L;
+}
+
+PetscErrorCode SpectralDifferentiator::create_derivative_mat(PetscInt dir, PetscInt order, Mat *A) const {
+  PetscFunctionBeginUser;
+  auto *ctx = new DerivativeShell{this, dir, order};
+  PetscCall(MatCreateShell(impl_->comm, impl_->nlocal, impl_->nlocal, PETSC_DETERMINE, PETSC_DETERMINE, ctx, A));
+  PetscCall(MatShellSetOperation(*A, MATOP_MULT, (void (*)(void))shell_mult));
+  PetscCall(MatShellSetOperation(*A, MATOP_MULT_TRANSPOSE, (void (*)(void))shell_mult_transpose));
+  PetscCall(MatShellSetOperation(*A, MATOP_DESTROY, (void (*)(void))shell_destroy));
+  PetscFunctionReturn(0);
+}
+
+} // namespace flexipde

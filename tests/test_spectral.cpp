@@ -1,0 +1,166 @@
+// SpectralDifferentiator (src/discretisation/spectral.cpp), FFTW-MPI:
+//   - dot-product identities <M x, y> = <x, M^T y> of first and second derivatives, the 2/3
+//     filter and the derivative MatShell, in 1D, 2D and x-only on a 2D grid with a non-periodic y,
+//   - accuracy: round-off by N = 64 for smooth periodic functions (exponential convergence),
+//   - odd-derivative skew-symmetry, and refusal of odd N and non-periodic directions.
+// Grids live on PETSC_COMM_WORLD, so every case runs distributed on 2 ranks too.
+#include "flexipde/spectral.hpp"
+#include "test_support.hpp"
+#include <cmath>
+#include <functional>
+
+using namespace flexipde;
+using flexipde_test::dot;
+using flexipde_test::fill_random;
+using flexipde_test::QuietErrors;
+using flexipde_test::rel_diff;
+
+namespace {
+
+const PetscReal two_pi = 2 * PETSC_PI;
+
+PetscErrorCode make_grid(PetscInt dim, PetscInt nx, PetscInt ny, bool periodic_y, Grid &g) {
+  GridOptions o;
+  o.dim = dim;
+  o.n = nx;
+  o.ny = ny;
+  o.x1 = two_pi;
+  o.y1 = two_pi;
+  o.periodic = PETSC_TRUE;
+  o.periodic_y = periodic_y ? PETSC_TRUE : PETSC_FALSE;
+  return Grid::create(PETSC_COMM_WORLD, 1, o, g);
+}
+
+PetscErrorCode fill(const Grid &g, Vec v, const std::function<PetscReal(PetscReal, PetscReal)> &f) {
+  PetscFunctionBeginUser;
+  Array a(v);
+  PetscCall(a.error());
+  PetscInt il = 0;
+  for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j)
+    for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i) a[il++] = f(g.x(i), g.dim() == 2 ? g.y(j) : 0.0);
+  PetscFunctionReturn(0);
+}
+
+struct DotCase {
+  const char *name;
+  PetscInt dim, nx, ny;
+  bool periodic_y, x_only;
+};
+std::ostream &operator<<(std::ostream &os, const DotCase &c) { return os << c.name; }
+
+class SpectralTranspose : public ::testing::TestWithParam<DotCase> {};
+
+TEST_P(SpectralTranspose, DotProductIdentities) {
+  const DotCase &c = GetParam();
+  Grid g;
+  SpectralDifferentiator s;
+  OwnedVec x, y, Mx, Mty;
+  PETSC_ASSERT_OK(make_grid(c.dim, c.nx, c.ny, c.periodic_y, g));
+  PETSC_ASSERT_OK(s.setup(g, c.x_only));
+  PETSC_ASSERT_OK(DMCreateGlobalVector(g.dm(), x.out()));
+  for (auto *v : {&y, &Mx, &Mty}) PETSC_ASSERT_OK(VecDuplicate(x, v->out()));
+  PETSC_ASSERT_OK(fill_random(x, -1, 1, 41));
+  PETSC_ASSERT_OK(fill_random(y, -1, 1, 42));
+  const PetscInt ndir = c.dim == 2 && !c.x_only ? 2 : 1;
+  for (PetscInt dir = 0; dir < ndir; ++dir)
+    for (PetscInt order = 1; order <= 2; ++order)
+      for (bool dealias : {false, true}) {
+        PETSC_ASSERT_OK(s.derivative(dir, order, x, Mx, dealias));
+        PETSC_ASSERT_OK(s.derivative(dir, order, y, Mty, dealias, true));
+        const PetscReal l = dot(Mx, y), r = dot(x, Mty);
+        PetscPrintf(PETSC_COMM_WORLD, "  [%s] d^%d/d%s%s: <Mx,y> = %.15e, <x,M^T y> = %.15e\n", c.name, (int)order,
+                    dir ? "y" : "x", dealias ? " (2/3)" : "", (double)l, (double)r);
+        EXPECT_GT(std::fabs(l), 1e-3);
+        EXPECT_LE(rel_diff(l, r), 1e-12) << c.name << " dir " << dir << " order " << order;
+        if (order == 1) { // skew-symmetric: M^T = -M
+          PETSC_ASSERT_OK(s.derivative(dir, order, y, Mx, dealias));
+          PETSC_ASSERT_OK(VecAXPY(Mx, 1.0, Mty));
+          EXPECT_LE(flexipde_test::norm(Mx, NORM_INFINITY), 1e-12 * flexipde_test::norm(Mty, NORM_INFINITY));
+        }
+      }
+  // the filter is a symmetric projection
+  PETSC_ASSERT_OK(s.dealias(x, Mx));
+  PETSC_ASSERT_OK(s.dealias(y, Mty));
+  EXPECT_LE(rel_diff(dot(Mx, y), dot(x, Mty)), 1e-12);
+  PETSC_ASSERT_OK(s.dealias(Mx, Mty));
+  EXPECT_LE(rel_diff(Mx, Mty), 1e-13);
+  // the MatShell: MULT and MULT_TRANSPOSE
+  OwnedMat D;
+  PETSC_ASSERT_OK(s.create_derivative_mat(0, 1, D.out()));
+  PETSC_ASSERT_OK(MatMult(D, x, Mx));
+  PETSC_ASSERT_OK(MatMultTranspose(D, y, Mty));
+  EXPECT_LE(rel_diff(dot(Mx, y), dot(x, Mty)), 1e-12);
+}
+
+INSTANTIATE_TEST_SUITE_P(Spectral, SpectralTranspose,
+                         ::testing::Values(DotCase{"1d_64", 1, 64, 1, true, false}, DotCase{"1d_50", 1, 50, 1, true, false},
+                                           DotCase{"2d_32x24", 2, 32, 24, true, false},
+                                           DotCase{"2d_x_only_nonperiodic_y", 2, 32, 15, false, true}),
+                         [](const ::testing::TestParamInfo<DotCase> &i) { return std::string(i.param.name); });
+
+// max |d^k u - exact| / max |exact| for u = exp(sin x) (1D) or exp(sin x + cos 2y / 2) (2D).
+PetscErrorCode derivative_error(PetscInt dim, PetscInt n, PetscInt dir, PetscInt order, PetscReal *err) {
+  Grid g;
+  SpectralDifferentiator s;
+  OwnedVec u, du, ex;
+  PetscFunctionBeginUser;
+  PetscCall(make_grid(dim, n, n, true, g));
+  PetscCall(s.setup(g));
+  PetscCall(DMCreateGlobalVector(g.dm(), u.out()));
+  PetscCall(VecDuplicate(u, du.out()));
+  PetscCall(VecDuplicate(u, ex.out()));
+  auto f = [](PetscReal x, PetscReal y) { return std::exp(std::sin(x) + 0.5 * std::cos(2 * y)); };
+  PetscCall(fill(g, u, f));
+  PetscCall(fill(g, ex, [&](PetscReal x, PetscReal y) {
+    const PetscReal p1 = dir == 0 ? std::cos(x) : -std::sin(2 * y);                    // d(phase)
+    const PetscReal p2 = dir == 0 ? -std::sin(x) : -2 * std::cos(2 * y);               // d^2(phase)
+    return f(x, y) * (order == 1 ? p1 : p1 * p1 + p2);
+  }));
+  PetscCall(s.derivative(dir, order, u, du));
+  PetscReal scale;
+  PetscCall(VecNorm(ex, NORM_INFINITY, &scale));
+  PetscCall(VecAXPY(du, -1.0, ex));
+  PetscCall(VecNorm(du, NORM_INFINITY, err));
+  *err /= scale;
+  PetscFunctionReturn(0);
+}
+
+} // namespace
+
+TEST(Spectral, ConvergesToRoundOffByN64) {
+  struct Case {
+    PetscInt dim, dir, order;
+  } cases[] = {{1, 0, 1}, {1, 0, 2}, {2, 0, 1}, {2, 1, 1}, {2, 1, 2}};
+  for (auto &c : cases) {
+    PetscReal e[3];
+    const PetscInt ns[3] = {16, 32, 64};
+    for (int k = 0; k < 3; ++k) PETSC_ASSERT_OK(derivative_error(c.dim, ns[k], c.dir, c.order, &e[k]));
+    PetscPrintf(PETSC_COMM_WORLD, "  [%dD, d^%d/d%s] relative max error N=16 %.2e, 32 %.2e, 64 %.2e\n", (int)c.dim,
+                (int)c.order, c.dir ? "y" : "x", (double)e[0], (double)e[1], (double)e[2]);
+    EXPECT_GT(e[0], 1e-8); // not exact on a coarse grid: the test can fail
+    EXPECT_LT(e[1], 1e-3 * e[0]);
+    EXPECT_LT(e[2], 1e-13);
+  }
+}
+
+TEST(Spectral, RefusesOddSizesAndNonPeriodicDirections) {
+  struct Case {
+    PetscInt dim, nx, ny;
+    bool periodic_y, x_only;
+    PetscErrorCode expected;
+  } cases[] = {{1, 63, 1, true, false, PETSC_ERR_ARG_OUTOFRANGE},
+               {2, 32, 31, true, false, PETSC_ERR_ARG_OUTOFRANGE},
+               {2, 32, 32, false, false, PETSC_ERR_ARG_WRONG},
+               {2, 32, 31, false, true, 0}};
+  for (auto &c : cases) {
+    Grid g;
+    SpectralDifferentiator s;
+    PETSC_ASSERT_OK(make_grid(c.dim, c.nx, c.ny, c.periodic_y, g));
+    PetscErrorCode err;
+    {
+      QuietErrors q;
+      err = s.setup(g, c.x_only);
+    }
+    EXPECT_EQ(err, c.expected) << c.dim << "D " << c.nx << " x " << c.ny;
+  }
+}
