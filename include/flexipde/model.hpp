@@ -16,6 +16,8 @@
 
 namespace flexipde {
 
+struct PointSource; // survey.hpp
+
 // Bounds on the spectrum of dG/dU, used to refuse explicit steps beyond the stability limit.
 struct Spectrum {
   PetscReal imag_radius = 0; // eigenvalues have |Im| <= imag_radius
@@ -60,6 +62,10 @@ public:
   // components 0..m-1 are positions q and m..2m-1 their velocities p, with G_q = p exactly and G_p
   // independent of p (it may depend on t, q and the parameters). 0 when the model has no such form.
   virtual PetscInt second_order_pairs() const { return 0; }
+  // Point sources (survey.hpp): a model that takes them adds the source's forcing density to G (the
+  // wave: to v_t) from then on; null removes it. The forcing depends on t only, never on U or p.
+  virtual bool accepts_point_source() const { return false; }
+  virtual PetscErrorCode set_point_source(const PointSource *) { return 0; }
 
   // Named scalar functionals F(U) of the state (e.g. an energy), for objectives and diagnostics
   // (collective): F into *value, and dF/dU into dFdU unless it is null. functional_names() lists

@@ -13,6 +13,7 @@
 // has_integrand() and provides r, dr/dU and dr/dp; the Simulation integrates r with the
 // integrator's own quadrature (PETSc's quadrature TS) and TSAdjoint adds dr/dU to lambda and
 // dr/dp to mu, so the gradient is exact for the discrete scheme.
+//   -objective_type receivers      :  J = sum_shots 0.5 int_0^T sum_r (u(x_r,t) - d_r(t))^2 dt (survey.hpp)
 //   -objective_type time_variation :  J = int_0^T ||u_t||^2 dt = int_0^T ||G(t, U; p)||^2 dt
 //                                     dr/dU = 2 (dG/dU)^T G,   dr/dp = 2 (dG/dp)^T G
 // (all components of U, plain sum over grid points; no terminal part).
@@ -94,6 +95,8 @@ private:
 // The objective chosen with -objective_type, behind one object: the Scene, the Simulation and the
 // callers hold the same SelectedObjective whatever the choice. data() is the misfit's data, or
 // null for an objective that needs none.
+class Survey; // survey.hpp: -objective_type receivers
+
 class SelectedObjective final : public Objective {
 public:
   // model and state_dm are needed by time_variation only.
@@ -105,8 +108,11 @@ public:
   PetscErrorCode integrand_dU(PetscReal t, Vec U, Vec drdU) override { return chosen_->integrand_dU(t, U, drdU); }
   PetscErrorCode integrand_dp(PetscReal t, Vec U, Vec drdp) override { return chosen_->integrand_dp(t, U, drdp); }
   Vec data() const { return misfit_ ? misfit_->data() : nullptr; }
+  // The survey (sources, receivers, traces) of -objective_type receivers, else null.
+  Survey *survey() const { return survey_; }
 
 private:
+  Survey *survey_ = nullptr; // chosen_, when it is the receiver misfit
   std::unique_ptr<Objective> chosen_;
   TerminalMisfit *misfit_ = nullptr; // chosen_, when it is a misfit
 };

@@ -30,6 +30,10 @@ public:
   // Runs the model with p_true and stores the objective's component of U(T) as the data; an
   // objective without data (mean_square) needs none, and nothing is run.
   PetscErrorCode make_synthetic_data(Vec p_true);
+  // J(p) (and its gradient) of the scene: the Simulation's, summed over the shots of a survey
+  // (-objective_type receivers), one forward (and adjoint) solve per shot.
+  PetscErrorCode value(Vec p, PetscReal *J);
+  PetscErrorCode gradient(Vec p, PetscReal *J, Vec grad_p);
 
   MPI_Comm comm() const { return comm_; }
   Grid grid;

@@ -113,7 +113,7 @@ static PetscErrorCode run(MPI_Comm comm) {
   PetscCall(scene.make_synthetic_data(p_true));
   if (task == 1) {
     PetscReal J, gn;
-    PetscCall(scene.sim.gradient(p, &J, g, nullptr));
+    PetscCall(scene.gradient(p, &J, g));
     PetscCall(VecNorm(g, NORM_2, &gn));
     PetscCall(PetscPrintf(comm, "gradient: J = %.12e, ||dJ/dp|| = %.12e (%s, %" PetscInt_FMT " steps)\n", (double)J,
                           (double)gn, scene.sim.stats().ts_type, scene.sim.stats().steps));
@@ -133,11 +133,11 @@ static PetscErrorCode run(MPI_Comm comm) {
       if (rank == 0) PetscCall(VecSetValue(q, 0, h, ADD_VALUES)); // entry 0 once, not once per rank
       PetscCall(VecAssemblyBegin(q));
       PetscCall(VecAssemblyEnd(q));
-      PetscCall(scene.sim.gradient(q, &Jp, nullptr, nullptr));
+      PetscCall(scene.value(q, &Jp));
       if (rank == 0) PetscCall(VecSetValue(q, 0, -2 * h, ADD_VALUES));
       PetscCall(VecAssemblyBegin(q));
       PetscCall(VecAssemblyEnd(q));
-      PetscCall(scene.sim.gradient(q, &Jm, nullptr, nullptr));
+      PetscCall(scene.value(q, &Jm));
       PetscScalar g0 = 0;
       if (rank == 0) {
         ConstArray a(g);
@@ -168,7 +168,7 @@ static PetscErrorCode run(MPI_Comm comm) {
       const PetscReal c = lo + (hi - lo) * k / (n - 1);
       PetscReal J;
       PetscCall(scene.params.set_scalar(p, 0, c));
-      PetscCall(scene.sim.value(p, &J)); // no adjoint; includes a time integral, if any
+      PetscCall(scene.value(p, &J)); // no adjoint; includes a time integral, if any
       cs.push_back(c);
       Js.push_back(J);
       PetscCall(PetscPrintf(comm, "landscape: %s = %.6f  J = %.10e\n", scene.params.info(0).name.c_str(), (double)c, (double)J));
@@ -192,7 +192,7 @@ static PetscErrorCode run(MPI_Comm comm) {
     PetscCall(PetscRandomSetInterval(rnd, -1.0, 1.0));
     PetscCall(VecSetRandom(d, rnd));
     PetscCall(PetscRandomDestroy(&rnd));
-    auto f = [&](Vec q, PetscReal *J, Vec gq) { return scene.sim.gradient(q, J, gq, nullptr); };
+    auto f = [&](Vec q, PetscReal *J, Vec gq) { return scene.gradient(q, J, gq); };
     PetscCall(taylor_test(f, p, d, eps0, levels, tr));
     PetscCall(PetscPrintf(comm, "taylor: g.d = %.12e\n%12s %14s %8s %14s %8s\n", (double)tr.gd, "eps", "r1", "ratio", "r2",
                           "ratio"));

@@ -1,4 +1,5 @@
 #include "flexipde/scene.hpp"
+#include "flexipde/survey.hpp"
 #include <cstring>
 
 namespace flexipde {
@@ -53,11 +54,75 @@ PetscErrorCode Scene::parameters_from_options(const char *prefix, Vec p) const {
 PetscErrorCode Scene::make_synthetic_data(Vec p_true) {
   OwnedVec U;
   PetscFunctionBeginUser;
+  if (Survey *sv = objective.survey()) {
+    // Observed traces from -survey_data_file, else recorded from p_true at every step.
+    PetscBool read;
+    PetscCall(sim.check_options()); // fixes dt and T
+    PetscCall(sv->read_data(sim.stats().final_time, &read));
+    if (read) PetscFunctionReturn(0);
+    PetscCall(DMCreateGlobalVector(state_dm, U.out()));
+    PetscCall(sv->begin_recording(sim.stats().dt, sim.stats().final_time));
+    for (PetscInt s = 0; s < sv->shots(); ++s) {
+      PetscReal J;
+      PetscCall(sv->select_shot(s));
+      PetscCall(model->initial_condition(p_true, U));
+      PetscCall(sv->record_initial(U));
+      PetscCall(sim.value(p_true, &J));
+    }
+    PetscCall(sv->end_recording());
+    PetscCall(sv->select_shot(0));
+    PetscFunctionReturn(0);
+  }
   if (!objective.data()) PetscFunctionReturn(0);
   PetscCall(DMCreateGlobalVector(state_dm, U.out()));
   PetscCall(sim.forward(p_true, U));
   if (model->dof() == 1) PetscCall(VecCopy(U, objective.data()));
   else PetscCall(VecStrideGather(U, component_, objective.data(), INSERT_VALUES));
+  PetscFunctionReturn(0);
+}
+
+} // namespace flexipde
+
+namespace flexipde {
+
+PetscErrorCode Scene::value(Vec p, PetscReal *J) {
+  Survey *sv = objective.survey();
+  PetscFunctionBeginUser;
+  if (!sv) {
+    PetscCall(sim.value(p, J));
+    PetscFunctionReturn(0);
+  }
+  *J = 0;
+  for (PetscInt s = 0; s < sv->shots(); ++s) {
+    PetscReal Js;
+    PetscCall(sv->select_shot(s));
+    PetscCall(sim.value(p, &Js));
+    *J += Js;
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Scene::gradient(Vec p, PetscReal *J, Vec grad_p) {
+  Survey *sv = objective.survey();
+  OwnedVec gs;
+  PetscFunctionBeginUser;
+  if (!sv || sv->shots() == 1) {
+    if (sv) PetscCall(sv->select_shot(0));
+    PetscCall(sim.gradient(p, J, grad_p, nullptr));
+    PetscFunctionReturn(0);
+  }
+  *J = 0;
+  if (grad_p) {
+    PetscCall(VecSet(grad_p, 0.0));
+    PetscCall(VecDuplicate(grad_p, gs.out()));
+  }
+  for (PetscInt s = 0; s < sv->shots(); ++s) {
+    PetscReal Js;
+    PetscCall(sv->select_shot(s));
+    PetscCall(sim.gradient(p, &Js, gs, nullptr));
+    *J += Js;
+    if (grad_p) PetscCall(VecAXPY(grad_p, 1.0, gs));
+  }
   PetscFunctionReturn(0);
 }
 

@@ -12,13 +12,21 @@
 // dG/dc is a MatShell: its transpose is a pointwise product, so a gradient with respect to a
 // million-entry field costs the same as one with respect to a scalar.
 //
-// Initial condition (-wave_ic travelling|rest): u0 = exp(-((x - x_c)/w)^2) (-wave_ic_center,
+// Initial condition (-wave_ic travelling|rest|zero): u0 = exp(-((x - x_c)/w)^2) (-wave_ic_center,
 // -wave_ic_width); "travelling" sets v0 = -c u0', a pulse moving right (the seed's leapfrog start
-// u1 = u0(x - c dt)), so U0 depends on c and dU0/dc enters the gradient; "rest" sets v0 = 0.
+// u1 = u0(x - c dt)), so U0 depends on c and dU0/dc enters the gradient; "rest" sets v0 = 0;
+// "zero" starts at rest with u0 = 0, for waves made by point sources only.
+//
+// Point sources (survey.hpp, -objective_type receivers): v_t = c^2 u_xx + w(t) delta_h(x - x_s),
+// a forcing independent of U and c, so dG/dU and dG/dc are unchanged and the second-order form
+// (G_u = v, G_v independent of v) is kept.
 //
 //   mpiexec -n 2 ./flexipde -task gradient -wave_c_field 1 -wave_c 0.9
+//   mpiexec -n 2 ./flexipde -task taylor -wave_c_field 1 -wave_c 0.9 -true_wave_c 1.0 -wave_ic zero \
+//           -objective_type receivers -survey_sources_x 0.3,0.7 -survey_receivers_spread 0.05,0.95,10 -ts_max_time 1
 #include "flexipde/differentiator.hpp"
 #include "flexipde/model.hpp"
+#include "flexipde/survey.hpp"
 #include <cmath>
 #include <vector>
 
@@ -38,7 +46,7 @@ public:
   }
 
   PetscErrorCode setup(const Grid &grid, DM state_dm, Parameters &params) override {
-    const char *ics[] = {"travelling", "rest"};
+    const char *ics[] = {"travelling", "rest", "zero"};
     PetscFunctionBeginUser;
     grid_ = &grid;
     dm_ = state_dm;
@@ -47,7 +55,7 @@ public:
     PetscOptionsBegin(grid.comm(), nullptr, "Acoustic wave model u_tt = c(x)^2 u_xx", "Wave");
     PetscCall(PetscOptionsBool("-wave_c_field", "Speed c is a field (one value per grid point), else one scalar",
                                "Wave", c_field_, &c_field_, nullptr));
-    PetscCall(PetscOptionsEList("-wave_ic", "Initial condition", "Wave", ics, 2, ics[ic_], &ic_, nullptr));
+    PetscCall(PetscOptionsEList("-wave_ic", "Initial condition", "Wave", ics, 3, ics[ic_], &ic_, nullptr));
     PetscCall(PetscOptionsReal("-wave_ic_center", "Centre of the initial Gaussian pulse", "Wave", center_, &center_,
                                nullptr));
     PetscCall(PetscOptionsReal("-wave_ic_width", "Width w of the pulse exp(-((x-x_c)/w)^2)", "Wave", width_, &width_,
@@ -112,6 +120,27 @@ public:
     PetscFunctionReturn(0);
   }
 
+  bool accepts_point_source() const override { return true; }
+  PetscErrorCode set_point_source(const PointSource *src) override {
+    source_ = src;
+    return 0;
+  }
+  // G = A U, plus the point source's forcing on v.
+  PetscErrorCode rhs(PetscReal t, Vec U, Vec G) override {
+    PetscFunctionBeginUser;
+    PetscCall(MatMult(A_, U, G));
+    if (source_ && source_->stencil.n) {
+      Array g(G);
+      PetscCall(g.error());
+      for (PetscInt k = 0; k < source_->stencil.n; ++k) {
+        const PetscInt il = source_->stencil.local[k];
+        if (grid_->is_boundary(grid_->xs() + il)) continue; // the walls hold u = v = 0
+        g[2 * il + 1] += source_->density(k, t);
+      }
+    }
+    PetscFunctionReturn(0);
+  }
+
   PetscErrorCode spectrum(Spectrum *s) override {
     s->imag_radius = cmax_ * std::sqrt(d2_.spectral_radius(grid_->h()));
     s->real_radius = 0;
@@ -130,15 +159,15 @@ public:
       PetscReal u0, du0;
       pulse(grid_->x(i), &u0, &du0);
       const bool wall = grid_->is_boundary(i);
-      U[2 * il] = wall ? 0.0 : u0;
-      U[2 * il + 1] = (wall || ic_ == 1) ? 0.0 : -PetscRealPart(c[il]) * du0;
+      U[2 * il] = (wall || ic_ == 2) ? 0.0 : u0;
+      U[2 * il + 1] = (wall || ic_ >= 1) ? 0.0 : -PetscRealPart(c[il]) * du0;
     }
     PetscFunctionReturn(0);
   }
 
   PetscErrorCode initial_condition_transpose(Vec, Vec lambda0, Vec grad) override {
     PetscFunctionBeginUser;
-    if (ic_ == 1) PetscFunctionReturn(0);
+    if (ic_ >= 1) PetscFunctionReturn(0);
     std::vector<PetscReal> g(grid_->xm(), 0.0);
     {
       ConstArray L(lambda0);
@@ -227,6 +256,7 @@ private:
   }
 
   const Grid *grid_ = nullptr;
+  const PointSource *source_ = nullptr;
   DM dm_ = nullptr;
   Parameters *params_ = nullptr;
   SecondDerivative d2_;

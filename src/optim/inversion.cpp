@@ -1,4 +1,5 @@
 #include "flexipde/inversion.hpp"
+#include "flexipde/tao_adam.hpp"
 #include <algorithm>
 #include <cmath>
 
@@ -37,6 +38,7 @@ PetscErrorCode Inversion::setup(Scene &scene, Vec p_true) {
   PetscCall(DMCreateLocalVector(scene.grid.dm(), field_local_.out()));
   PetscCall(DMCreateLocalVector(scene.grid.dm(), gfield_local_.out()));
 
+  PetscCall(register_tao_adam()); // -tao_type adam
   PetscCall(TaoCreate(comm, tao_.out()));
   PetscCall(TaoSetType(tao_, TAOBLMVM));
   PetscCall(TaoSetObjectiveAndGradient(tao_, nullptr, form_function_gradient, this));
@@ -111,7 +113,7 @@ PetscErrorCode Inversion::tikhonov(Vec p, PetscReal *R, Vec g) {
 PetscErrorCode Inversion::evaluate(Vec p, PetscReal *f, Vec g) {
   PetscReal J, R;
   PetscFunctionBeginUser;
-  PetscCall(scene_->sim.gradient(p, &J, g, nullptr));
+  PetscCall(scene_->gradient(p, &J, g));
   PetscCall(tikhonov(p, &R, g));
   last_misfit_ = J;
   *f = J + R;
@@ -148,7 +150,7 @@ PetscErrorCode Inversion::scan(Vec p, std::vector<PetscReal> &starts) {
   for (PetscInt k = 0; k < scan_; ++k) {
     v[k] = lower_value_ + (upper_value_ - lower_value_) * (k + 0.5) / scan_;
     PetscCall(params.set_scalar(p, 0, v[k]));
-    PetscCall(scene_->sim.value(p, &J[k])); // no adjoint; includes a time integral, if any
+    PetscCall(scene_->value(p, &J[k])); // no adjoint; includes a time integral, if any
   }
   std::vector<PetscInt> minima;
   for (PetscInt k = 0; k < scan_; ++k)

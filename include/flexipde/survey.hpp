@@ -1,0 +1,125 @@
+// A seismic survey: point sources fired one shot at a time, receivers recording u(x_r, t), and the
+// receiver misfit integrated in time, summed over receivers and shots:
+//
+//   J(p) = sum_shots 0.5 int_0^T sum_r (u(x_r, t) - d_{s,r}(t))^2 dt.
+//
+// Sources. Shot s fires one point source at x_s with a Ricker wavelet of peak frequency f0,
+//   w(t) = A (1 - 2 pi^2 f0^2 (t - t0)^2) exp(-pi^2 f0^2 (t - t0)^2),  t0 = delay (default 1.2/f0),
+// added to the equation of the model's forced component (the wave: v_t = c^2 u_xx + w(t) delta_h(x - x_s)).
+// The discrete delta spreads w over the grid points around x_s with the linear (1D) or bilinear
+// (2D) interpolation weights, divided by the cell volume, so that it integrates to w.
+//
+// Receivers. u(x_r, t) = (R U)_r, R the same interpolation weights on component u (a sparse
+// matrix with one row per receiver, owned by rank 0). The misfit is an Objective integrand
+//   r(t, U) = 0.5 ||R U - d(t)||^2,   dr/dU = R^T (R U - d(t)),   dr/dp = 0,
+// integrated by the Simulation with the integrator's own quadrature, so the adjoint gradient is
+// exact for this discrete objective.
+//
+// Data in time. The traces are samples d_k at t_k = k dt_d (k = 0..nt-1); d(t) between them is the
+// cubic Lagrange interpolant through the four nearest samples (exact at the samples). Synthetic
+// data are recorded by the same code at every step of the integrator (dt_d = the simulation's
+// dt): CN (theta endpoint) evaluates r at the step states only, so at the true model the misfit is
+// zero to round-off; RK evaluates it at its stages too, which are not the solution at the stage
+// times, so the true model leaves a small misfit floor of the order of the time error (documented
+// in docs/fwi_receivers.md).
+//
+// Options (prefix -survey_):
+//   -survey_sources_x x1,x2,...      one shot per source (2D: -survey_sources_y, one value or one per source)
+//   -survey_ricker_f0 F, -survey_ricker_delay T0, -survey_ricker_amplitude A
+//   -survey_receivers_x x1,...       receivers (2D: -survey_receivers_y, one value or one per receiver), or
+//   -survey_receivers_spread a,b,n   n receivers evenly spaced from a to b (2D: at depth -survey_receivers_y), or
+//   -survey_receivers_file F         text file, one receiver per line: "x" (1D) or "x y" (2D)
+//   -survey_data_file F.h5           read the observed traces from F (written by -survey_data_write)
+//   -survey_data_write F.h5          write the synthetic traces made from the true model to F
+//
+// Data file (HDF5, PETSc viewer): /survey/traces (nshots * nrec * nt, shot-major, then receiver,
+// then sample), /survey/receivers_x, /survey/sources_x (and _y in 2D), attributes on /survey/traces:
+// nshots, nrec, nt (integers), sample_dt, dim.
+#pragma once
+#include "flexipde/model.hpp"
+#include "flexipde/objective.hpp"
+#include <string>
+#include <vector>
+
+namespace flexipde {
+
+// Ricker wavelet of peak frequency f0 delayed by t0, amplitude a.
+struct Ricker {
+  PetscReal f0 = 10.0, t0 = 0.12, amplitude = 1.0;
+  PetscReal operator()(PetscReal t) const;
+};
+
+// Interpolation of a point onto the grid: up to 4 (point index, weight) pairs owned by this rank,
+// weights summing to 1 over all ranks. Points are local indices into the owned block
+// ((j - ys) * xm + (i - xs)).
+struct PointStencil {
+  PetscInt n = 0;
+  PetscInt local[4];
+  PetscReal weight[4];
+};
+PetscErrorCode point_stencil(const Grid &grid, PetscReal x, PetscReal y, PointStencil *st);
+
+// The source of the current shot, as a model sees it: the local stencil and the wavelet.
+struct PointSource {
+  PointStencil stencil;
+  Ricker wavelet;
+  PetscReal cell_volume = 1.0;
+  // The forcing density at local point k of the stencil at time t.
+  PetscReal density(PetscInt k, PetscReal t) const { return wavelet(t) * stencil.weight[k] / cell_volume; }
+};
+
+class Survey final : public Objective {
+public:
+  // Reads the options above. component: the recorded component of U (dof per point).
+  PetscErrorCode setup(const Grid &grid, Model &model, DM state_dm, PetscInt component, PetscInt dof);
+  PetscInt shots() const { return nshots_; }
+  PetscInt receivers() const { return (PetscInt)rec_x_.size(); }
+  // Makes shot s the current one: the model's source and the data the misfit compares with.
+  PetscErrorCode select_shot(PetscInt s);
+  // Synthetic data: from now on the integrand records R U at the sample times instead of comparing
+  // (the Scene runs each shot with the true model in between). sample_dt is the integrator's dt.
+  PetscErrorCode begin_recording(PetscReal sample_dt, PetscReal final_time);
+  // Records the initial state (sample 0) of the current shot.
+  PetscErrorCode record_initial(Vec U0);
+  // Ends the recording; checks every sample was recorded and writes -survey_data_write if set.
+  PetscErrorCode end_recording();
+  bool recording() const { return recording_; }
+  // Reads -survey_data_file into the traces; false in *read when no file was given.
+  PetscErrorCode read_data(PetscReal final_time, PetscBool *read);
+  PetscErrorCode write_data(const char *file) const;
+  const std::vector<PetscReal> &traces() const { return traces_; }
+  PetscInt samples() const { return nt_; }
+  PetscReal sample_dt() const { return sample_dt_; }
+  const std::vector<PetscReal> &receivers_x() const { return rec_x_; }
+
+  // Objective: no terminal part (except while recording), the integrand above.
+  PetscErrorCode terminal(Vec UT, PetscReal *J, Vec dJdU) override;
+  bool has_integrand() const override { return true; }
+  PetscErrorCode integrand(PetscReal t, Vec U, PetscReal *r) override;
+  PetscErrorCode integrand_dU(PetscReal t, Vec U, Vec drdU) override;
+
+private:
+  PetscErrorCode read_positions();
+  PetscErrorCode build_receiver_matrix(DM state_dm);
+  // d(t) of the current shot into dvec_ (rank 0 holds every entry).
+  PetscErrorCode data_at(PetscReal t);
+  PetscErrorCode residual(PetscReal t, Vec U); // res_ = R U - d(t)
+
+  const Grid *grid_ = nullptr;
+  Model *model_ = nullptr;
+  MPI_Comm comm_ = MPI_COMM_NULL;
+  PetscMPIInt rank_ = 0;
+  PetscInt component_ = 0, dof_ = 1, nshots_ = 1, shot_ = 0, nt_ = 0;
+  std::vector<PetscReal> src_x_, src_y_, rec_x_, rec_y_;
+  std::vector<PointSource> sources_;
+  Ricker ricker_;
+  PetscReal sample_dt_ = 0;
+  std::vector<PetscReal> traces_; // [shot][receiver][sample], on rank 0 (every rank after read/record)
+  std::vector<char> recorded_;
+  bool recording_ = false;
+  char data_file_[PETSC_MAX_PATH_LEN] = "", write_file_[PETSC_MAX_PATH_LEN] = "";
+  OwnedMat R_;
+  OwnedVec y_, dvec_;
+};
+
+} // namespace flexipde

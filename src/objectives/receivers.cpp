@@ -1,0 +1,511 @@
+// Survey: Ricker point sources, receivers and the time-integrated receiver misfit (survey.hpp).
+#include "flexipde/survey.hpp"
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <hdf5.h>
+#include <petscviewerhdf5.h>
+#include <sstream>
+#include <unistd.h>
+
+namespace flexipde {
+
+PetscReal Ricker::operator()(PetscReal t) const {
+  const PetscReal a = PETSC_PI * f0 * (t - t0), a2 = a * a;
+  return amplitude * (1.0 - 2.0 * a2) * std::exp(-a2);
+}
+
+// Linear (1D) or bilinear (2D) weights of the grid points around (x, y), owned points only.
+PetscErrorCode point_stencil(const Grid &grid, PetscReal x, PetscReal y, PointStencil *st) {
+  PetscFunctionBeginUser;
+  st->n = 0;
+  auto cell = [](PetscReal pos, PetscReal origin, PetscReal h, PetscInt n, bool periodic, PetscInt *i, PetscReal *th) {
+    const PetscInt last = periodic ? n - 1 : n - 2; // left node of the last cell
+    PetscReal s = (pos - origin) / h;
+    PetscInt k = (PetscInt)std::floor(s);
+    if (k > last) k = last;
+    if (k < 0) k = 0;
+    *i = k;
+    *th = s - k;
+  };
+  PetscInt i, j = 0;
+  PetscReal tx, ty = 0;
+  cell(x, grid.x0(), grid.h(), grid.n(), grid.periodic(), &i, &tx);
+  if (grid.dim() == 2) cell(y, grid.y0(), grid.hy(), grid.ny(), grid.periodic_y(), &j, &ty);
+  const PetscInt nj = grid.dim() == 2 ? 2 : 1;
+  for (PetscInt b = 0; b < nj; ++b)
+    for (PetscInt a = 0; a < 2; ++a) {
+      const PetscReal w = (a ? tx : 1 - tx) * (grid.dim() == 2 ? (b ? ty : 1 - ty) : 1.0);
+      if (w == 0.0) continue;
+      const PetscInt ii = (i + a) % grid.n(), jj = grid.dim() == 2 ? (j + b) % grid.ny() : 0;
+      if (ii < grid.xs() || ii >= grid.xs() + grid.xm() || jj < grid.ys() || jj >= grid.ys() + grid.ym()) continue;
+      st->local[st->n] = (jj - grid.ys()) * grid.xm() + (ii - grid.xs());
+      st->weight[st->n] = w;
+      ++st->n;
+    }
+  PetscFunctionReturn(0);
+}
+
+// Values for the second coordinate: one per point, or one for all, or the default.
+static PetscErrorCode expand(MPI_Comm comm, const char *what, std::vector<PetscReal> &y, size_t n, PetscReal dflt) {
+  PetscFunctionBeginUser;
+  if (y.empty()) y.assign(n, dflt);
+  else if (y.size() == 1) y.assign(n, y[0]);
+  PetscCheck(y.size() == n, comm, PETSC_ERR_ARG_SIZ, "%s: give one value or one per point (%zu), got %zu", what, n,
+             y.size());
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Survey::read_positions() {
+  const bool two_d = grid_->dim() == 2;
+  PetscBool set_sx = PETSC_FALSE, set_sy = PETSC_FALSE, set_rx = PETSC_FALSE, set_ry = PETSC_FALSE, set_spread = PETSC_FALSE,
+            set_file = PETSC_FALSE, set_delay = PETSC_FALSE;
+  char rec_file[PETSC_MAX_PATH_LEN] = "";
+  PetscReal spread[3] = {0, 0, 0};
+  PetscInt nspread = 3;
+  PetscFunctionBeginUser;
+  PetscOptionsBegin(comm_, nullptr, "Survey: point sources, receivers, observed data", "Survey");
+  // A list option -name v1,v2,... (up to 1024 values).
+  auto read_list = [&](MPI_Comm, const char *name, const char *help, std::vector<PetscReal> &out,
+                       PetscBool *set) -> PetscErrorCode {
+    PetscReal buf[1024];
+    PetscInt n = 1024;
+    PetscFunctionBeginUser;
+    PetscCall(PetscOptionsRealArray(name, help, "Survey", buf, &n, set));
+    if (*set) out.assign(buf, buf + n);
+    PetscFunctionReturn(0);
+  };
+  PetscCall(read_list(comm_, "-survey_sources_x", "Source positions x, one shot each (none: one shot without source)",
+                      src_x_, &set_sx));
+  if (two_d)
+    PetscCall(read_list(comm_, "-survey_sources_y", "Source positions y (one value, or one per source)", src_y_, &set_sy));
+  PetscCall(PetscOptionsReal("-survey_ricker_f0", "Peak frequency of the Ricker wavelet", "Survey", ricker_.f0,
+                             &ricker_.f0, nullptr));
+  PetscCall(PetscOptionsReal("-survey_ricker_delay", "Delay t0 of the Ricker wavelet (default 1.2/f0)", "Survey",
+                             1.2 / ricker_.f0, &ricker_.t0, &set_delay));
+  PetscCall(PetscOptionsReal("-survey_ricker_amplitude", "Amplitude of the Ricker wavelet", "Survey",
+                             ricker_.amplitude, &ricker_.amplitude, nullptr));
+  PetscCall(read_list(comm_, "-survey_receivers_x", "Receiver positions x", rec_x_, &set_rx));
+  PetscCall(PetscOptionsRealArray("-survey_receivers_spread", "a,b,n: n receivers evenly spaced in x from a to b",
+                                  "Survey", spread, &nspread, &set_spread));
+  if (two_d)
+    PetscCall(read_list(comm_, "-survey_receivers_y", "Receiver positions y (one value, or one per receiver)", rec_y_,
+                        &set_ry));
+  PetscCall(PetscOptionsString("-survey_receivers_file", "Text file of receivers, one per line: x (1D) or x y (2D)",
+                               "Survey", rec_file, rec_file, sizeof(rec_file), &set_file));
+  PetscCall(PetscOptionsString("-survey_data_file", "Observed traces (HDF5, as written by -survey_data_write)",
+                               "Survey", data_file_, data_file_, sizeof(data_file_), nullptr));
+  PetscCall(PetscOptionsString("-survey_data_write", "Write the synthetic traces of the true model to this HDF5 file",
+                               "Survey", write_file_, write_file_, sizeof(write_file_), nullptr));
+  PetscOptionsEnd();
+  PetscCheck(ricker_.f0 > 0, comm_, PETSC_ERR_ARG_OUTOFRANGE, "-survey_ricker_f0 must be positive, got %g",
+             (double)ricker_.f0);
+  if (!set_delay) ricker_.t0 = 1.2 / ricker_.f0;
+  PetscCheck((set_rx ? 1 : 0) + (set_spread ? 1 : 0) + (set_file ? 1 : 0) == 1, comm_, PETSC_ERR_ARG_WRONG,
+             "-objective_type receivers needs exactly one of -survey_receivers_x, -survey_receivers_spread, "
+             "-survey_receivers_file");
+  if (set_spread) {
+    PetscCheck(nspread == 3 && spread[2] >= 1 && spread[2] == std::floor(spread[2]), comm_, PETSC_ERR_ARG_WRONG,
+               "-survey_receivers_spread takes a,b,n with a whole n >= 1");
+    const PetscInt n = (PetscInt)spread[2];
+    rec_x_.resize(n);
+    for (PetscInt k = 0; k < n; ++k) rec_x_[k] = n == 1 ? spread[0] : spread[0] + (spread[1] - spread[0]) * k / (n - 1);
+  }
+  if (set_file) {
+    // rank 0 reads; everyone receives the values (or the failure, so that all ranks stop together)
+    std::vector<PetscReal> vals;
+    PetscInt status = 0, count = 0;
+    if (rank_ == 0) {
+      std::ifstream in(rec_file);
+      if (!in) status = 1;
+      std::string line;
+      while (status == 0 && std::getline(in, line)) {
+        if (line.find_first_not_of(" \t\r") == std::string::npos || line[0] == '#') continue;
+        std::istringstream ls(line);
+        PetscReal a, b = 0;
+        if (!(ls >> a) || (two_d && !(ls >> b))) status = 2;
+        vals.push_back(a);
+        vals.push_back(b);
+      }
+      count = (PetscInt)vals.size() / 2;
+    }
+    PetscCallMPI(MPI_Bcast(&status, 1, MPIU_INT, 0, comm_));
+    PetscCheck(status != 1, comm_, PETSC_ERR_FILE_OPEN, "-survey_receivers_file %s cannot be read", rec_file);
+    PetscCheck(status != 2, comm_, PETSC_ERR_FILE_UNEXPECTED,
+               "-survey_receivers_file %s: every line must hold %s", rec_file, two_d ? "x y" : "x");
+    PetscCallMPI(MPI_Bcast(&count, 1, MPIU_INT, 0, comm_));
+    vals.resize(2 * count);
+    PetscCallMPI(MPI_Bcast(vals.data(), 2 * count, MPIU_REAL, 0, comm_));
+    rec_x_.resize(count);
+    rec_y_.resize(two_d ? count : 0);
+    for (PetscInt k = 0; k < count; ++k) {
+      rec_x_[k] = vals[2 * k];
+      if (two_d) rec_y_[k] = vals[2 * k + 1];
+    }
+  }
+  PetscCheck(!rec_x_.empty(), comm_, PETSC_ERR_ARG_WRONG, "The survey has no receivers");
+  if (two_d) {
+    PetscCall(expand(comm_, "-survey_receivers_y", rec_y_, rec_x_.size(), grid_->y0()));
+    PetscCall(expand(comm_, "-survey_sources_y", src_y_, src_x_.size(), grid_->y0()));
+  } else {
+    rec_y_.assign(rec_x_.size(), 0.0);
+    src_y_.assign(src_x_.size(), 0.0);
+  }
+  const PetscReal tol = 1e-12 * (grid_->x1() - grid_->x0());
+  auto inside = [&](PetscReal x, PetscReal y) {
+    return x >= grid_->x0() - tol && x <= grid_->x1() + tol &&
+           (!two_d || (y >= grid_->y0() - tol && y <= grid_->y1() + tol));
+  };
+  for (size_t k = 0; k < rec_x_.size(); ++k)
+    PetscCheck(inside(rec_x_[k], rec_y_[k]), comm_, PETSC_ERR_ARG_OUTOFRANGE,
+               "Receiver %zu at (%g, %g) is outside the domain [%g, %g] x [%g, %g]", k, (double)rec_x_[k],
+               (double)rec_y_[k], (double)grid_->x0(), (double)grid_->x1(), (double)grid_->y0(), (double)grid_->y1());
+  for (size_t k = 0; k < src_x_.size(); ++k)
+    PetscCheck(inside(src_x_[k], src_y_[k]), comm_, PETSC_ERR_ARG_OUTOFRANGE,
+               "Source %zu at (%g, %g) is outside the domain [%g, %g] x [%g, %g]", k, (double)src_x_[k],
+               (double)src_y_[k], (double)grid_->x0(), (double)grid_->x1(), (double)grid_->y0(), (double)grid_->y1());
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Survey::build_receiver_matrix(DM state_dm) {
+  OwnedVec U;
+  PetscInt nloc, rstart;
+  const PetscInt nrec = receivers();
+  PetscFunctionBeginUser;
+  PetscCall(DMCreateGlobalVector(state_dm, U.out()));
+  PetscCall(VecGetLocalSize(U, &nloc));
+  PetscCall(VecGetOwnershipRange(U, &rstart, nullptr));
+  PetscCall(MatCreate(comm_, R_.out()));
+  PetscCall(MatSetSizes(R_, rank_ == 0 ? nrec : 0, nloc, nrec, PETSC_DETERMINE));
+  PetscCall(MatSetType(R_, MATAIJ));
+  PetscCall(MatSeqAIJSetPreallocation(R_, 4, nullptr));
+  PetscCall(MatMPIAIJSetPreallocation(R_, 4, nullptr, 4, nullptr));
+  PetscCall(MatSetOption(R_, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_FALSE));
+  for (PetscInt r = 0; r < nrec; ++r) {
+    PointStencil st;
+    PetscCall(point_stencil(*grid_, rec_x_[r], rec_y_[r], &st));
+    for (PetscInt k = 0; k < st.n; ++k)
+      PetscCall(MatSetValue(R_, r, rstart + st.local[k] * dof_ + component_, st.weight[k], ADD_VALUES));
+  }
+  PetscCall(MatAssemblyBegin(R_, MAT_FINAL_ASSEMBLY));
+  PetscCall(MatAssemblyEnd(R_, MAT_FINAL_ASSEMBLY));
+  PetscCall(MatCreateVecs(R_, nullptr, y_.out()));
+  PetscCall(VecDuplicate(y_, dvec_.out()));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Survey::setup(const Grid &grid, Model &model, DM state_dm, PetscInt component, PetscInt dof) {
+  PetscFunctionBeginUser;
+  grid_ = &grid;
+  model_ = &model;
+  comm_ = grid.comm();
+  component_ = component;
+  dof_ = dof;
+  PetscCallMPI(MPI_Comm_rank(comm_, &rank_));
+  PetscCall(read_positions());
+  PetscCheck(src_x_.empty() || model.accepts_point_source(), comm_, PETSC_ERR_SUP,
+             "Model %s takes no point sources (-survey_sources_x)", model.name());
+  nshots_ = std::max<PetscInt>(1, (PetscInt)src_x_.size());
+  sources_.resize(src_x_.size());
+  for (size_t s = 0; s < src_x_.size(); ++s) {
+    PetscCall(point_stencil(grid, src_x_[s], src_y_[s], &sources_[s].stencil));
+    sources_[s].wavelet = ricker_;
+    sources_[s].cell_volume = grid.cell_volume();
+  }
+  PetscCall(build_receiver_matrix(state_dm));
+  PetscCall(select_shot(0));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Survey::select_shot(PetscInt s) {
+  PetscFunctionBeginUser;
+  PetscCheck(s >= 0 && s < nshots_, comm_, PETSC_ERR_ARG_OUTOFRANGE, "Shot %" PetscInt_FMT " of %" PetscInt_FMT, s,
+             nshots_);
+  shot_ = s;
+  if (!sources_.empty()) PetscCall(model_->set_point_source(&sources_[s]));
+  PetscFunctionReturn(0);
+}
+
+// ---- recording synthetic data ----
+
+PetscErrorCode Survey::begin_recording(PetscReal sample_dt, PetscReal final_time) {
+  PetscFunctionBeginUser;
+  sample_dt_ = sample_dt;
+  nt_ = (PetscInt)std::llround(final_time / sample_dt) + 1;
+  traces_.assign(rank_ == 0 ? (size_t)(nshots_ * receivers() * nt_) : 0, 0.0);
+  recorded_.assign((size_t)(nshots_ * nt_), 0);
+  recording_ = true;
+  PetscFunctionReturn(0);
+}
+
+// Sample k of the current shot from y_ (rank 0), when t is a sample time.
+static bool sample_index(PetscReal t, PetscReal dt, PetscInt nt, PetscInt *k) {
+  const PetscReal s = t / dt;
+  const PetscInt kk = (PetscInt)std::llround(s);
+  if (std::fabs(s - kk) > 1e-8 || kk < 0 || kk >= nt) return false;
+  *k = kk;
+  return true;
+}
+
+PetscErrorCode Survey::record_initial(Vec U0) {
+  PetscFunctionBeginUser;
+  PetscCall(MatMult(R_, U0, y_));
+  if (rank_ == 0) {
+    ConstArray y(y_);
+    PetscCall(y.error());
+    for (PetscInt r = 0; r < receivers(); ++r) traces_[(shot_ * receivers() + r) * nt_] = PetscRealPart(y[r]);
+  }
+  recorded_[shot_ * nt_] = 1;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Survey::end_recording() {
+  PetscFunctionBeginUser;
+  recording_ = false;
+  for (PetscInt s = 0; s < nshots_; ++s)
+    for (PetscInt k = 0; k < nt_; ++k)
+      PetscCheck(recorded_[s * nt_ + k], comm_, PETSC_ERR_PLIB,
+                 "Synthetic data: the integrator never visited t = %g (sample %" PetscInt_FMT "); record with a fixed step "
+                 "of -ts_type rk or cn",
+                 (double)(k * sample_dt_), k);
+  if (write_file_[0]) PetscCall(write_data(write_file_));
+  PetscFunctionReturn(0);
+}
+
+// ---- data file ----
+
+PetscErrorCode Survey::write_data(const char *file) const {
+  OwnedViewer v;
+  OwnedVec tr;
+  const PetscInt n = nshots_ * receivers() * nt_, dim = grid_->dim(), nrec = receivers();
+  PetscFunctionBeginUser;
+  PetscCall(PetscViewerHDF5Open(comm_, file, FILE_MODE_WRITE, v.out()));
+  PetscCall(PetscViewerHDF5PushGroup(v, "/survey"));
+  // vals on rank 0 (m entries; the traces live on rank 0 only)
+  auto series = [&](const char *name, const std::vector<PetscReal> &vals, PetscInt m) -> PetscErrorCode {
+    OwnedVec s;
+    PetscFunctionBeginUser;
+    PetscCall(VecCreateMPI(comm_, rank_ == 0 ? m : 0, m, s.out()));
+    if (rank_ == 0) {
+      Array a(s);
+      PetscCall(a.error());
+      for (PetscInt i = 0; i < m; ++i) a[i] = vals[i];
+    }
+    PetscCall(PetscObjectSetName((PetscObject)s.get(), name));
+    PetscCall(VecView(s, v));
+    PetscFunctionReturn(0);
+  };
+  PetscCall(series("traces", traces_, n));
+  PetscCall(series("receivers_x", rec_x_, nrec));
+  if (!src_x_.empty()) PetscCall(series("sources_x", src_x_, (PetscInt)src_x_.size()));
+  if (dim == 2) {
+    PetscCall(series("receivers_y", rec_y_, nrec));
+    if (!src_y_.empty()) PetscCall(series("sources_y", src_y_, (PetscInt)src_y_.size()));
+  }
+  PetscCall(PetscViewerHDF5WriteAttribute(v, "traces", "nshots", PETSC_INT, &nshots_));
+  PetscCall(PetscViewerHDF5WriteAttribute(v, "traces", "nrec", PETSC_INT, &nrec));
+  PetscCall(PetscViewerHDF5WriteAttribute(v, "traces", "nt", PETSC_INT, &nt_));
+  PetscCall(PetscViewerHDF5WriteAttribute(v, "traces", "dim", PETSC_INT, &dim));
+  PetscCall(PetscViewerHDF5WriteAttribute(v, "traces", "sample_dt", PETSC_REAL, &sample_dt_));
+  PetscCall(PetscViewerHDF5PopGroup(v));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Survey::read_data(PetscReal final_time, PetscBool *read) {
+  const char *f = data_file_;
+  PetscFunctionBeginUser;
+  *read = PETSC_FALSE;
+  if (!f[0]) PetscFunctionReturn(0);
+  { // rank 0 checks the file before PETSc/HDF5 see it, so that every rank stops with one message
+    PetscInt status = 0;
+    if (rank_ == 0) {
+      if (access(f, R_OK) != 0) status = 1;
+      else {
+        H5E_auto2_t func;
+        void *data;
+        H5Eget_auto2(H5E_DEFAULT, &func, &data);
+        H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+        if (H5Fis_hdf5(f) <= 0) status = 2;
+        H5Eset_auto2(H5E_DEFAULT, func, data);
+      }
+    }
+    PetscCallMPI(MPI_Bcast(&status, 1, MPIU_INT, 0, comm_));
+    PetscCheck(status != 1, comm_, PETSC_ERR_FILE_OPEN, "-survey_data_file %s does not exist or cannot be read", f);
+    PetscCheck(status != 2, comm_, PETSC_ERR_FILE_UNEXPECTED,
+               "-survey_data_file %s is not an HDF5 file (write one with -survey_data_write)", f);
+  }
+  OwnedViewer v;
+  PetscBool has;
+  PetscCall(PetscViewerHDF5Open(comm_, f, FILE_MODE_READ, v.out()));
+  PetscCall(PetscViewerHDF5HasDataset(v, "/survey/traces", &has));
+  PetscCheck(has, comm_, PETSC_ERR_FILE_UNEXPECTED, "-survey_data_file %s holds no /survey/traces dataset", f);
+  PetscCall(PetscViewerHDF5PushGroup(v, "/survey"));
+  PetscInt ns = 0, nrec = 0, nt = 0, dim = 0;
+  PetscReal dt = 0;
+  PetscCall(PetscViewerHDF5ReadAttribute(v, "traces", "nshots", PETSC_INT, nullptr, &ns));
+  PetscCall(PetscViewerHDF5ReadAttribute(v, "traces", "nrec", PETSC_INT, nullptr, &nrec));
+  PetscCall(PetscViewerHDF5ReadAttribute(v, "traces", "nt", PETSC_INT, nullptr, &nt));
+  PetscCall(PetscViewerHDF5ReadAttribute(v, "traces", "dim", PETSC_INT, nullptr, &dim));
+  PetscCall(PetscViewerHDF5ReadAttribute(v, "traces", "sample_dt", PETSC_REAL, nullptr, &dt));
+  PetscCheck(dim == grid_->dim(), comm_, PETSC_ERR_FILE_UNEXPECTED, "-survey_data_file %s holds %" PetscInt_FMT
+             "D data, the scene is %" PetscInt_FMT "D", f, dim, grid_->dim());
+  PetscCheck(ns == nshots_ && nrec == receivers(), comm_, PETSC_ERR_FILE_UNEXPECTED,
+             "-survey_data_file %s holds %" PetscInt_FMT " shots x %" PetscInt_FMT " receivers, the survey has %" PetscInt_FMT
+             " x %" PetscInt_FMT,
+             f, ns, nrec, nshots_, receivers());
+  PetscCheck(nt >= 2 && dt > 0, comm_, PETSC_ERR_FILE_UNEXPECTED, "-survey_data_file %s: bad sampling (nt %" PetscInt_FMT
+             ", dt %g)", f, nt, (double)dt);
+  PetscCheck((nt - 1) * dt >= final_time * (1 - 1e-10), comm_, PETSC_ERR_FILE_UNEXPECTED,
+             "-survey_data_file %s covers t <= %g only, the run goes to T = %g", f, (double)((nt - 1) * dt),
+             (double)final_time);
+  auto load = [&](const char *name, PetscInt m, std::vector<PetscReal> &out) -> PetscErrorCode {
+    OwnedVec s;
+    PetscBool h;
+    PetscFunctionBeginUser;
+    PetscCall(PetscViewerHDF5HasDataset(v, name, &h));
+    PetscCheck(h || m == 0, comm_, PETSC_ERR_FILE_UNEXPECTED, "-survey_data_file %s holds no /survey/%s", f, name);
+    out.clear();
+    if (m == 0) PetscFunctionReturn(0);
+    PetscCall(VecCreateMPI(comm_, rank_ == 0 ? m : 0, m, s.out()));
+    PetscCall(PetscObjectSetName((PetscObject)s.get(), name));
+    PetscCall(VecLoad(s, v));
+    std::vector<PetscReal> all(m);
+    if (rank_ == 0) {
+      ConstArray a(s);
+      PetscCall(a.error());
+      for (PetscInt i = 0; i < m; ++i) all[i] = PetscRealPart(a[i]);
+    }
+    PetscCallMPI(MPI_Bcast(all.data(), m, MPIU_REAL, 0, comm_));
+    out = all;
+    PetscFunctionReturn(0);
+  };
+  std::vector<PetscReal> fx, fy, sx, sy, tr;
+  PetscCall(load("receivers_x", nrec, fx));
+  PetscCall(load("sources_x", (PetscInt)src_x_.size(), sx));
+  if (dim == 2) {
+    PetscCall(load("receivers_y", nrec, fy));
+    PetscCall(load("sources_y", (PetscInt)src_x_.size(), sy));
+  }
+  const PetscReal tol = 1e-9 * (grid_->x1() - grid_->x0());
+  for (PetscInt r = 0; r < nrec; ++r)
+    PetscCheck(std::fabs(fx[r] - rec_x_[r]) <= tol && (dim == 1 || std::fabs(fy[r] - rec_y_[r]) <= tol), comm_,
+               PETSC_ERR_FILE_UNEXPECTED,
+               "-survey_data_file %s: receiver %" PetscInt_FMT " was recorded at x = %g, the survey puts it at x = %g",
+               f, r, (double)fx[r], (double)rec_x_[r]);
+  for (size_t s = 0; s < src_x_.size(); ++s)
+    PetscCheck(std::fabs(sx[s] - src_x_[s]) <= tol && (dim == 1 || std::fabs(sy[s] - src_y_[s]) <= tol), comm_,
+               PETSC_ERR_FILE_UNEXPECTED, "-survey_data_file %s: shot %zu was fired at x = %g, the survey has x = %g", f,
+               s, (double)sx[s], (double)src_x_[s]);
+  { // the traces stay on rank 0
+    OwnedVec s;
+    const PetscInt m = ns * nrec * nt;
+    PetscCall(VecCreateMPI(comm_, rank_ == 0 ? m : 0, m, s.out()));
+    PetscCall(PetscObjectSetName((PetscObject)s.get(), "traces"));
+    PetscCall(VecLoad(s, v));
+    PetscInt bad = -1;
+    traces_.assign(rank_ == 0 ? (size_t)m : 0, 0.0);
+    if (rank_ == 0) {
+      ConstArray a(s);
+      PetscCall(a.error());
+      for (PetscInt i = 0; i < m; ++i) {
+        traces_[i] = PetscRealPart(a[i]);
+        if (bad < 0 && !std::isfinite((double)traces_[i])) bad = i;
+      }
+    }
+    PetscCallMPI(MPI_Bcast(&bad, 1, MPIU_INT, 0, comm_));
+    PetscCheck(bad < 0, comm_, PETSC_ERR_FILE_UNEXPECTED,
+               "-survey_data_file %s holds NaN/Inf: shot %" PetscInt_FMT ", receiver %" PetscInt_FMT ", sample %" PetscInt_FMT,
+               f, bad / (nrec * nt), (bad / nt) % nrec, bad % nt);
+  }
+  PetscCall(PetscViewerHDF5PopGroup(v));
+  nt_ = nt;
+  sample_dt_ = dt;
+  *read = PETSC_TRUE;
+  PetscFunctionReturn(0);
+}
+
+// ---- the misfit ----
+
+// Cubic Lagrange interpolation in time through the four samples around t (fewer when nt < 4).
+PetscErrorCode Survey::data_at(PetscReal t) {
+  PetscFunctionBeginUser;
+  if (rank_ != 0) PetscFunctionReturn(0);
+  Array d(dvec_);
+  PetscCall(d.error());
+  const PetscReal s = t / sample_dt_;
+  const PetscInt m = std::min<PetscInt>(4, nt_);
+  PetscInt k0 = (PetscInt)std::floor(s) - (m == 4 ? 1 : 0);
+  k0 = std::max<PetscInt>(0, std::min<PetscInt>(k0, nt_ - m));
+  PetscReal w[4];
+  for (PetscInt a = 0; a < m; ++a) {
+    w[a] = 1;
+    for (PetscInt b = 0; b < m; ++b)
+      if (b != a) w[a] *= (s - (k0 + b)) / (PetscReal)(a - b);
+  }
+  for (PetscInt r = 0; r < receivers(); ++r) {
+    const PetscReal *tr = traces_.data() + (shot_ * receivers() + r) * nt_;
+    PetscReal v = 0;
+    for (PetscInt a = 0; a < m; ++a) v += w[a] * tr[k0 + a];
+    d[r] = v;
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Survey::residual(PetscReal t, Vec U) {
+  PetscFunctionBeginUser;
+  PetscCheck(nt_ > 0, comm_, PETSC_ERR_ORDER, "The survey has no data: record synthetic data or give -survey_data_file");
+  PetscCall(MatMult(R_, U, y_));
+  PetscCall(data_at(t));
+  PetscCall(VecAXPY(y_, -1.0, dvec_));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Survey::terminal(Vec UT, PetscReal *J, Vec dJdU) {
+  PetscFunctionBeginUser;
+  *J = 0;
+  if (dJdU) PetscCall(VecSet(dJdU, 0.0));
+  if (recording_) { // the final state: the last stage an RK step visited at T is not U(T)
+    PetscCall(MatMult(R_, UT, y_));
+    if (rank_ == 0) {
+      ConstArray y(y_);
+      PetscCall(y.error());
+      for (PetscInt r = 0; r < receivers(); ++r)
+        traces_[(shot_ * receivers() + r) * nt_ + nt_ - 1] = PetscRealPart(y[r]);
+    }
+    recorded_[shot_ * nt_ + nt_ - 1] = 1;
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Survey::integrand(PetscReal t, Vec U, PetscReal *r) {
+  PetscReal nrm;
+  PetscFunctionBeginUser;
+  if (recording_) {
+    // The last visit at a sample time wins: RK visits t_{n+1} first as the last stage of step n,
+    // then as the first stage of step n+1, which is the step state U_{n+1}.
+    PetscInt k;
+    *r = 0;
+    if (!sample_index(t, sample_dt_, nt_, &k)) PetscFunctionReturn(0);
+    PetscCall(MatMult(R_, U, y_));
+    if (rank_ == 0) {
+      ConstArray y(y_);
+      PetscCall(y.error());
+      for (PetscInt q = 0; q < receivers(); ++q) traces_[(shot_ * receivers() + q) * nt_ + k] = PetscRealPart(y[q]);
+    }
+    recorded_[shot_ * nt_ + k] = 1;
+    PetscFunctionReturn(0);
+  }
+  PetscCall(residual(t, U));
+  PetscCall(VecNorm(y_, NORM_2, &nrm));
+  *r = 0.5 * nrm * nrm;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Survey::integrand_dU(PetscReal t, Vec U, Vec drdU) {
+  PetscFunctionBeginUser;
+  PetscCall(residual(t, U));
+  PetscCall(MatMultTranspose(R_, y_, drdU));
+  PetscFunctionReturn(0);
+}
+
+} // namespace flexipde

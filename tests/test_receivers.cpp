@@ -1,0 +1,242 @@
+// Receivers, Ricker point sources and the time-integrated receiver misfit (survey.hpp), and the Adam
+// TAO type (tao_adam.hpp):
+//   - Taylor tests of dJ/dc (c a field) with two shots, for -ts_type rk and cn,
+//   - a parallel run against a serial one (PETSC_COMM_SELF on every rank), two shots,
+//   - the synthetic misfit at the true model: zero to round-off with cn (data at its step states),
+//   - the data file round trip (-survey_data_write, then -survey_data_file gives the same J),
+//   - the discrete delta of a source integrates to one, receivers interpolate linear functions exactly,
+//   - Adam's first two steps against hand-computed values on a quadratic.
+// Scenes are small (101 points, 0.6 time units) so that the file runs in a few seconds.
+#include "flexipde/inversion.hpp"
+#include "flexipde/survey.hpp"
+#include "flexipde/tao_adam.hpp"
+#include "flexipde/taylor.hpp"
+#include "test_support.hpp"
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <unistd.h>
+
+using namespace flexipde;
+using flexipde_test::fill_random;
+using flexipde_test::rel_diff;
+using flexipde_test::ScopedOptions;
+using flexipde_test::SceneProblem;
+
+namespace {
+
+// Two shots at 0.3 and 0.7, eight receivers, c a field; the true model is linear 0.9 -> 1.1.
+void survey_options(ScopedOptions &o, const char *ts_type) {
+  o.set("-da_grid_x", "101");
+  o.set("-ts_max_time", "0.6");
+  o.set("-ts_dt", std::string(ts_type) == "cn" ? "5e-3" : "2e-3");
+  o.set("-ts_type", ts_type);
+  o.set("-wave_c_field", "1");
+  o.set("-wave_c", "1.0");
+  o.set("-wave_ic", "zero");
+  o.set("-true_wave_c_profile", "linear");
+  o.set("-true_wave_c_left", "0.9");
+  o.set("-true_wave_c_right", "1.1");
+  o.set("-objective_type", "receivers");
+  o.set("-survey_sources_x", "0.3,0.7");
+  o.set("-survey_receivers_spread", "0.05,0.95,8");
+  o.set("-survey_ricker_f0", "6");
+}
+
+class ReceiverMisfit : public ::testing::TestWithParam<const char *> {};
+
+TEST_P(ReceiverMisfit, TaylorTestTwoShots) {
+  ScopedOptions o;
+  survey_options(o, GetParam());
+  SceneProblem sp;
+  PETSC_ASSERT_OK(sp.setup(PETSC_COMM_WORLD));
+  ASSERT_NE(sp.scene.objective.survey(), nullptr);
+  EXPECT_EQ(sp.scene.objective.survey()->shots(), 2);
+  OwnedVec d;
+  PETSC_ASSERT_OK(VecDuplicate(sp.p, d.out()));
+  PETSC_ASSERT_OK(fill_random(d, -0.05, 0.05, 11));
+  TaylorResult tr;
+  auto f = [&](Vec q, PetscReal *J, Vec g) { return sp.scene.gradient(q, J, g); };
+  PETSC_ASSERT_OK(taylor_test(f, sp.p, d, 1.0, 5, tr));
+  const size_t last = tr.eps.size() - 1;
+  for (size_t k = 1; k <= last; ++k)
+    PetscPrintf(PETSC_COMM_WORLD, "  [%s] eps %.3e r1 %.3e (%.3f) r2 %.3e (%.3f)\n", GetParam(), (double)tr.eps[k],
+                (double)tr.r1[k], (double)tr.ratio1(k), (double)tr.r2[k], (double)tr.ratio2(k));
+  EXPECT_GT(std::fabs(tr.gd), 0.0);
+  EXPECT_NEAR(tr.ratio1(last), 2.0, 0.2);
+  EXPECT_NEAR(tr.ratio2(last), 4.0, 0.3) << "dJ/dc is not the derivative of the receiver misfit";
+}
+
+TEST_P(ReceiverMisfit, ParallelMatchesSerial) {
+  ScopedOptions o;
+  survey_options(o, GetParam());
+  SceneProblem par, ser;
+  PETSC_ASSERT_OK(par.setup(PETSC_COMM_WORLD));
+  PETSC_ASSERT_OK(ser.setup(PETSC_COMM_SELF));
+  OwnedVec gpar, gser;
+  PETSC_ASSERT_OK(VecDuplicate(par.p, gpar.out()));
+  PETSC_ASSERT_OK(VecDuplicate(ser.p, gser.out()));
+  PetscReal Jpar, Jser;
+  PETSC_ASSERT_OK(par.scene.gradient(par.p, &Jpar, gpar));
+  PETSC_ASSERT_OK(ser.scene.gradient(ser.p, &Jser, gser));
+  std::vector<PetscReal> a, b;
+  PETSC_ASSERT_OK(flexipde_test::gather_all(gpar, a));
+  PETSC_ASSERT_OK(flexipde_test::gather_all(gser, b));
+  flexipde_test::expect_matches_serial(std::string("receivers ") + GetParam(), Jpar, Jser, a, b);
+}
+
+INSTANTIATE_TEST_SUITE_P(Wave, ReceiverMisfit, ::testing::Values("rk", "cn"));
+
+// With cn the quadrature visits the step states only, where the recorded data are exact: the
+// misfit of the true model is round-off; with rk4 the stages leave a small floor.
+TEST(ReceiverMisfit, TrueModelFitsItsOwnData) {
+  for (const char *ts : {"cn", "rk"}) {
+    ScopedOptions o;
+    survey_options(o, ts);
+    SceneProblem sp;
+    PETSC_ASSERT_OK(sp.setup(PETSC_COMM_WORLD));
+    PetscReal J0, J;
+    PETSC_ASSERT_OK(sp.scene.value(sp.p, &J0)); // c = 1: a real misfit, for scale
+    PETSC_ASSERT_OK(sp.scene.value(sp.p_true, &J));
+    PetscPrintf(PETSC_COMM_WORLD, "  [%s] J(c_true) = %.3e, J(c = 1) = %.3e\n", ts, (double)J, (double)J0);
+    EXPECT_GT(J0, 1e-6);
+    EXPECT_LT(J, (std::string(ts) == "cn" ? 1e-24 : 1e-5) * J0);
+  }
+}
+
+TEST(ReceiverMisfit, DataFileRoundTrip) {
+  const std::string file = "/tmp/flexipde_test_survey_" + std::to_string(getpid()) + ".h5";
+  std::string shared = file;
+  { // one name for all ranks: rank 0's
+    char buf[256];
+    std::snprintf(buf, sizeof buf, "%s", file.c_str());
+    MPI_Bcast(buf, sizeof buf, MPI_CHAR, 0, PETSC_COMM_WORLD);
+    shared = buf;
+  }
+  PetscReal Jw, Jr;
+  {
+    ScopedOptions o;
+    survey_options(o, "rk");
+    o.set("-survey_data_write", shared);
+    SceneProblem sp;
+    PETSC_ASSERT_OK(sp.setup(PETSC_COMM_WORLD));
+    PETSC_ASSERT_OK(sp.scene.value(sp.p, &Jw));
+  }
+  {
+    ScopedOptions o;
+    survey_options(o, "rk");
+    o.set("-survey_data_file", shared);
+    o.set("-true_wave_c_left", "0.5"); // ignored: the data come from the file
+    SceneProblem sp;
+    PETSC_ASSERT_OK(sp.setup(PETSC_COMM_WORLD));
+    PETSC_ASSERT_OK(sp.scene.value(sp.p, &Jr));
+  }
+  if (flexipde_test::is_rank0()) std::remove(shared.c_str());
+  EXPECT_GT(Jw, 0.0);
+  EXPECT_LE(rel_diff(Jw, Jr), 1e-14);
+}
+
+// The discrete delta sums to one over all ranks (weights), and R reproduces a linear field.
+TEST(ReceiverMisfit, InterpolationWeights) {
+  ScopedOptions o{{"-da_grid_x", "37"}};
+  Grid grid;
+  GridOptions go;
+  PETSC_ASSERT_OK(Grid::from_options(PETSC_COMM_WORLD, 1, go, grid));
+  for (PetscReal x : {0.0, 0.123, 0.5, 0.77, 1.0}) {
+    PointStencil st;
+    PETSC_ASSERT_OK(point_stencil(grid, x, 0.0, &st));
+    PetscReal sum = 0, value = 0;
+    for (PetscInt k = 0; k < st.n; ++k) {
+      sum += st.weight[k];
+      value += st.weight[k] * grid.x(grid.xs() + st.local[k]); // interpolates f(x) = x
+    }
+    PetscReal tot[2] = {sum, value};
+    MPI_Allreduce(MPI_IN_PLACE, tot, 2, MPIU_REAL, MPI_SUM, PETSC_COMM_WORLD);
+    EXPECT_NEAR(tot[0], 1.0, 1e-14) << "x = " << x;
+    EXPECT_NEAR(tot[1], x, 1e-14) << "x = " << x;
+  }
+}
+
+// ---- Adam ----
+
+// f(x) = 0.5 sum_i a_i (x_i - b_i)^2, a_i = i + 1, b_i = 0.1 i.
+PetscErrorCode quadratic(Tao, Vec x, PetscReal *f, Vec g, void *) {
+  PetscInt lo, hi;
+  PetscReal local = 0;
+  PetscFunctionBeginUser;
+  PetscCall(VecGetOwnershipRange(x, &lo, &hi));
+  {
+    ConstArray X(x);
+    Array G(g);
+    PetscCall(X.error());
+    PetscCall(G.error());
+    for (PetscInt i = lo; i < hi; ++i) {
+      const PetscReal a = i + 1, r = PetscRealPart(X[i - lo]) - 0.1 * i;
+      local += 0.5 * a * r * r;
+      G[i - lo] = a * r;
+    }
+  }
+  PetscCallMPI(MPI_Allreduce(&local, f, 1, MPIU_REAL, MPI_SUM, PETSC_COMM_WORLD));
+  PetscFunctionReturn(0);
+}
+
+TEST(TaoAdam, HandComputedFirstSteps) {
+  ScopedOptions o{{"-tao_adam_lr", "0.05"}, {"-tao_adam_epsilon", "1e-3"}, {"-tao_max_it", "2"}};
+  const PetscInt n = 6;
+  OwnedTao tao;
+  OwnedVec x;
+  PETSC_ASSERT_OK(register_tao_adam());
+  PETSC_ASSERT_OK(VecCreateMPI(PETSC_COMM_WORLD, PETSC_DECIDE, n, x.out()));
+  PETSC_ASSERT_OK(VecSet(x, 1.0));
+  PETSC_ASSERT_OK(TaoCreate(PETSC_COMM_WORLD, tao.out()));
+  PETSC_ASSERT_OK(TaoSetType(tao, "adam"));
+  PETSC_ASSERT_OK(TaoSetObjectiveAndGradient(tao, nullptr, quadratic, nullptr));
+  PETSC_ASSERT_OK(TaoSetSolution(tao, x));
+  PETSC_ASSERT_OK(TaoSetFromOptions(tao));
+  PETSC_ASSERT_OK(TaoSolve(tao));
+  PetscInt its;
+  PETSC_ASSERT_OK(TaoGetIterationNumber(tao, &its));
+  EXPECT_EQ(its, 2);
+  // By hand: t = 1: m = 0.1 g0, v = 0.001 g0^2, mhat = g0, vhat = g0^2,
+  //   x1 = x0 - lr g0 / (|g0| + eps);
+  // t = 2: m = 0.9 m + 0.1 g1, v = 0.999 v + 0.001 g1^2, mhat = m / (1 - 0.81), vhat = v / (1 - 0.998001),
+  //   x2 = x1 - lr mhat / (sqrt(vhat) + eps).
+  const PetscReal lr = 0.05, eps = 1e-3;
+  std::vector<PetscReal> got;
+  PETSC_ASSERT_OK(flexipde_test::gather_all(x, got));
+  for (PetscInt i = 0; i < n; ++i) {
+    const PetscReal a = i + 1, b = 0.1 * i;
+    const PetscReal g0 = a * (1.0 - b), x1 = 1.0 - lr * g0 / (std::fabs(g0) + eps);
+    const PetscReal g1 = a * (x1 - b);
+    const PetscReal m = 0.9 * 0.1 * g0 + 0.1 * g1, v = 0.999 * 0.001 * g0 * g0 + 0.001 * g1 * g1;
+    const PetscReal x2 = x1 - lr * (m / (1 - 0.81)) / (std::sqrt(v / (1 - 0.998001)) + eps);
+    EXPECT_NEAR(got[i], x2, 1e-14) << "entry " << i;
+  }
+}
+
+// With bounds Adam projects: a step that would cross the bound stops on it.
+TEST(TaoAdam, ProjectsOntoBounds) {
+  ScopedOptions o{{"-tao_adam_lr", "0.5"}, {"-tao_max_it", "1"}};
+  const PetscInt n = 4;
+  OwnedTao tao;
+  OwnedVec x, lo, hi;
+  PETSC_ASSERT_OK(register_tao_adam());
+  PETSC_ASSERT_OK(VecCreateMPI(PETSC_COMM_WORLD, PETSC_DECIDE, n, x.out()));
+  PETSC_ASSERT_OK(VecDuplicate(x, lo.out()));
+  PETSC_ASSERT_OK(VecDuplicate(x, hi.out()));
+  PETSC_ASSERT_OK(VecSet(x, 1.0));
+  PETSC_ASSERT_OK(VecSet(lo, 0.8));
+  PETSC_ASSERT_OK(VecSet(hi, 2.0));
+  PETSC_ASSERT_OK(TaoCreate(PETSC_COMM_WORLD, tao.out()));
+  PETSC_ASSERT_OK(TaoSetType(tao, "adam"));
+  PETSC_ASSERT_OK(TaoSetObjectiveAndGradient(tao, nullptr, quadratic, nullptr));
+  PETSC_ASSERT_OK(TaoSetVariableBounds(tao, lo, hi));
+  PETSC_ASSERT_OK(TaoSetSolution(tao, x));
+  PETSC_ASSERT_OK(TaoSetFromOptions(tao));
+  PETSC_ASSERT_OK(TaoSolve(tao));
+  PetscReal xmin;
+  PETSC_ASSERT_OK(VecMin(x, nullptr, &xmin));
+  EXPECT_NEAR(xmin, 0.8, 1e-15); // 1 - 0.5 would be 0.5, below the bound
+}
+
+} // namespace
