@@ -89,6 +89,15 @@ struct CheckpointStats {
 PetscErrorCode register_binomial_trajectory();
 PetscErrorCode binomial_trajectory_set_budget(TSTrajectory tj, PetscInt budget);
 
+// The TSTrajectory type "store": every state in one contiguous buffer (trajectory_store.cpp), the
+// full storage used when no -checkpoint_budget is given. The buffer may be supplied by the caller
+// (the Simulation keeps one across gradients, so it is allocated once).
+#define FLEXIPDE_TSTRAJECTORY_STORE "store"
+PetscErrorCode register_store_trajectory();
+PetscErrorCode store_trajectory_use_buffer(TSTrajectory tj, std::vector<PetscScalar> *buffer);
+PetscInt64 store_trajectory_recomputed(TSTrajectory tj);
+PetscInt store_trajectory_states(TSTrajectory tj);
+
 // Called on a TS before TSSetFromOptions: saves the trajectory for TSAdjointSolve as full storage
 // (PETSc's memory trajectory) or, with -checkpoint_budget, as a binomial checkpointing
 // trajectory, and fills *stats during TSAdjointSolve. stats must outlive the TS.

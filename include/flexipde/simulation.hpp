@@ -91,6 +91,8 @@ private:
   PetscInt param_version_ = 0, jac_param_version_ = -1;
   SimulationStats stats_;
   CheckpointStats checkpoint_stats_;
+  // Full-storage trajectory ("store"): kept between gradients, so it is allocated once.
+  std::vector<PetscScalar> trajectory_buffer_;
 };
 
 } // namespace flexipde

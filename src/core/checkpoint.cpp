@@ -391,9 +391,8 @@ PetscErrorCode checkpoint_options(PetscObject obj, PetscOptionItems *PetscOption
   PetscCall(TSGetType(ts, &type));
   PetscCall(PetscStrcmp(type, TSRK, &is_rk));
   if (is_rk) PetscCall(TSRKGetTableau(ts, nullptr, nullptr, nullptr, nullptr, nullptr, nullptr, nullptr, &fsal));
-  // The leapfrog's one stage is the step's start state: storing it is storing the solution, and
-  // no step is re-run in the adjoint.
-  if (fsal || is_leapfrog(ts)) PetscCall(TSTrajectorySetSolutionOnly(tj, PETSC_FALSE));
+  if (fsal) PetscCall(TSTrajectorySetSolutionOnly(tj, PETSC_FALSE));
+  else PetscCall(TSTrajectorySetType(tj, ts, FLEXIPDE_TSTRAJECTORY_STORE)); // one buffer, one memcpy per step
   PetscFunctionReturn(0);
 }
 
@@ -404,8 +403,17 @@ PetscErrorCode checkpoint_statistics(TS ts, PetscInt step, PetscReal, Vec, Petsc
   PetscBool binomial;
   PetscFunctionBegin;
   PetscCall(TSGetTrajectory(ts, &tj));
+  PetscBool store;
   PetscCall(PetscObjectTypeCompare((PetscObject)tj, FLEXIPDE_TSTRAJECTORY_BINOMIAL, &binomial));
-  if (binomial) {
+  PetscCall(PetscObjectTypeCompare((PetscObject)tj, FLEXIPDE_TSTRAJECTORY_STORE, &store));
+  if (store) { // every state stored; the leapfrog re-runs nothing, other integrators each step once
+    if (!stats->steps) stats->steps = step;
+    stats->budget = 0;
+    stats->stored_peak = store_trajectory_states(tj);
+    stats->stores = stats->stored_peak;
+    stats->recomputed_steps = store_trajectory_recomputed(tj);
+    stats->optimal_recomputations = is_leapfrog(ts) ? 0 : stats->steps - 1;
+  } else if (binomial) {
     const BinomialTrajectory *bt = context(tj);
     stats->budget = bt->budget;
     stats->steps = bt->schedule.steps();
@@ -450,6 +458,7 @@ PetscErrorCode setup_adjoint_trajectory(TS ts, CheckpointStats *stats) {
   PetscFunctionBegin;
   *stats = CheckpointStats();
   PetscCall(register_binomial_trajectory());
+  PetscCall(register_store_trajectory());
   PetscCall(TSSetSaveTrajectory(ts));
   PetscCall(TSGetTrajectory(ts, &tj));
   PetscCall(TSTrajectorySetType(tj, ts, TSTRAJECTORYMEMORY));

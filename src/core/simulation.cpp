@@ -191,6 +191,11 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
   if (with_integral) PetscCall(setup_quadrature(ts, with_adjoint));
   PetscCall(register_leapfrog_ts());
   PetscCall(TSSetFromOptions(ts));
+  if (with_adjoint) {
+    TSTrajectory tj;
+    PetscCall(TSGetTrajectory(ts, &tj));
+    PetscCall(store_trajectory_use_buffer(tj, &trajectory_buffer_));
+  }
   PetscOptionsBegin(comm, nullptr, "Simulation", "Simulation");
   PetscCall(PetscOptionsBool("-sim_stability_check", "Refuse explicit steps beyond the stability limit", "Simulation",
                              stability_check, &stability_check, nullptr));

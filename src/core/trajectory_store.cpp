@@ -1,0 +1,153 @@
+// Full storage for TSAdjoint in one contiguous block: the TSTrajectory type "store".
+//
+// PETSc's memory trajectory creates a new Vec for every step it stores (object, allocation and
+// fresh pages each time), which on the seed scene cost as much as the leapfrog's whole forward
+// sweep. Here every state U_k is a slice of one buffer, reserved once for the planned number of
+// steps and kept by the Simulation between gradients, so a Set is one memcpy.
+//
+// Get(k) leaves the TS ready for the adjoint of step k-1 -> k (see checkpoint.cpp for what that
+// means): the leapfrog's one stage is the step's start U_{k-1}, copied in directly; any other
+// integrator re-runs the step from U_{k-1} (TSStep) to rebuild its stages, like PETSc's memory
+// trajectory in solution-only mode. Fixed steps only (the Simulation uses PETSc's memory trajectory
+// for adaptive runs).
+#include "flexipde/checkpoint.hpp"
+#include "flexipde/leapfrog.hpp"
+#include <algorithm>
+#include <cstring>
+#include <petsc/private/tsimpl.h>
+#include <vector>
+
+namespace flexipde {
+namespace {
+
+struct StoreTrajectory {
+  std::vector<PetscScalar> own;
+  std::vector<PetscScalar> *buffer = &own;
+  std::vector<PetscReal> times;
+  PetscInt nlocal = 0, last = -1;
+  PetscInt64 recomputed = 0;
+};
+
+StoreTrajectory *context(TSTrajectory tj) { return static_cast<StoreTrajectory *>(tj->data); }
+
+PetscErrorCode copy_out(const StoreTrajectory &st, PetscInt k, Vec X) {
+  PetscScalar *x;
+  PetscFunctionBegin;
+  PetscCall(VecGetArrayWrite(X, &x));
+  std::memcpy(x, st.buffer->data() + (size_t)k * st.nlocal, sizeof(PetscScalar) * st.nlocal);
+  PetscCall(VecRestoreArrayWrite(X, &x));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
+  StoreTrajectory *st = context(tj);
+  PetscFunctionBegin;
+  PetscCheck(ts->vec_sol, PetscObjectComm((PetscObject)tj), PETSC_ERR_ORDER,
+             "TSTrajectory store: set the TS solution before the solve");
+  PetscCall(VecGetLocalSize(ts->vec_sol, &st->nlocal));
+  if (ts->max_steps < PETSC_MAX_INT) { // reserve the planned trajectory once
+    const size_t need = (size_t)(ts->max_steps + 1) * st->nlocal;
+    if (st->buffer->size() < need) st->buffer->resize(need);
+    st->times.reserve(ts->max_steps + 1);
+  }
+  st->times.clear();
+  st->last = -1;
+  st->recomputed = 0;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode store_set(TSTrajectory tj, TS ts, PetscInt stepnum, PetscReal time, Vec X) {
+  StoreTrajectory *st = context(tj);
+  const PetscScalar *x;
+  PetscFunctionBegin;
+  PetscCheck(stepnum == (PetscInt)st->times.size(), PetscObjectComm((PetscObject)tj), PETSC_ERR_PLIB,
+             "TSTrajectory store: step %" PetscInt_FMT " stored out of order", stepnum);
+  st->times.push_back(time);
+  st->last = stepnum;
+  if (ts->reason) PetscFunctionReturn(0); // the final state stays in the TS for the first adjoint step
+  const size_t need = (size_t)(stepnum + 1) * st->nlocal;
+  if (st->buffer->size() < need) st->buffer->resize(std::max(need, 2 * st->buffer->size()));
+  PetscCall(VecGetArrayRead(X, &x));
+  std::memcpy(st->buffer->data() + (size_t)stepnum * st->nlocal, x, sizeof(PetscScalar) * st->nlocal);
+  PetscCall(VecRestoreArrayRead(X, &x));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode store_get(TSTrajectory tj, TS ts, PetscInt k, PetscReal *t) {
+  StoreTrajectory *st = context(tj);
+  PetscFunctionBegin;
+  if (k == 0) { // the adjoint has finished
+    PetscCall(TSTrajectoryReset(tj));
+    PetscFunctionReturn(0);
+  }
+  PetscCheck(k <= st->last, PetscObjectComm((PetscObject)tj), PETSC_ERR_ARG_OUTOFRANGE,
+             "TSTrajectory store: step %" PetscInt_FMT " was never computed (%" PetscInt_FMT " steps)", k, st->last);
+  if (k < st->last) { // the last step's stages are still in the TS
+    if (is_leapfrog(ts)) {
+      Vec *Y;
+      PetscInt ns;
+      PetscCall(TSGetStages(ts, &ns, &Y));
+      PetscCall(copy_out(*st, k - 1, Y[0]));
+      PetscCall(copy_out(*st, k, ts->vec_sol));
+      ts->ptime = st->times[k];
+      ts->ptime_prev = st->times[k - 1];
+    } else {
+      const TSConvergedReason reason = ts->reason;
+      PetscCall(copy_out(*st, k - 1, ts->vec_sol));
+      ts->ptime = st->times[k - 1];
+      ts->time_step = st->times[k] - st->times[k - 1];
+      PetscCall(TSSetStepNumber(ts, k - 1));
+      PetscCall(TSRestartStep(ts));
+      PetscCall(TSStep(ts));
+      PetscCheck(ts->reason >= 0, PetscObjectComm((PetscObject)ts), PETSC_ERR_NOT_CONVERGED,
+                 "TSTrajectory store: re-running step %" PetscInt_FMT " for the adjoint failed (%s)", k - 1,
+                 TSConvergedReasons[ts->reason]);
+      ts->reason = reason;
+      ++st->recomputed;
+      tj->recomps = (PetscInt)std::min<PetscInt64>(st->recomputed, PETSC_MAX_INT);
+    }
+  }
+  ts->time_step = ts->ptime_prev - ts->ptime;
+  *t = ts->ptime;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode store_destroy(TSTrajectory tj) {
+  PetscFunctionBegin;
+  delete context(tj);
+  tj->data = nullptr;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode store_create(TSTrajectory tj, TS) {
+  PetscFunctionBegin;
+  tj->data = new StoreTrajectory();
+  tj->ops->set = store_set;
+  tj->ops->get = store_get;
+  tj->ops->setup = store_setup;
+  tj->ops->destroy = store_destroy;
+  tj->usehistory = PETSC_FALSE;
+  tj->solution_only = PETSC_TRUE;
+  PetscFunctionReturn(0);
+}
+
+} // namespace
+
+PetscErrorCode register_store_trajectory() {
+  PetscFunctionBegin;
+  PetscCall(TSTrajectoryRegister(FLEXIPDE_TSTRAJECTORY_STORE, store_create)); // replaces itself when repeated
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode store_trajectory_use_buffer(TSTrajectory tj, std::vector<PetscScalar> *buffer) {
+  PetscBool match;
+  PetscFunctionBegin;
+  PetscCall(PetscObjectTypeCompare((PetscObject)tj, FLEXIPDE_TSTRAJECTORY_STORE, &match));
+  if (match) context(tj)->buffer = buffer ? buffer : &context(tj)->own;
+  PetscFunctionReturn(0);
+}
+
+PetscInt64 store_trajectory_recomputed(TSTrajectory tj) { return context(tj)->recomputed; }
+PetscInt store_trajectory_states(TSTrajectory tj) { return context(tj)->last; } // U_0 .. U_{n-1}
+
+} // namespace flexipde
