@@ -12,6 +12,7 @@
 //   mpiexec -n 2 ./flexipde -task invert -wave_c_field 1 -true_wave_c_profile linear -true_wave_c_left 0.9 \
 //           -wave_c_profile linear -wave_c_left 0.85 -inv_lower 0.5 -inv_upper 2 -output results/fwi_linear.h5
 //   ./flexipde -help        lists every option of the chosen scene
+#include <algorithm>
 #include "flexipde/inversion.hpp"
 #include "flexipde/io.hpp"
 #include "flexipde/scene.hpp"
@@ -56,12 +57,44 @@ static PetscErrorCode print_parameters(const Scene &s, Vec p, const char *label)
   PetscFunctionReturn(0);
 }
 
+// Medians of `repeats` forward solves and of `repeats` gradients (value + dJ/dp), timed in this
+// process after a first gradient warmed everything up: no start-up, set-up or data generation.
+static PetscErrorCode time_repeats(MPI_Comm comm, Scene &scene, Vec p, PetscInt repeats) {
+  OwnedVec U, g;
+  std::vector<double> tf, tg;
+  PetscFunctionBeginUser;
+  PetscCall(scene.sim.create_state(U.out()));
+  PetscCall(VecDuplicate(p, g.out()));
+  for (PetscInt k = 0; k < repeats; ++k) {
+    PetscReal J;
+    PetscCallMPI(MPI_Barrier(comm));
+    double t0 = MPI_Wtime();
+    PetscCall(scene.sim.forward(p, U));
+    PetscCallMPI(MPI_Barrier(comm));
+    double t1 = MPI_Wtime();
+    PetscCall(scene.gradient(p, &J, g));
+    PetscCallMPI(MPI_Barrier(comm));
+    tf.push_back(t1 - t0);
+    tg.push_back(MPI_Wtime() - t1);
+  }
+  auto median = [](std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    const size_t n = v.size();
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+  };
+  const double mf = median(tf), mg = median(tg);
+  PetscCall(PetscPrintf(comm, "timing: %" PetscInt_FMT " repeats, forward median %.6f s (min %.6f), gradient median %.6f s (min %.6f), gradient/forward %.3f\n",
+                        repeats, mf, *std::min_element(tf.begin(), tf.end()), mg, *std::min_element(tg.begin(), tg.end()), mg / mf));
+  PetscFunctionReturn(0);
+}
+
 static PetscErrorCode run(MPI_Comm comm) {
   const char *tasks[] = {"forward", "gradient", "taylor", "invert", "landscape"};
   PetscInt task = 3, levels = 5;
   char output[PETSC_MAX_PATH_LEN] = "";
   PetscBool check_fd = PETSC_FALSE;
   PetscReal eps0 = 1e-2;
+  PetscInt repeats = 0;
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm, nullptr, "flexipde driver", "flexipde");
   PetscCall(PetscOptionsEList("-task", "What to run", "flexipde", tasks, 5, tasks[task], &task, nullptr));
@@ -70,7 +103,10 @@ static PetscErrorCode run(MPI_Comm comm) {
                              "flexipde", check_fd, &check_fd, nullptr));
   PetscCall(PetscOptionsReal("-taylor_eps", "taylor: first step", "flexipde", eps0, &eps0, nullptr));
   PetscCall(PetscOptionsInt("-taylor_levels", "taylor: number of halvings", "flexipde", levels, &levels, nullptr));
+  PetscCall(PetscOptionsInt("-timing_repeats", "gradient: time N more forward solves and N more gradients in this "
+                            "process and print their medians (0: none)", "flexipde", repeats, &repeats, nullptr));
   PetscOptionsEnd();
+  PetscCheck(repeats >= 0, comm, PETSC_ERR_ARG_OUTOFRANGE, "-timing_repeats must be non-negative");
 
   Scene scene;
   PetscCall(scene.setup(comm));
@@ -122,6 +158,15 @@ static PetscErrorCode run(MPI_Comm comm) {
                           "checkpointing: budget %" PetscInt_FMT " (0: full storage), %" PetscInt_FMT
                           " states stored at most, %" PetscInt64_FMT " steps recomputed, binomial optimum %" PetscInt64_FMT "\n",
                           cs.budget, cs.stored_peak, cs.recomputed_steps, cs.optimal_recomputations));
+    if (output[0]) {
+      H5Writer w;
+      PetscCall(w.open(comm, output));
+      PetscCall(w.write_coordinates(scene.grid));
+      PetscCall(w.write_vec("/gradient", "dJdp", g));
+      PetscCall(w.write_series("/gradient", "J", std::vector<PetscReal>{J}));
+      PetscCall(w.close());
+    }
+    if (repeats > 0) PetscCall(time_repeats(comm, scene, p, repeats));
     if (check_fd) {
       const PetscReal h = 1e-6;
       OwnedVec q;
