@@ -163,9 +163,11 @@ public:
     E_.assign(grid.xm(), 0.0);
     Elin_.assign(grid.xm(), 0.0);
     dE_.assign(grid.xm(), 0.0);
+    dvf_.assign(grid.local_points(), 0.0);
     PetscCall(DMCreateLocalVector(dm_, U_local_.out()));
     PetscCall(DMCreateLocalVector(dm_, X_local_.out()));
-    PetscCall(DMCreateLocalVector(dm_, Ulin_local_.out()));
+    PetscCall(VecSet(U_local_, 0.0));
+    PetscCall(VecSet(X_local_, 0.0));
     PetscFunctionReturn(0);
   }
 
@@ -213,25 +215,32 @@ public:
     PetscCall(DMDAVecGetArrayRead(dm_, U_local_, &f));
     PetscCall(field(f, E_));
     PetscCall(DMDAVecGetArray(dm_, G, &g));
-    const Grid &gr = *grid_;
-    for (PetscInt j = gr.ys(); j < gr.ys() + gr.ym(); ++j) {
-      const PetscReal v = gr.y(j);
-      for (PetscInt i = gr.xs(); i < gr.xs() + gr.xm(); ++i)
-        g[j][i] = -v * dx(f, i, j) + E_[i - gr.xs()] * dv(f, i, j);
-    }
+    for (PetscInt j = grid_->ys(); j < grid_->ys() + grid_->ym(); ++j) advection_row(f, j, E_.data(), g[j]);
     PetscCall(DMDAVecRestoreArray(dm_, G, &g));
     PetscCall(DMDAVecRestoreArrayRead(dm_, U_local_, &f));
     PetscFunctionReturn(0);
   }
 
-  // Records the linearisation state: f (ghosted) and E(f).
+  // Records what dG/dU needs of the linearisation state f: E(f) and D_v f at the owned points.
   PetscErrorCode rhs_jacobian(PetscReal, Vec U, Mat J) override {
     const PetscScalar **f;
+    const Grid &g = *grid_;
     PetscFunctionBeginUser;
-    PetscCall(to_local(U, Ulin_local_));
-    PetscCall(DMDAVecGetArrayRead(dm_, Ulin_local_, &f));
+    PetscCall(to_local(U, U_local_));
+    PetscCall(DMDAVecGetArrayRead(dm_, U_local_, &f));
     PetscCall(field(f, Elin_));
-    PetscCall(DMDAVecRestoreArrayRead(dm_, Ulin_local_, &f));
+    for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j) {
+      PetscReal *row = &dvf_[(j - g.ys()) * g.xm()];
+      if (j >= 1 && j <= nv_ - 2) {
+        const PetscScalar *m2 = f[j - 2], *m1 = f[j - 1], *p1 = f[j + 1], *p2 = f[j + 2];
+        const PetscReal c = 1.0 / (12 * hv_);
+        for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i)
+          row[i - g.xs()] = c * PetscRealPart(m2[i] - 8.0 * m1[i] + 8.0 * p1[i] - p2[i]);
+      } else {
+        for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i) row[i - g.xs()] = dv(f, i, j);
+      }
+    }
+    PetscCall(DMDAVecRestoreArrayRead(dm_, U_local_, &f));
     PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY)); // resets any shift/scale a TS applied
     PetscCall(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
     PetscFunctionReturn(0);
@@ -377,11 +386,42 @@ public:
   }
 
 private:
+  // Ghosted copy of U with f = 0 beyond the velocity bounds (ghost rows the scatter does not fill).
   PetscErrorCode to_local(Vec U, Vec Ul) {
+    PetscScalar **a;
+    PetscInt gxs, gys, gxm, gym;
     PetscFunctionBeginUser;
-    PetscCall(VecSet(Ul, 0.0)); // f = 0 beyond the velocity bounds (ghosts the scatter leaves alone)
     PetscCall(DMGlobalToLocal(dm_, U, INSERT_VALUES, Ul));
+    const Grid &g = *grid_;
+    if (g.ys() > 0 && g.ys() + g.ym() < nv_) PetscFunctionReturn(0);
+    PetscCall(DMDAGetGhostCorners(dm_, &gxs, &gys, nullptr, &gxm, &gym, nullptr));
+    PetscCall(DMDAVecGetArray(dm_, Ul, &a));
+    for (PetscInt j = gys; j < gys + gym; ++j)
+      if (j < 0 || j >= nv_)
+        for (PetscInt i = gxs; i < gxs + gxm; ++i) a[j][i] = 0;
+    PetscCall(DMDAVecRestoreArray(dm_, Ul, &a));
     PetscFunctionReturn(0);
+  }
+
+  // G on row j: -v_j D_x f + E D_v f (E at the owned x), times sign, plus add (when given) at
+  // the owned x.
+  void advection_row(const PetscScalar *const *f, PetscInt j, const PetscReal *E, PetscScalar *g, PetscReal sign = 1,
+                     const PetscReal *add = nullptr) const {
+    const Grid &gr = *grid_;
+    const PetscInt xs = gr.xs(), xe = gr.xs() + gr.xm();
+    const PetscReal cx = -sign * gr.y(j) / (12 * h_), cv = sign / (12 * hv_);
+    const PetscScalar *r = f[j];
+    if (j >= 1 && j <= nv_ - 2) {
+      const PetscScalar *m2 = f[j - 2], *m1 = f[j - 1], *p1 = f[j + 1], *p2 = f[j + 2];
+      for (PetscInt i = xs; i < xe; ++i)
+        g[i] = cx * (r[i - 2] - 8.0 * r[i - 1] + 8.0 * r[i + 1] - r[i + 2]) +
+               E[i - xs] * cv * (m2[i] - 8.0 * m1[i] + 8.0 * p1[i] - p2[i]);
+    } else {
+      for (PetscInt i = xs; i < xe; ++i)
+        g[i] = cx * (r[i - 2] - 8.0 * r[i - 1] + 8.0 * r[i + 1] - r[i + 2]) + sign * E[i - xs] * dv(f, i, j);
+    }
+    if (add)
+      for (PetscInt i = xs; i < xe; ++i) g[i] += add[i - xs];
   }
 
   // F(v) and, when dF is given, (dF/dvt, dF/dv0, dF/dratio).
@@ -468,25 +508,21 @@ private:
   // y = dG/dU x = -v D_x x + E D_v x + dE D_v f,  dE = -K rho(x)
   static PetscErrorCode j_mult(Mat J, Vec x, Vec y) {
     VlasovModel *m;
-    const PetscScalar **xa, **f;
+    const PetscScalar **xa;
     PetscScalar **ya;
     PetscFunctionBeginUser;
     PetscCall(MatShellGetContext(J, &m));
     const Grid &g = *m->grid_;
     PetscCall(m->to_local(x, m->X_local_));
     PetscCall(DMDAVecGetArrayRead(m->dm_, m->X_local_, &xa));
-    PetscCall(DMDAVecGetArrayRead(m->dm_, m->Ulin_local_, &f));
     PetscCall(m->field(xa, m->dE_));
     PetscCall(DMDAVecGetArray(m->dm_, y, &ya));
     for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j) {
-      const PetscReal v = g.y(j);
-      for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i) {
-        const PetscInt il = i - g.xs();
-        ya[j][i] = -v * m->dx(xa, i, j) + m->Elin_[il] * m->dv(xa, i, j) + m->dE_[il] * m->dv(f, i, j);
-      }
+      m->advection_row(xa, j, m->Elin_.data(), ya[j]);
+      const PetscReal *dvf = &m->dvf_[(j - g.ys()) * g.xm()];
+      for (PetscInt il = 0; il < g.xm(); ++il) ya[j][g.xs() + il] += m->dE_[il] * dvf[il];
     }
     PetscCall(DMDAVecRestoreArray(m->dm_, y, &ya));
-    PetscCall(DMDAVecRestoreArrayRead(m->dm_, m->Ulin_local_, &f));
     PetscCall(DMDAVecRestoreArrayRead(m->dm_, m->X_local_, &xa));
     PetscFunctionReturn(0);
   }
@@ -494,29 +530,35 @@ private:
   // y = (dG/dU)^T x = v D_x x + E D_v^T x + hv K w,  w_i = sum_j x_ij (D_v f)_ij
   static PetscErrorCode j_mult_transpose(Mat J, Vec x, Vec y) {
     VlasovModel *m;
-    const PetscScalar **xa, **f;
+    const PetscScalar **xa;
     PetscScalar **ya;
     PetscFunctionBeginUser;
     PetscCall(MatShellGetContext(J, &m));
     const Grid &g = *m->grid_;
     PetscCall(m->to_local(x, m->X_local_));
     PetscCall(DMDAVecGetArrayRead(m->dm_, m->X_local_, &xa));
-    PetscCall(DMDAVecGetArrayRead(m->dm_, m->Ulin_local_, &f));
     std::fill(m->w_.begin(), m->w_.end(), 0.0);
-    for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j)
-      for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i) m->w_[i] += PetscRealPart(xa[j][i]) * m->dv(f, i, j);
+    for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j) {
+      const PetscReal *dvf = &m->dvf_[(j - g.ys()) * g.xm()];
+      for (PetscInt il = 0; il < g.xm(); ++il) m->w_[g.xs() + il] += PetscRealPart(xa[j][g.xs() + il]) * dvf[il];
+    }
     PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, m->w_.data(), (PetscMPIInt)m->nx_, MPIU_REAL, MPI_SUM, g.comm()));
     m->apply_K(m->w_, m->dE_);
+    for (PetscReal &e : m->dE_) e *= m->hv_;
     PetscCall(DMDAVecGetArray(m->dm_, y, &ya));
     for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j) {
-      const PetscReal v = g.y(j);
-      for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i) {
-        const PetscInt il = i - g.xs();
-        ya[j][i] = v * m->dx(xa, i, j) + m->Elin_[il] * m->dv_transpose(xa, i, j) + m->hv_ * m->dE_[il];
+      // D_v^T = -D_v away from the bounds, and D_x^T = -D_x: the row of G with -E, plus hv K w.
+      if (j >= 2 && j <= m->nv_ - 3) {
+        m->advection_row(xa, j, m->Elin_.data(), ya[j], -1.0, m->dE_.data());
+      } else {
+        const PetscReal v = g.y(j);
+        for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i) {
+          const PetscInt il = i - g.xs();
+          ya[j][i] = v * m->dx(xa, i, j) + m->Elin_[il] * m->dv_transpose(xa, i, j) + m->dE_[il];
+        }
       }
     }
     PetscCall(DMDAVecRestoreArray(m->dm_, y, &ya));
-    PetscCall(DMDAVecRestoreArrayRead(m->dm_, m->Ulin_local_, &f));
     PetscCall(DMDAVecRestoreArrayRead(m->dm_, m->X_local_, &xa));
     PetscFunctionReturn(0);
   }
@@ -530,7 +572,8 @@ private:
   PetscInt alpha_index_ = -1, vt_index_ = -1, v0_index_ = -1, ratio_index_ = -1;
   std::vector<PetscReal> K_, rho_, w_;    // kernel; length-N_x work arrays
   std::vector<PetscReal> E_, Elin_, dE_; // at the owned x: E(U) of rhs, E at the linearisation state, work
-  OwnedVec U_local_, X_local_, Ulin_local_;
+  std::vector<PetscReal> dvf_;           // D_v f at the owned points of the linearisation state
+  OwnedVec U_local_, X_local_;
 };
 
 } // namespace
