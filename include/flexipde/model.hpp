@@ -94,9 +94,19 @@ public:
     PetscCall(MatMult(A_, U, G));
     PetscFunctionReturn(0);
   }
+  // dG/dU = A: a copy of A's values when J has A's pattern (explicit integrators: a memcpy instead of
+  // a second assembly), else assembled afresh (an implicit TS shifted J, adding diagonal entries).
   PetscErrorCode rhs_jacobian(PetscReal, Vec, Mat J) override {
+    MatInfo ia, ij;
+    PetscBool aij;
     PetscFunctionBeginUser;
-    PetscCall(assemble(J));
+    PetscCall(PetscObjectTypeCompareAny((PetscObject)J, &aij, MATSEQAIJ, MATMPIAIJ, ""));
+    if (aij) {
+      PetscCall(MatGetInfo(A_, MAT_GLOBAL_SUM, &ia));
+      PetscCall(MatGetInfo(J, MAT_GLOBAL_SUM, &ij));
+    }
+    if (aij && ij.assemblies > 0 && ia.nz_used == ij.nz_used) PetscCall(MatCopy(A_, J, SAME_NONZERO_PATTERN));
+    else PetscCall(assemble(J));
     PetscFunctionReturn(0);
   }
   PetscErrorCode create_jacobian(Mat *J) override {

@@ -1,0 +1,85 @@
+"""Report for run/bench_peers.sh: reads the logs in OUT, compares the gradients, prints markdown.
+
+    /usr/bin/python3 run/bench_peers.py OUT TORCH_STATUS SCALE
+"""
+import os
+import re
+import sys
+
+import h5py
+import numpy as np
+
+out, torch_status, scale = sys.argv[1], int(sys.argv[2]), sys.argv[3] == "1"
+
+
+def read(name):
+    with open(os.path.join(out, name)) as f:
+        return f.read()
+
+
+def timing(log):
+    m = re.search(r"forward median ([0-9.]+) s \(min ([0-9.]+)\), gradient median ([0-9.]+) s \(min ([0-9.]+)\)", log)
+    return tuple(float(v) for v in m.groups())
+
+
+def peer(log):
+    m = re.search(r"J = ([0-9.e+-]+), .*value\+gradient median ([0-9.]+) s \(min ([0-9.]+)\)", log)
+    return float(m.group(1)), float(m.group(2)), float(m.group(3))
+
+
+f_fwd, _, f_grad, f_grad_min = timing(read("flexipde_leapfrog.log"))
+r_fwd, _, r_grad, _ = timing(read("flexipde_rk4.log"))
+J_ref, ref, ref_min = peer(read("reference.log"))
+g_ref = np.loadtxt(os.path.join(out, "reference_gradient.txt"))
+with h5py.File(os.path.join(out, "flexipde_gradient.h5"), "r") as h:
+    g_flex = np.array(h["/gradient/dJdp"]).ravel()
+    J_flex = float(np.array(h["/gradient/J"]).ravel()[0])
+diff_flex = np.abs(g_flex - g_ref).max() / np.abs(g_ref).max()
+
+rows = [("flexipde, -ts_type leapfrog", f_grad, f_fwd),
+        ("flexipde, -ts_type rk (rk4)", r_grad, r_fwd),
+        ("hand-written C leapfrog + adjoint (run/reference_leapfrog.c)", ref, None)]
+torch_line = None
+if torch_status == 0:
+    J_t, t_med, _ = peer(read("torch.log"))
+    g_t = np.loadtxt(os.path.join(out, "torch_gradient.txt"))
+    diff_t = np.abs(g_t - g_ref).max() / np.abs(g_ref).max()
+    rows.append((re.search(r"torch ([^:]+):", read("torch.log")).group(0).rstrip(":") + " autograd (run/peer_torch.py)",
+                 t_med, None))
+    torch_line = (t_med, diff_t)
+print("| value + gradient | median (s) | / hand-written | forward (s) | gradient / forward |")
+print("|---|---|---|---|---|")
+for name, t, fwd in rows:
+    print("| %s | %.4f | %.2f | %s | %s |" % (name, t, t / ref, "%.4f" % fwd if fwd else "", "%.2f" % (t / fwd) if fwd else ""))
+print()
+print("- J: flexipde %.12e, reference %.12e; gradients (1000 entries) differ by %.1e relative (max norm)."
+      % (J_flex, J_ref, diff_flex))
+print("- flexipde leapfrog gradient / hand-written: **%.2f** (target <= 3); gradient / forward: **%.2f** (target <= 2.5)."
+      % (f_grad / ref, f_grad / f_fwd))
+if torch_line:
+    print("- PyTorch / flexipde leapfrog: **%.1f** (target >= 5); torch's gradient differs from the reference by %.1e."
+          % (torch_line[0] / f_grad, torch_line[1]))
+else:
+    print("- PyTorch: skipped (python3-torch is not installed: `apt-get install python3-torch`).")
+
+if scale:
+    print()
+    print("## Scale: 1D wave, 10^6 points, 20 leapfrog steps")
+    print()
+    print("| ranks | parameters | forward (s) | gradient (s) | forward Mpt-updates/s | gradient Mpt-updates/s |")
+    print("|---|---|---|---|---|---|")
+    n, steps = 1_000_000, 20
+    grads = {}
+    for np_ in (1, 2):
+        for kind, params in (("scalar", 1), ("field", n)):
+            fwd, _, grad, _ = timing(read("big_%s_np%d.log" % (kind, np_)))
+            grads[(np_, kind)] = grad
+            print("| %d | %d | %.4f | %.4f | %.1f | %.1f |" % (np_, params, fwd, grad, n * steps / fwd / 1e6,
+                                                             n * steps / grad / 1e6))
+    _, ref_big, _ = peer(read("reference_big.log"))
+    print("| hand-written (1 core) | %d | | %.4f | | %.1f |" % (n, ref_big, n * steps / ref_big / 1e6))
+    print()
+    for np_ in (1, 2):
+        print("- %d rank(s): gradient with 10^6 parameters / with 1 parameter = %.2f"
+              % (np_, grads[(np_, "field")] / grads[(np_, "scalar")]))
+    print("- 1 rank, 10^6 parameters: flexipde gradient / hand-written = %.2f" % (grads[(1, "field")] / ref_big))

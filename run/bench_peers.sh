@@ -1,0 +1,52 @@
+#!/usr/bin/env bash
+# Gradient speed against peers (issue 8): the seed FWI problem (wave, n = 1000 on [0,1], 5000 leapfrog
+# steps of dt = 5e-4, a 1000-entry speed field c, J = 0.5 ||u(T) - d||^2 with d from c = 1) timed
+# in one run, on one core, as the median of REPS value+gradient evaluations each:
+#   flexipde   -ts_type leapfrog (and rk4 for reference), -timing_repeats: in-process medians
+#   reference  run/reference_leapfrog.c: a plain C leapfrog with its hand-written adjoint
+#   torch      run/peer_torch.py: the same scheme in PyTorch autograd (python3-torch; skipped if absent)
+# The gradients are compared entry by entry (flexipde vs reference must agree to <= 1e-8).
+# Then scale: forward and gradient throughput (grid-point updates per second) of the 1D wave with
+# 10^6 points against the reference, and gradient time with 1 versus 10^6 parameters, on 1 and 2 ranks.
+#
+#   bash run/bench_peers.sh              # markdown on stdout, raw logs in $OUT
+#   REPS=5 SCALE=0 bash run/bench_peers.sh
+#
+# Environment: FLEXIPDE (default build/flexipde), REPS (7), SCALE (1: also the large-grid part),
+# PYTHON (/usr/bin/python3), OUT (default a new /tmp/bench_peers.XXXXXX), MPIEXEC.
+set -euo pipefail
+here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
+root=$(dirname "$here")
+FLEXIPDE=${FLEXIPDE:-$root/build/flexipde}
+REPS=${REPS:-7}
+SCALE=${SCALE:-1}
+PYTHON=${PYTHON:-/usr/bin/python3}
+OUT=${OUT:-$(mktemp -d /tmp/bench_peers.XXXXXX)}
+mkdir -p "$OUT"
+MPIEXEC=${MPIEXEC:-mpiexec}
+[ "$(id -u)" = 0 ] && MPIEXEC="$MPIEXEC --allow-run-as-root"
+[ -x "$FLEXIPDE" ] || { echo "bench_peers: $FLEXIPDE not found (build first: bash run/build.sh)" >&2; exit 1; }
+
+cc -O2 -o "$OUT/reference_leapfrog" "$here/reference_leapfrog.c" -lm
+seed="-ts_type leapfrog -wave_c_field 1 -wave_c 0.9"
+
+echo "## Gradient speed against peers (seed FWI, 1000 parameters, 5000 steps, 1 core)"
+echo
+echo "Measured $(date -u +%Y-%m-%dT%H:%MZ) on $(nproc) cores, load average $(cut -d' ' -f1-3 /proc/loadavg); $REPS repetitions, medians."
+echo
+$MPIEXEC -n 1 "$FLEXIPDE" -task gradient $seed -timing_repeats "$REPS" -output "$OUT/flexipde_gradient.h5" > "$OUT/flexipde_leapfrog.log"
+$MPIEXEC -n 1 "$FLEXIPDE" -task gradient -ts_type rk -ts_rk_type 4 -wave_c_field 1 -wave_c 0.9 -timing_repeats "$REPS" > "$OUT/flexipde_rk4.log"
+"$OUT/reference_leapfrog" 1000 5000 5e-4 0.9 "$REPS" "$OUT/reference_gradient.txt" > "$OUT/reference.log"
+torch_status=0
+"$PYTHON" "$here/peer_torch.py" 1000 5000 5e-4 0.9 "$(( REPS < 5 ? REPS : 5 ))" "$OUT/torch_gradient.txt" > "$OUT/torch.log" || torch_status=$?
+if [ "$SCALE" = 1 ]; then
+  big="-da_grid_x 1000000 -ts_type leapfrog -ts_dt 2.5e-7 -ts_max_time 5e-6 -wave_c 0.9"   # 20 steps
+  for np in 1 2; do
+    $MPIEXEC -n $np "$FLEXIPDE" -task gradient $big -wave_c_field 0 -timing_repeats 5 > "$OUT/big_scalar_np$np.log"
+    $MPIEXEC -n $np "$FLEXIPDE" -task gradient $big -wave_c_field 1 -timing_repeats 5 > "$OUT/big_field_np$np.log"
+  done
+  "$OUT/reference_leapfrog" 1000000 20 2.5e-7 0.9 5 > "$OUT/reference_big.log"
+fi
+"$PYTHON" "$here/bench_peers.py" "$OUT" "$torch_status" "$SCALE"
+echo
+echo "Raw logs: $OUT"
