@@ -1,6 +1,7 @@
 // Receivers, Ricker point sources and the time-integrated receiver misfit (survey.hpp), and the Adam
 // TAO type (tao_adam.hpp):
 //   - Taylor tests of dJ/dc (c a field) with two shots, for -ts_type rk and cn,
+//   - the same in 2D (wave2d with its sponge) with Taylor and 1 vs 2 ranks, and the sponge absorbing,
 //   - a parallel run against a serial one (PETSC_COMM_SELF on every rank), two shots,
 //   - the synthetic misfit at the true model: zero to round-off with cn (data at its step states),
 //   - the data file round trip (-survey_data_write, then -survey_data_file gives the same J),
@@ -86,6 +87,94 @@ TEST_P(ReceiverMisfit, ParallelMatchesSerial) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Wave, ReceiverMisfit, ::testing::Values("rk", "cn"));
+
+// The 2D scene: wave2d on 31 x 31 points with its sponge, one shot, a line of receivers.
+void survey2d_options(ScopedOptions &o) {
+  o.set("-model", "wave2d");
+  o.set("-da_grid_x", "31");
+  o.set("-da_grid_y", "31");
+  o.set("-ts_max_time", "0.5");
+  o.set("-ts_dt", "4e-3");
+  o.set("-wave2d_c_field", "1");
+  o.set("-wave2d_c", "1.0");
+  o.set("-true_wave2d_c_profile", "linear");
+  o.set("-true_wave2d_c_left", "0.9");
+  o.set("-true_wave2d_c_right", "1.2");
+  o.set("-objective_type", "receivers");
+  o.set("-survey_sources_x", "0.35,0.6");
+  o.set("-survey_sources_y", "0.3");
+  o.set("-survey_receivers_spread", "0.2,0.8,6");
+  o.set("-survey_receivers_y", "0.65");
+  o.set("-survey_ricker_f0", "5");
+}
+
+TEST(ReceiverMisfit2D, TaylorTest) {
+  ScopedOptions o;
+  survey2d_options(o);
+  SceneProblem sp;
+  PETSC_ASSERT_OK(sp.setup(PETSC_COMM_WORLD));
+  EXPECT_EQ(sp.scene.grid.dim(), 2);
+  OwnedVec d;
+  PETSC_ASSERT_OK(VecDuplicate(sp.p, d.out()));
+  PETSC_ASSERT_OK(fill_random(d, -0.05, 0.05, 5));
+  TaylorResult tr;
+  auto f = [&](Vec q, PetscReal *J, Vec g) { return sp.scene.gradient(q, J, g); };
+  PETSC_ASSERT_OK(taylor_test(f, sp.p, d, 1.0, 4, tr));
+  const size_t last = tr.eps.size() - 1;
+  for (size_t k = 1; k <= last; ++k)
+    PetscPrintf(PETSC_COMM_WORLD, "  [2D] eps %.3e r1 %.3e (%.3f) r2 %.3e (%.3f)\n", (double)tr.eps[k], (double)tr.r1[k],
+                (double)tr.ratio1(k), (double)tr.r2[k], (double)tr.ratio2(k));
+  EXPECT_GT(std::fabs(tr.gd), 0.0);
+  EXPECT_NEAR(tr.ratio1(last), 2.0, 0.2);
+  EXPECT_NEAR(tr.ratio2(last), 4.0, 0.3) << "dJ/dc (2D) is not the derivative of the receiver misfit";
+}
+
+TEST(ReceiverMisfit2D, ParallelMatchesSerial) {
+  ScopedOptions o;
+  survey2d_options(o);
+  SceneProblem par, ser;
+  PETSC_ASSERT_OK(par.setup(PETSC_COMM_WORLD));
+  PETSC_ASSERT_OK(ser.setup(PETSC_COMM_SELF));
+  OwnedVec gpar, gser;
+  PETSC_ASSERT_OK(VecDuplicate(par.p, gpar.out()));
+  PETSC_ASSERT_OK(VecDuplicate(ser.p, gser.out()));
+  PetscReal Jpar, Jser;
+  PETSC_ASSERT_OK(par.scene.gradient(par.p, &Jpar, gpar));
+  PETSC_ASSERT_OK(ser.scene.gradient(ser.p, &Jser, gser));
+  // the parameter Vecs of a 2D DMDA are in PETSc's (per-rank block) order: compare in natural order
+  std::vector<PetscReal> a, b;
+  for (auto *pr : {&par, &ser}) {
+    OwnedVec f, nat;
+    PETSC_ASSERT_OK(DMCreateGlobalVector(pr->scene.grid.dm(), f.out()));
+    PETSC_ASSERT_OK(pr->scene.params.get_field(pr == &par ? gpar.get() : gser.get(), 0, f));
+    PETSC_ASSERT_OK(DMDACreateNaturalVector(pr->scene.grid.dm(), nat.out()));
+    PETSC_ASSERT_OK(DMDAGlobalToNaturalBegin(pr->scene.grid.dm(), f, INSERT_VALUES, nat));
+    PETSC_ASSERT_OK(DMDAGlobalToNaturalEnd(pr->scene.grid.dm(), f, INSERT_VALUES, nat));
+    PETSC_ASSERT_OK(flexipde_test::gather_all(nat, pr == &par ? a : b));
+  }
+  flexipde_test::expect_matches_serial("receivers 2D", Jpar, Jser, a, b);
+}
+
+// A sponge absorbs: the energy left in the box after the pulse has reached the edges is far below
+// that of the walls alone.
+TEST(Wave2D, SpongeAbsorbs) {
+  PetscReal norms[2];
+  for (int k = 0; k < 2; ++k) {
+    ScopedOptions o{{"-model", "wave2d"}, {"-da_grid_x", "61"}, {"-da_grid_y", "61"}, {"-wave2d_ic", "pulse"},
+                    {"-wave2d_ic_width", "0.08"}, {"-ts_dt", "4e-3"}, {"-ts_max_time", "1.5"},
+                    {"-wave2d_sponge_width", k ? "0.2" : "0"}};
+    Scene s;
+    OwnedVec p, U;
+    PETSC_ASSERT_OK(s.setup(PETSC_COMM_WORLD));
+    PETSC_ASSERT_OK(s.params.create_vec(p.out()));
+    PETSC_ASSERT_OK(s.parameters_from_options("", p));
+    PETSC_ASSERT_OK(s.sim.create_state(U.out()));
+    PETSC_ASSERT_OK(s.sim.forward(p, U));
+    PETSC_ASSERT_OK(VecStrideNorm(U, 1, NORM_2, &norms[k])); // v: the 2D wake behind the front keeps u != 0
+  }
+  PetscPrintf(PETSC_COMM_WORLD, "  ||v(T)|| walls %.3e, sponge %.3e\n", (double)norms[0], (double)norms[1]);
+  EXPECT_LT(norms[1], 0.1 * norms[0]); // measured 0.064 (61 x 61, W = 0.2, sigma_max = 60)
+}
 
 // With cn the quadrature visits the step states only, where the recorded data are exact: the
 // misfit of the true model is round-off; with rk4 the stages leave a small floor.

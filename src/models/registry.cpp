@@ -5,11 +5,15 @@ namespace flexipde {
 std::unique_ptr<Model> make_advection_model();
 std::unique_ptr<Model> make_wave_model();
 std::unique_ptr<Model> make_vlasov_model();
+std::unique_ptr<Model> make_wave2d_model();
+std::unique_ptr<Model> make_vlasov_model();
 
 std::map<std::string, ModelFactory> &model_registry() {
   static std::map<std::string, ModelFactory> registry = {
       {"advection", make_advection_model},
       {"wave", make_wave_model},
+      {"vlasov", make_vlasov_model},
+      {"wave2d", make_wave2d_model},
       {"vlasov", make_vlasov_model},
   };
   return registry;
