@@ -6,6 +6,7 @@
 //   - the synthetic misfit at the true model: zero to round-off with cn (data at its step states),
 //   - the data file round trip (-survey_data_write, then -survey_data_file gives the same J),
 //   - the discrete delta of a source integrates to one, receivers interpolate linear functions exactly,
+//   - Tikhonov + smoothed TV in 2D (Taylor test of the regularised objective), TV of a step,
 //   - Adam's first two steps against hand-computed values on a quadratic.
 // Scenes are small (101 points, 0.6 time units) so that the file runs in a few seconds.
 #include "flexipde/inversion.hpp"
@@ -174,6 +175,64 @@ TEST(Wave2D, SpongeAbsorbs) {
   }
   PetscPrintf(PETSC_COMM_WORLD, "  ||v(T)|| walls %.3e, sponge %.3e\n", (double)norms[0], (double)norms[1]);
   EXPECT_LT(norms[1], 0.1 * norms[0]); // measured 0.064 (61 x 61, W = 0.2, sigma_max = 60)
+}
+
+// Tikhonov + smoothed TV in 2D: Inversion::evaluate (misfit + regularisation) passes the Taylor test.
+TEST(Regularisation, TaylorTest2D) {
+  ScopedOptions o;
+  survey2d_options(o);
+  o.set("-inv_tikhonov", "1e-4");
+  o.set("-inv_tv", "1e-4");
+  o.set("-inv_tv_eps", "0.1");
+  SceneProblem sp;
+  PETSC_ASSERT_OK(sp.setup(PETSC_COMM_WORLD));
+  Inversion inv;
+  PETSC_ASSERT_OK(inv.setup(sp.scene, sp.p_true));
+  OwnedVec d, q;
+  PETSC_ASSERT_OK(VecDuplicate(sp.p, d.out()));
+  PETSC_ASSERT_OK(VecDuplicate(sp.p, q.out()));
+  PETSC_ASSERT_OK(fill_random(q, 0.9, 1.1, 3)); // a rough field, so that both terms matter
+  PETSC_ASSERT_OK(fill_random(d, -0.05, 0.05, 7));
+  PetscReal J, F;
+  PETSC_ASSERT_OK(sp.scene.value(q, &J));
+  PETSC_ASSERT_OK(inv.evaluate(q, &F, d)); // d is overwritten below; only F is used here
+  PetscPrintf(PETSC_COMM_WORLD, "  misfit %.3e, regularisation %.3e\n", (double)J, (double)(F - J));
+  EXPECT_GT(F - J, J); // the regularisation dominates the rough field
+  PETSC_ASSERT_OK(fill_random(d, -0.05, 0.05, 7));
+  TaylorResult tr;
+  auto f = [&](Vec x, PetscReal *v, Vec g) { return inv.evaluate(x, v, g); };
+  PETSC_ASSERT_OK(taylor_test(f, q, d, 0.02, 4, tr));
+  const size_t last = tr.eps.size() - 1;
+  EXPECT_NEAR(tr.ratio1(last), 2.0, 0.2);
+  EXPECT_NEAR(tr.ratio2(last), 4.0, 0.3) << "the regularisation's gradient is not its derivative";
+}
+
+// Smoothed TV of a 1D step of height H: sum_i sqrt((dp_i/h)^2 + eps^2) h over the n-1 differences.
+TEST(Regularisation, TotalVariationOfAStep) {
+  ScopedOptions o;
+  survey_options(o, "rk");
+  o.set("-inv_tv", "2.0");
+  o.set("-inv_tv_eps", "0.5");
+  SceneProblem sp;
+  PETSC_ASSERT_OK(sp.setup(PETSC_COMM_WORLD));
+  Inversion inv;
+  PETSC_ASSERT_OK(inv.setup(sp.scene, nullptr));
+  const PetscReal H = 0.2, eps = 0.5, h = sp.scene.grid.h();
+  const PetscInt n = sp.scene.grid.n();
+  OwnedVec f, g;
+  PETSC_ASSERT_OK(DMCreateGlobalVector(sp.scene.grid.dm(), f.out()));
+  PETSC_ASSERT_OK(VecDuplicate(sp.p, g.out()));
+  {
+    Array a(f);
+    PETSC_ASSERT_OK(a.error());
+    for (PetscInt il = 0; il < sp.scene.grid.xm(); ++il) a[il] = sp.scene.grid.xs() + il < n / 2 ? 1.0 : 1.0 + H;
+  }
+  PETSC_ASSERT_OK(sp.scene.params.set_field(sp.p, 0, f));
+  PetscReal J, F;
+  PETSC_ASSERT_OK(sp.scene.value(sp.p, &J));
+  PETSC_ASSERT_OK(inv.evaluate(sp.p, &F, g));
+  const PetscReal expected = 2.0 * (std::sqrt(H * H / (h * h) + eps * eps) * h + (n - 2) * eps * h);
+  EXPECT_NEAR(F - J, expected, 1e-12 * expected);
 }
 
 // With cn the quadrature visits the step states only, where the recorded data are exact: the

@@ -1,7 +1,10 @@
 // Inversion: TAO minimises J(p) + R(p) with the Simulation's exact discrete gradient.
 //
-// R is an optional Tikhonov smoothness term on every field parameter,
-//   R = 0.5 * alpha * sum_i (p_{i+1} - p_i)^2 / h      (-inv_tikhonov alpha, default 0),
+// R is an optional regularisation of every field parameter, in 1D or 2D (forward differences D p,
+// |Dp|^2 = (dp/dx)^2 + (dp/dy)^2, sums times the cell volume):
+//   Tikhonov  0.5 alpha sum |Dp|^2      (-inv_tikhonov alpha; 1D: 0.5 alpha sum_i (p_{i+1} - p_i)^2 / h)
+//   smoothed total variation  beta sum sqrt(|Dp|^2 + eps^2)   (-inv_tv beta, -inv_tv_eps eps, default 1e-2)
+// (both default 0);
 // bounds lower <= p <= upper are given to TAO types that take them (-inv_lower, -inv_upper, the
 // lower one never below the physical bound the model declares, e.g. -wave_c_min;
 // BLMVM is the default -tao_type, LMVM and the rest of TAO via -tao_type). The history records
@@ -46,6 +49,7 @@ private:
   Scene *scene_ = nullptr;
   OwnedTao tao_;
   OwnedVec p_true_, lower_, upper_, field_, field_local_, gfield_local_, gfield_;
+  PetscReal tv_ = 0, tv_eps_ = 1e-2;
   PetscReal alpha_ = 0, lower_value_ = PETSC_NINFINITY, upper_value_ = PETSC_INFINITY, last_misfit_ = 0;
   PetscInt evaluations_ = 0, scan_ = 0, scan_starts_ = 3;
   PetscReal scan_start_ = 0;

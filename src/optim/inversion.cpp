@@ -13,6 +13,10 @@ PetscErrorCode Inversion::setup(Scene &scene, Vec p_true) {
   PetscOptionsBegin(comm, nullptr, "Inversion", "Inversion");
   PetscCall(PetscOptionsReal("-inv_tikhonov", "Weight alpha of the smoothness term 0.5 alpha sum (dp)^2/h on fields",
                              "Inversion", alpha_, &alpha_, nullptr));
+  PetscCall(PetscOptionsReal("-inv_tv", "Weight beta of the smoothed total variation beta sum sqrt(|Dp|^2 + eps^2) "
+                             "(times the cell volume) on fields", "Inversion", tv_, &tv_, nullptr));
+  PetscCall(PetscOptionsReal("-inv_tv_eps", "Smoothing eps of the total variation (units of the parameter's gradient)",
+                             "Inversion", tv_eps_, &tv_eps_, nullptr));
   PetscCall(PetscOptionsReal("-inv_lower", "Lower bound on every parameter", "Inversion", lower_value_, &lower_value_,
                              &has_lower));
   PetscCall(PetscOptionsReal("-inv_upper", "Upper bound on every parameter", "Inversion", upper_value_, &upper_value_,
@@ -26,6 +30,8 @@ PetscErrorCode Inversion::setup(Scene &scene, Vec p_true) {
   PetscCheck(scan_ >= 0, comm, PETSC_ERR_ARG_OUTOFRANGE, "-inv_scan must be non-negative");
   PetscCheck(scan_ == 0 || (scene.params.global_size() == 1 && has_lower && has_upper), comm, PETSC_ERR_ARG_WRONG,
              "-inv_scan needs a single scalar parameter and both -inv_lower and -inv_upper");
+  PetscCheck(tv_ >= 0 && tv_eps_ > 0, comm, PETSC_ERR_ARG_OUTOFRANGE,
+             "-inv_tv must be non-negative and -inv_tv_eps positive, got %g and %g", (double)tv_, (double)tv_eps_);
   PetscCheck(alpha_ >= 0, comm, PETSC_ERR_ARG_OUTOFRANGE, "-inv_tikhonov must be non-negative, got %g", (double)alpha_);
   PetscCheck(lower_value_ < upper_value_, comm, PETSC_ERR_ARG_OUTOFRANGE,
              "Inverted bounds: -inv_lower %g is not below -inv_upper %g", (double)lower_value_, (double)upper_value_);
@@ -74,31 +80,60 @@ PetscErrorCode Inversion::rmse(Vec p, PetscReal *value) const {
   PetscFunctionReturn(0);
 }
 
+// Tikhonov and smoothed total variation of every field, with forward differences on the grid
+// (1D or 2D; a periodic direction wraps, a Dirichlet one has no difference past its last point):
+//   R = sum_points [ 0.5 alpha |D p|^2 + beta sqrt(|D p|^2 + eps^2) ] * cell volume,
+//   |D p|^2 = ((p_{i+1,j} - p_{ij}) / hx)^2 + ((p_{i,j+1} - p_{ij}) / hy)^2 (no y term in 1D).
+// In 1D the Tikhonov part is the seed's 0.5 alpha sum (p_{i+1} - p_i)^2 / h.
 PetscErrorCode Inversion::tikhonov(Vec p, PetscReal *R, Vec g) {
   const Grid &grid = scene_->grid;
   const Parameters &params = scene_->params;
   PetscReal local = 0;
   PetscFunctionBeginUser;
   *R = 0;
-  if (alpha_ == 0) PetscFunctionReturn(0);
+  if (alpha_ == 0 && tv_ == 0) PetscFunctionReturn(0);
+  const bool two_d = grid.dim() == 2;
+  const PetscReal hx = grid.h(), hy = grid.hy(), vol = grid.cell_volume();
   for (PetscInt k = 0; k < params.count(); ++k) {
     if (params.info(k).kind != ParamKind::Field) continue;
     PetscCall(params.get_field(p, k, field_));
     PetscCall(DMGlobalToLocal(grid.dm(), field_, INSERT_VALUES, field_local_));
     PetscCall(VecSet(gfield_local_, 0.0));
-    PetscScalar *f, *gf;
-    PetscCall(DMDAVecGetArray(grid.dm(), field_local_, &f));
-    PetscCall(DMDAVecGetArray(grid.dm(), gfield_local_, &gf));
-    const PetscInt n = grid.n(), end = grid.xs() + grid.xm();
-    for (PetscInt i = grid.xs(); i < end; ++i) {
-      if (!grid.periodic() && i == n - 1) continue;
-      const PetscScalar diff = f[i + 1] - f[i];
-      local += 0.5 * alpha_ * PetscRealPart(diff * diff) / grid.h();
-      gf[i] -= alpha_ * diff / grid.h();
-      gf[i + 1] += alpha_ * diff / grid.h();
+    // local (ghosted) arrays indexed by (i, j) in the DMDA's ghost box
+    PetscInt gxs, gys, gxm, gym;
+    PetscCall(DMDAGetGhostCorners(grid.dm(), &gxs, &gys, nullptr, &gxm, &gym, nullptr));
+    {
+      ConstArray f(field_local_);
+      Array gf(gfield_local_);
+      PetscCall(f.error());
+      PetscCall(gf.error());
+      auto at = [&](PetscInt i, PetscInt j) { return (j - gys) * gxm + (i - gxs); };
+      for (PetscInt j = grid.ys(); j < grid.ys() + grid.ym(); ++j)
+        for (PetscInt i = grid.xs(); i < grid.xs() + grid.xm(); ++i) {
+          const bool has_x = grid.periodic() || i < grid.n() - 1;
+          const bool has_y = two_d && (grid.periodic_y() || j < grid.ny() - 1);
+          if (!has_x && !has_y) continue; // the last corner: no difference at all
+          const PetscInt c = at(i, j), cx = at(i + 1, j), cy = two_d ? at(i, j + 1) : 0;
+          const PetscReal dx = has_x ? PetscRealPart(f[cx] - f[c]) / hx : 0.0;
+          const PetscReal dy = has_y ? PetscRealPart(f[cy] - f[c]) / hy : 0.0;
+          const PetscReal s2 = dx * dx + dy * dy;
+          PetscReal w = alpha_; // dR/d(dx) = w dx vol, the same for dy
+          local += 0.5 * alpha_ * s2 * vol;
+          if (tv_ > 0) {
+            const PetscReal root = std::sqrt(s2 + tv_eps_ * tv_eps_);
+            local += tv_ * root * vol;
+            w += tv_ / root;
+          }
+          if (has_x) {
+            gf[c] -= w * dx * vol / hx;
+            gf[cx] += w * dx * vol / hx;
+          }
+          if (has_y) {
+            gf[c] -= w * dy * vol / hy;
+            gf[cy] += w * dy * vol / hy;
+          }
+        }
     }
-    PetscCall(DMDAVecRestoreArray(grid.dm(), field_local_, &f));
-    PetscCall(DMDAVecRestoreArray(grid.dm(), gfield_local_, &gf));
     PetscCall(VecSet(gfield_, 0.0));
     PetscCall(DMLocalToGlobal(grid.dm(), gfield_local_, ADD_VALUES, gfield_));
     // g += gfield on field k
