@@ -13,8 +13,15 @@
 // N points between the bounds and polishes its best local minima (-inv_scan_starts, default 3),
 // keeping the lowest objective: a terminal snapshot of a wave gives an objective with several
 // nearly equal minima (cycle skipping), and a scan is the honest cure for one unknown.
+//
+// Restart: with a checkpoint file set (the driver uses its -output file), every iteration rewrites
+// it with /restart/p (the iterate), /restart/iteration and /history (written to <file>.part, then
+// renamed, so an interrupted run leaves the last complete snapshot). -inv_restart <file> starts
+// from that iterate and continues the history and the iteration count; the quasi-Newton memory
+// starts afresh (TAO keeps no state in the file).
 #pragma once
 #include "flexipde/scene.hpp"
+#include <string>
 #include <vector>
 
 namespace flexipde {
@@ -45,6 +52,19 @@ private:
   static PetscErrorCode monitor(Tao, void *);
   PetscErrorCode tikhonov(Vec p, PetscReal *R, Vec g);
   PetscErrorCode scan(Vec p, std::vector<PetscReal> &starts);
+  PetscErrorCode resume(Vec p);
+
+public:
+  // Every iteration rewrites `file` with the restart snapshot (empty: off).
+  void set_checkpoint_file(const std::string &file) { checkpoint_file_ = file; }
+  // Writes /restart/p, /restart/iteration and /history into an open writer.
+  PetscErrorCode write_restart(class H5Writer &w, Vec p) const;
+  PetscInt iteration_offset() const { return iteration_offset_; }
+
+private:
+  PetscErrorCode write_checkpoint(Vec p) const;
+  std::string checkpoint_file_, restart_file_;
+  PetscInt iteration_offset_ = 0;
 
   Scene *scene_ = nullptr;
   OwnedTao tao_;

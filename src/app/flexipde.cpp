@@ -57,6 +57,14 @@ static PetscErrorCode print_parameters(const Scene &s, Vec p, const char *label)
   PetscFunctionReturn(0);
 }
 
+static PetscErrorCode set_component_names(H5Writer &w, const Scene &scene) {
+  std::vector<std::string> names;
+  PetscFunctionBeginUser;
+  for (PetscInt c = 0; c < scene.model->dof(); ++c) names.push_back(scene.model->component_name(c));
+  w.set_component_names(names);
+  PetscFunctionReturn(0);
+}
+
 // Medians of `repeats` forward solves and of `repeats` gradients (value + dJ/dp), timed in this
 // process after a first gradient warmed everything up: no start-up, set-up or data generation.
 static PetscErrorCode time_repeats(MPI_Comm comm, Scene &scene, Vec p, PetscInt repeats) {
@@ -254,6 +262,7 @@ static PetscErrorCode run(MPI_Comm comm) {
   PetscCall(VecDuplicate(p, p0.out()));
   PetscCall(VecCopy(p, p0));
   PetscCall(inv.setup(scene, p_true));
+  if (output[0]) inv.set_checkpoint_file(output); // rewritten every iteration: -inv_restart resumes from it
   PetscCall(inv.rmse(p, &e0));
   PetscCall(print_parameters(scene, p, "initial"));
   PetscCall(inv.solve(p));
@@ -265,27 +274,16 @@ static PetscErrorCode run(MPI_Comm comm) {
                         TaoConvergedReasons[reason], its, inv.evaluations(), (double)e0, (double)e1));
   if (output[0]) {
     H5Writer w;
-    std::vector<PetscReal> it, f, mis, gn, rm;
-    for (auto &h : inv.history()) {
-      it.push_back(h.iteration);
-      f.push_back(h.objective);
-      mis.push_back(h.misfit);
-      gn.push_back(h.gradient_norm);
-      rm.push_back(h.rmse);
-    }
     PetscCall(scene.sim.forward(p, U));
     PetscCall(w.open(comm, output));
+    PetscCall(set_component_names(w, scene));
     PetscCall(w.write_coordinates(scene.grid));
     PetscCall(write_parameters(w, scene, p_true, "true"));
     PetscCall(write_parameters(w, scene, p0, "initial"));
     PetscCall(write_parameters(w, scene, p, "recovered"));
     PetscCall(w.write_vec("/fields", "U_final", U));
     if (scene.objective.data()) PetscCall(w.write_vec("/fields", "data", scene.objective.data()));
-    PetscCall(w.write_series("/history", "iteration", it));
-    PetscCall(w.write_series("/history", "objective", f));
-    PetscCall(w.write_series("/history", "misfit", mis));
-    PetscCall(w.write_series("/history", "gradient_norm", gn));
-    PetscCall(w.write_series("/history", "rmse", rm));
+    PetscCall(inv.write_restart(w, p)); // /history and /restart
     PetscCall(w.close());
     PetscCall(PetscPrintf(comm, "invert: results written to %s\n", output));
   }

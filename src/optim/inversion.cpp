@@ -1,4 +1,6 @@
 #include "flexipde/inversion.hpp"
+#include "flexipde/io.hpp"
+#include <cstdio>
 #include "flexipde/tao_adam.hpp"
 #include <algorithm>
 #include <cmath>
@@ -26,7 +28,15 @@ PetscErrorCode Inversion::setup(Scene &scene, Vec p_true) {
                             "Inversion", scan_, &scan_, nullptr));
   PetscCall(PetscOptionsInt("-inv_scan_starts", "With -inv_scan: number of scan minima polished by TAO; the lowest "
                             "objective wins", "Inversion", scan_starts_, &scan_starts_, nullptr));
+  {
+    char file[PETSC_MAX_PATH_LEN] = "";
+    PetscBool set;
+    PetscCall(PetscOptionsString("-inv_restart", "Resume from the last iterate and history in this HDF5 results file",
+                                 "Inversion", file, file, sizeof(file), &set));
+    restart_file_ = set ? file : "";
+  }
   PetscOptionsEnd();
+  PetscCheck(restart_file_.empty() || scan_ == 0, comm, PETSC_ERR_ARG_WRONG, "-inv_restart cannot be combined with -inv_scan");
   PetscCheck(scan_ >= 0, comm, PETSC_ERR_ARG_OUTOFRANGE, "-inv_scan must be non-negative");
   PetscCheck(scan_ == 0 || (scene.params.global_size() == 1 && has_lower && has_upper), comm, PETSC_ERR_ARG_WRONG,
              "-inv_scan needs a single scalar parameter and both -inv_lower and -inv_upper");
@@ -172,7 +182,9 @@ PetscErrorCode Inversion::monitor(Tao tao, void *ctx) {
   PetscCall(TaoGetSolutionStatus(tao, &it, &f, &gnorm, &cnorm, &xdiff, &reason));
   PetscCall(TaoGetSolution(tao, &x));
   PetscCall(inv->rmse(x, &e));
-  inv->history_.push_back({it, f, inv->last_misfit_, gnorm, e});
+  if (inv->iteration_offset_ > 0 && it == 0) PetscFunctionReturn(0); // the resumed iterate is already recorded
+  inv->history_.push_back({it + inv->iteration_offset_, f, inv->last_misfit_, gnorm, e});
+  if (!inv->checkpoint_file_.empty()) PetscCall(inv->write_checkpoint(x));
   PetscFunctionReturn(0);
 }
 
@@ -196,14 +208,87 @@ PetscErrorCode Inversion::scan(Vec p, std::vector<PetscReal> &starts) {
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode Inversion::write_restart(H5Writer &w, Vec p) const {
+  std::vector<PetscReal> it, f, mis, gn, rm;
+  PetscFunctionBeginUser;
+  for (const HistoryEntry &h : history_) {
+    it.push_back(h.iteration);
+    f.push_back(h.objective);
+    mis.push_back(h.misfit);
+    gn.push_back(h.gradient_norm);
+    rm.push_back(h.rmse);
+  }
+  PetscCall(w.write_vec("/restart", "p", p));
+  PetscCall(w.write_series("/restart", "iteration", std::vector<PetscReal>{it.empty() ? 0.0 : it.back()}));
+  PetscCall(w.write_series("/history", "iteration", it));
+  PetscCall(w.write_series("/history", "objective", f));
+  PetscCall(w.write_series("/history", "misfit", mis));
+  PetscCall(w.write_series("/history", "gradient_norm", gn));
+  PetscCall(w.write_series("/history", "rmse", rm));
+  PetscFunctionReturn(0);
+}
+
+// The snapshot goes to <file>.part first and is renamed once complete: a run killed while writing
+// keeps the previous snapshot.
+PetscErrorCode Inversion::write_checkpoint(Vec p) const {
+  MPI_Comm comm = scene_->comm();
+  PetscMPIInt rank;
+  H5Writer w;
+  PetscFunctionBeginUser;
+  const std::string part = checkpoint_file_ + ".part";
+  PetscCall(w.open(comm, part));
+  PetscCall(write_restart(w, p));
+  PetscCall(w.close());
+  PetscCallMPI(MPI_Barrier(comm));
+  PetscCallMPI(MPI_Comm_rank(comm, &rank));
+  int err = 0;
+  if (rank == 0) err = std::rename(part.c_str(), checkpoint_file_.c_str());
+  PetscCallMPI(MPI_Bcast(&err, 1, MPI_INT, 0, comm));
+  PetscCheck(!err, comm, PETSC_ERR_FILE_WRITE, "Cannot rename %s to %s", part.c_str(), checkpoint_file_.c_str());
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Inversion::resume(Vec p) {
+  MPI_Comm comm = scene_->comm();
+  H5Reader r;
+  std::vector<PetscReal> it, f, mis, gn, rm, last;
+  PetscInt n;
+  PetscFunctionBeginUser;
+  PetscCall(r.open(comm, restart_file_));
+  PetscCall(VecGetSize(p, &n));
+  PetscCall(r.read_series("/restart", "iteration", last));
+  PetscCall(r.read_vec("/restart", "p", p)); // checks the number of parameters
+  PetscCall(r.read_series("/history", "iteration", it));
+  PetscCall(r.read_series("/history", "objective", f));
+  PetscCall(r.read_series("/history", "misfit", mis));
+  PetscCall(r.read_series("/history", "gradient_norm", gn));
+  PetscCall(r.read_series("/history", "rmse", rm));
+  PetscCall(r.close());
+  PetscCheck(it.size() == f.size() && f.size() == mis.size() && mis.size() == gn.size() && gn.size() == rm.size(), comm,
+             PETSC_ERR_FILE_UNEXPECTED, "%s: the /history series have different lengths", restart_file_.c_str());
+  PetscReal pmin, pmax;
+  PetscCall(VecMin(p, nullptr, &pmin));
+  PetscCall(VecMax(p, nullptr, &pmax));
+  PetscCheck(std::isfinite((double)pmin) && std::isfinite((double)pmax), comm, PETSC_ERR_FILE_UNEXPECTED,
+             "%s: /restart/p holds NaN/Inf", restart_file_.c_str());
+  for (size_t k = 0; k < it.size(); ++k) history_.push_back({(PetscInt)it[k], f[k], mis[k], gn[k], rm[k]});
+  iteration_offset_ = last.empty() ? 0 : (PetscInt)last[0];
+  PetscCall(PetscPrintf(comm, "invert: resuming from iteration %" PetscInt_FMT " of %s (%" PetscInt_FMT " parameters)\n",
+                        iteration_offset_, restart_file_.c_str(), n));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode Inversion::solve(Vec p) {
   PetscFunctionBeginUser;
   history_.clear();
+  iteration_offset_ = 0;
+  if (!restart_file_.empty()) PetscCall(resume(p));
   if (scan_ == 0) {
     PetscCall(TaoSetSolution(tao_, p));
     PetscCall(TaoSolve(tao_));
     PetscCall(TaoGetConvergedReason(tao_, &reason_));
     PetscCall(TaoGetIterationNumber(tao_, &iterations_));
+    iterations_ += iteration_offset_;
     PetscFunctionReturn(0);
   }
   // Polish the best few minima of the scan and keep the lowest objective: snapshot misfits of waves
