@@ -156,14 +156,21 @@ PetscErrorCode Survey::read_positions() {
     return x >= grid_->x0() - tol && x <= grid_->x1() + tol &&
            (!two_d || (y >= grid_->y0() - tol && y <= grid_->y1() + tol));
   };
-  for (size_t k = 0; k < rec_x_.size(); ++k)
-    PetscCheck(inside(rec_x_[k], rec_y_[k]), comm_, PETSC_ERR_ARG_OUTOFRANGE,
-               "Receiver %zu at (%g, %g) is outside the domain [%g, %g] x [%g, %g]", k, (double)rec_x_[k],
-               (double)rec_y_[k], (double)grid_->x0(), (double)grid_->x1(), (double)grid_->y0(), (double)grid_->y1());
-  for (size_t k = 0; k < src_x_.size(); ++k)
-    PetscCheck(inside(src_x_[k], src_y_[k]), comm_, PETSC_ERR_ARG_OUTOFRANGE,
-               "Source %zu at (%g, %g) is outside the domain [%g, %g] x [%g, %g]", k, (double)src_x_[k],
-               (double)src_y_[k], (double)grid_->x0(), (double)grid_->x1(), (double)grid_->y0(), (double)grid_->y1());
+  auto check = [&](const char *what, const std::vector<PetscReal> &x, const std::vector<PetscReal> &y) -> PetscErrorCode {
+    PetscFunctionBeginUser;
+    for (size_t k = 0; k < x.size(); ++k) {
+      if (two_d)
+        PetscCheck(inside(x[k], y[k]), comm_, PETSC_ERR_ARG_OUTOFRANGE,
+                   "%s %zu at (x, y) = (%g, %g) is outside the domain [%g, %g] x [%g, %g]", what, k, (double)x[k],
+                   (double)y[k], (double)grid_->x0(), (double)grid_->x1(), (double)grid_->y0(), (double)grid_->y1());
+      else
+        PetscCheck(inside(x[k], 0), comm_, PETSC_ERR_ARG_OUTOFRANGE, "%s %zu at x = %g is outside the domain [%g, %g]",
+                   what, k, (double)x[k], (double)grid_->x0(), (double)grid_->x1());
+    }
+    PetscFunctionReturn(0);
+  };
+  PetscCall(check("Receiver", rec_x_, rec_y_));
+  PetscCall(check("Source", src_x_, src_y_));
   PetscFunctionReturn(0);
 }
 
@@ -311,115 +318,145 @@ PetscErrorCode Survey::write_data(const char *file) const {
   PetscFunctionReturn(0);
 }
 
+// The file is read on rank 0 with the plain HDF5 library (no MPI-IO: an error must be able to end
+// the run at once), everything it holds is broadcast, and every check is made on all ranks alike.
+namespace {
+struct DataFileContents {
+  PetscInt status = 0; // 0 ok, 1 missing/unreadable, 2 not HDF5, 3 no /survey/traces, 4 a dataset or attribute missing
+  PetscInt nshots = 0, nrec = 0, nt = 0, dim = 0;
+  PetscReal dt = 0;
+  std::vector<PetscReal> rec_x, rec_y, src_x, src_y, traces;
+};
+
+bool read_dataset(hid_t file, const char *path, std::vector<PetscReal> &out) {
+  if (H5Lexists(file, path, H5P_DEFAULT) <= 0) return false;
+  hid_t d = H5Dopen2(file, path, H5P_DEFAULT);
+  if (d < 0) return false;
+  hid_t sp = H5Dget_space(d);
+  const hssize_t n = H5Sget_simple_extent_npoints(sp);
+  out.assign(n > 0 ? (size_t)n : 0, 0.0);
+  herr_t e = n > 0 ? H5Dread(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data()) : 0;
+  H5Sclose(sp);
+  H5Dclose(d);
+  return e >= 0;
+}
+
+template <class T> bool read_attribute(hid_t obj, const char *name, hid_t type, T *value) {
+  if (H5Aexists(obj, name) <= 0) return false;
+  hid_t a = H5Aopen(obj, name, H5P_DEFAULT);
+  herr_t e = H5Aread(a, type, value);
+  H5Aclose(a);
+  return e >= 0;
+}
+
+void read_on_rank0(const char *f, bool two_d, bool with_sources, DataFileContents &c) {
+  if (access(f, R_OK) != 0) {
+    c.status = 1;
+    return;
+  }
+  H5E_auto2_t func;
+  void *data;
+  H5Eget_auto2(H5E_DEFAULT, &func, &data);
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr); // our messages, not HDF5's error stack
+  if (H5Fis_hdf5(f) <= 0) c.status = 2;
+  hid_t file = c.status ? -1 : H5Fopen(f, H5F_ACC_RDONLY, H5P_DEFAULT);
+  if (!c.status && file < 0) c.status = 2;
+  if (!c.status && (H5Lexists(file, "/survey", H5P_DEFAULT) <= 0 || H5Lexists(file, "/survey/traces", H5P_DEFAULT) <= 0))
+    c.status = 3;
+  if (!c.status) {
+    hid_t d = H5Dopen2(file, "/survey/traces", H5P_DEFAULT);
+    long long ns = 0, nr = 0, nt = 0, dim = 0;
+    bool ok = d >= 0 && read_attribute(d, "nshots", H5T_NATIVE_LLONG, &ns) && read_attribute(d, "nrec", H5T_NATIVE_LLONG, &nr) &&
+              read_attribute(d, "nt", H5T_NATIVE_LLONG, &nt) && read_attribute(d, "dim", H5T_NATIVE_LLONG, &dim) &&
+              read_attribute(d, "sample_dt", H5T_NATIVE_DOUBLE, &c.dt);
+    if (d >= 0) H5Dclose(d);
+    c.nshots = (PetscInt)ns, c.nrec = (PetscInt)nr, c.nt = (PetscInt)nt, c.dim = (PetscInt)dim;
+    ok = ok && read_dataset(file, "/survey/traces", c.traces) && read_dataset(file, "/survey/receivers_x", c.rec_x);
+    if (ok && with_sources) ok = read_dataset(file, "/survey/sources_x", c.src_x);
+    if (ok && two_d && c.dim == 2) {
+      ok = read_dataset(file, "/survey/receivers_y", c.rec_y);
+      if (ok && with_sources) ok = read_dataset(file, "/survey/sources_y", c.src_y);
+    }
+    if (!ok) c.status = 4;
+  }
+  if (file >= 0) H5Fclose(file);
+  H5Eset_auto2(H5E_DEFAULT, func, data);
+}
+
+PetscErrorCode bcast(MPI_Comm comm, std::vector<PetscReal> &v) {
+  PetscInt n = (PetscInt)v.size();
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Bcast(&n, 1, MPIU_INT, 0, comm));
+  v.resize(n);
+  PetscCallMPI(MPI_Bcast(v.data(), n, MPIU_REAL, 0, comm));
+  PetscFunctionReturn(0);
+}
+} // namespace
+
 PetscErrorCode Survey::read_data(PetscReal final_time, PetscBool *read) {
   const char *f = data_file_;
+  DataFileContents c;
   PetscFunctionBeginUser;
   *read = PETSC_FALSE;
   if (!f[0]) PetscFunctionReturn(0);
-  { // rank 0 checks the file before PETSc/HDF5 see it, so that every rank stops with one message
-    PetscInt status = 0;
-    if (rank_ == 0) {
-      if (access(f, R_OK) != 0) status = 1;
-      else {
-        H5E_auto2_t func;
-        void *data;
-        H5Eget_auto2(H5E_DEFAULT, &func, &data);
-        H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
-        if (H5Fis_hdf5(f) <= 0) status = 2;
-        H5Eset_auto2(H5E_DEFAULT, func, data);
-      }
-    }
-    PetscCallMPI(MPI_Bcast(&status, 1, MPIU_INT, 0, comm_));
-    PetscCheck(status != 1, comm_, PETSC_ERR_FILE_OPEN, "-survey_data_file %s does not exist or cannot be read", f);
-    PetscCheck(status != 2, comm_, PETSC_ERR_FILE_UNEXPECTED,
-               "-survey_data_file %s is not an HDF5 file (write one with -survey_data_write)", f);
-  }
-  OwnedViewer v;
-  PetscBool has;
-  PetscCall(PetscViewerHDF5Open(comm_, f, FILE_MODE_READ, v.out()));
-  PetscCall(PetscViewerHDF5HasDataset(v, "/survey/traces", &has));
-  PetscCheck(has, comm_, PETSC_ERR_FILE_UNEXPECTED, "-survey_data_file %s holds no /survey/traces dataset", f);
-  PetscCall(PetscViewerHDF5PushGroup(v, "/survey"));
-  PetscInt ns = 0, nrec = 0, nt = 0, dim = 0;
-  PetscReal dt = 0;
-  PetscCall(PetscViewerHDF5ReadAttribute(v, "traces", "nshots", PETSC_INT, nullptr, &ns));
-  PetscCall(PetscViewerHDF5ReadAttribute(v, "traces", "nrec", PETSC_INT, nullptr, &nrec));
-  PetscCall(PetscViewerHDF5ReadAttribute(v, "traces", "nt", PETSC_INT, nullptr, &nt));
-  PetscCall(PetscViewerHDF5ReadAttribute(v, "traces", "dim", PETSC_INT, nullptr, &dim));
-  PetscCall(PetscViewerHDF5ReadAttribute(v, "traces", "sample_dt", PETSC_REAL, nullptr, &dt));
-  PetscCheck(dim == grid_->dim(), comm_, PETSC_ERR_FILE_UNEXPECTED, "-survey_data_file %s holds %" PetscInt_FMT
-             "D data, the scene is %" PetscInt_FMT "D", f, dim, grid_->dim());
-  PetscCheck(ns == nshots_ && nrec == receivers(), comm_, PETSC_ERR_FILE_UNEXPECTED,
+  if (rank_ == 0) read_on_rank0(f, grid_->dim() == 2, !src_x_.empty(), c);
+  PetscInt head[5] = {c.status, c.nshots, c.nrec, c.nt, c.dim};
+  PetscCallMPI(MPI_Bcast(head, 5, MPIU_INT, 0, comm_));
+  PetscCallMPI(MPI_Bcast(&c.dt, 1, MPIU_REAL, 0, comm_));
+  c.status = head[0], c.nshots = head[1], c.nrec = head[2], c.nt = head[3], c.dim = head[4];
+  PetscCheck(c.status != 1, comm_, PETSC_ERR_FILE_OPEN, "-survey_data_file %s does not exist or cannot be read", f);
+  PetscCheck(c.status != 2, comm_, PETSC_ERR_FILE_UNEXPECTED,
+             "-survey_data_file %s is not an HDF5 file (write one with -survey_data_write)", f);
+  PetscCheck(c.status != 3, comm_, PETSC_ERR_FILE_UNEXPECTED, "-survey_data_file %s holds no /survey/traces dataset", f);
+  PetscCheck(c.status != 4, comm_, PETSC_ERR_FILE_UNEXPECTED,
+             "-survey_data_file %s lacks a survey dataset or attribute (nshots, nrec, nt, dim, sample_dt, receivers_x, "
+             "sources_x; receivers_y, sources_y in 2D)",
+             f);
+  PetscCheck(c.dim == grid_->dim(), comm_, PETSC_ERR_FILE_UNEXPECTED,
+             "-survey_data_file %s holds %" PetscInt_FMT "D data, the scene is %" PetscInt_FMT "D", f, c.dim, grid_->dim());
+  PetscCheck(c.nshots == nshots_ && c.nrec == receivers(), comm_, PETSC_ERR_FILE_UNEXPECTED,
              "-survey_data_file %s holds %" PetscInt_FMT " shots x %" PetscInt_FMT " receivers, the survey has %" PetscInt_FMT
              " x %" PetscInt_FMT,
-             f, ns, nrec, nshots_, receivers());
-  PetscCheck(nt >= 2 && dt > 0, comm_, PETSC_ERR_FILE_UNEXPECTED, "-survey_data_file %s: bad sampling (nt %" PetscInt_FMT
-             ", dt %g)", f, nt, (double)dt);
-  PetscCheck((nt - 1) * dt >= final_time * (1 - 1e-10), comm_, PETSC_ERR_FILE_UNEXPECTED,
-             "-survey_data_file %s covers t <= %g only, the run goes to T = %g", f, (double)((nt - 1) * dt),
+             f, c.nshots, c.nrec, nshots_, receivers());
+  PetscCheck(c.nt >= 2 && c.dt > 0, comm_, PETSC_ERR_FILE_UNEXPECTED,
+             "-survey_data_file %s: bad sampling (nt %" PetscInt_FMT ", sample_dt %g)", f, c.nt, (double)c.dt);
+  PetscCheck((c.nt - 1) * c.dt >= final_time * (1 - 1e-10), comm_, PETSC_ERR_FILE_UNEXPECTED,
+             "-survey_data_file %s covers t <= %g only, the run goes to T = %g", f, (double)((c.nt - 1) * c.dt),
              (double)final_time);
-  auto load = [&](const char *name, PetscInt m, std::vector<PetscReal> &out) -> PetscErrorCode {
-    OwnedVec s;
-    PetscBool h;
-    PetscFunctionBeginUser;
-    PetscCall(PetscViewerHDF5HasDataset(v, name, &h));
-    PetscCheck(h || m == 0, comm_, PETSC_ERR_FILE_UNEXPECTED, "-survey_data_file %s holds no /survey/%s", f, name);
-    out.clear();
-    if (m == 0) PetscFunctionReturn(0);
-    PetscCall(VecCreateMPI(comm_, rank_ == 0 ? m : 0, m, s.out()));
-    PetscCall(PetscObjectSetName((PetscObject)s.get(), name));
-    PetscCall(VecLoad(s, v));
-    std::vector<PetscReal> all(m);
-    if (rank_ == 0) {
-      ConstArray a(s);
-      PetscCall(a.error());
-      for (PetscInt i = 0; i < m; ++i) all[i] = PetscRealPart(a[i]);
-    }
-    PetscCallMPI(MPI_Bcast(all.data(), m, MPIU_REAL, 0, comm_));
-    out = all;
-    PetscFunctionReturn(0);
-  };
-  std::vector<PetscReal> fx, fy, sx, sy, tr;
-  PetscCall(load("receivers_x", nrec, fx));
-  PetscCall(load("sources_x", (PetscInt)src_x_.size(), sx));
-  if (dim == 2) {
-    PetscCall(load("receivers_y", nrec, fy));
-    PetscCall(load("sources_y", (PetscInt)src_x_.size(), sy));
-  }
+  PetscInt sizes_ok = rank_ == 0 ? (PetscInt)(c.traces.size() == (size_t)(c.nshots * c.nrec * c.nt) &&
+                                              c.rec_x.size() == (size_t)c.nrec && c.src_x.size() == src_x_.size())
+                                 : 1;
+  PetscCallMPI(MPI_Bcast(&sizes_ok, 1, MPIU_INT, 0, comm_));
+  PetscCheck(sizes_ok, comm_, PETSC_ERR_FILE_UNEXPECTED,
+             "-survey_data_file %s: the datasets' sizes do not match its attributes (nshots %" PetscInt_FMT ", nrec %" PetscInt_FMT
+             ", nt %" PetscInt_FMT ")",
+             f, c.nshots, c.nrec, c.nt);
+  PetscCall(bcast(comm_, c.rec_x));
+  PetscCall(bcast(comm_, c.rec_y));
+  PetscCall(bcast(comm_, c.src_x));
+  PetscCall(bcast(comm_, c.src_y));
+  const bool two_d = grid_->dim() == 2;
   const PetscReal tol = 1e-9 * (grid_->x1() - grid_->x0());
-  for (PetscInt r = 0; r < nrec; ++r)
-    PetscCheck(std::fabs(fx[r] - rec_x_[r]) <= tol && (dim == 1 || std::fabs(fy[r] - rec_y_[r]) <= tol), comm_,
+  for (PetscInt r = 0; r < c.nrec; ++r)
+    PetscCheck(std::fabs(c.rec_x[r] - rec_x_[r]) <= tol && (!two_d || std::fabs(c.rec_y[r] - rec_y_[r]) <= tol), comm_,
                PETSC_ERR_FILE_UNEXPECTED,
-               "-survey_data_file %s: receiver %" PetscInt_FMT " was recorded at x = %g, the survey puts it at x = %g",
-               f, r, (double)fx[r], (double)rec_x_[r]);
-  for (size_t s = 0; s < src_x_.size(); ++s)
-    PetscCheck(std::fabs(sx[s] - src_x_[s]) <= tol && (dim == 1 || std::fabs(sy[s] - src_y_[s]) <= tol), comm_,
-               PETSC_ERR_FILE_UNEXPECTED, "-survey_data_file %s: shot %zu was fired at x = %g, the survey has x = %g", f,
-               s, (double)sx[s], (double)src_x_[s]);
-  { // the traces stay on rank 0
-    OwnedVec s;
-    const PetscInt m = ns * nrec * nt;
-    PetscCall(VecCreateMPI(comm_, rank_ == 0 ? m : 0, m, s.out()));
-    PetscCall(PetscObjectSetName((PetscObject)s.get(), "traces"));
-    PetscCall(VecLoad(s, v));
-    PetscInt bad = -1;
-    traces_.assign(rank_ == 0 ? (size_t)m : 0, 0.0);
-    if (rank_ == 0) {
-      ConstArray a(s);
-      PetscCall(a.error());
-      for (PetscInt i = 0; i < m; ++i) {
-        traces_[i] = PetscRealPart(a[i]);
-        if (bad < 0 && !std::isfinite((double)traces_[i])) bad = i;
-      }
-    }
-    PetscCallMPI(MPI_Bcast(&bad, 1, MPIU_INT, 0, comm_));
-    PetscCheck(bad < 0, comm_, PETSC_ERR_FILE_UNEXPECTED,
-               "-survey_data_file %s holds NaN/Inf: shot %" PetscInt_FMT ", receiver %" PetscInt_FMT ", sample %" PetscInt_FMT,
-               f, bad / (nrec * nt), (bad / nt) % nrec, bad % nt);
-  }
-  PetscCall(PetscViewerHDF5PopGroup(v));
-  nt_ = nt;
-  sample_dt_ = dt;
+               "-survey_data_file %s: receiver %" PetscInt_FMT " was recorded at x = %g, the survey puts it at x = %g%s", f,
+               r, (double)c.rec_x[r], (double)rec_x_[r], two_d ? " (or y differs)" : "");
+  for (size_t k = 0; k < src_x_.size(); ++k)
+    PetscCheck(std::fabs(c.src_x[k] - src_x_[k]) <= tol && (!two_d || std::fabs(c.src_y[k] - src_y_[k]) <= tol), comm_,
+               PETSC_ERR_FILE_UNEXPECTED, "-survey_data_file %s: shot %zu was fired at x = %g, the survey has x = %g%s", f,
+               k, (double)c.src_x[k], (double)src_x_[k], two_d ? " (or y differs)" : "");
+  PetscInt bad = -1; // the traces stay on rank 0
+  if (rank_ == 0)
+    for (size_t i = 0; i < c.traces.size() && bad < 0; ++i)
+      if (!std::isfinite((double)c.traces[i])) bad = (PetscInt)i;
+  PetscCallMPI(MPI_Bcast(&bad, 1, MPIU_INT, 0, comm_));
+  PetscCheck(bad < 0, comm_, PETSC_ERR_FILE_UNEXPECTED,
+             "-survey_data_file %s holds NaN/Inf: shot %" PetscInt_FMT ", receiver %" PetscInt_FMT ", sample %" PetscInt_FMT, f,
+             bad / (c.nrec * c.nt), (bad / c.nt) % c.nrec, bad % c.nt);
+  traces_ = std::move(c.traces);
+  nt_ = c.nt;
+  sample_dt_ = c.dt;
   *read = PETSC_TRUE;
   PetscFunctionReturn(0);
 }
