@@ -34,7 +34,7 @@ def load(path):
 
 def main(tsv, png):
     rows = load(tsv)
-    fig, axes = plt.subplots(2, 2, figsize=(12, 9), sharey="row")
+    fig, axes = plt.subplots(2, 2, figsize=(12, 9))
     for col, profile in enumerate(("smooth", "square")):
         for row, (what, label) in enumerate((("forward", "relative L2 error of u(T)"), ("gradient", "relative error of dJ/da"))):
             ax = axes[row][col]
