@@ -12,6 +12,7 @@
 //   mpiexec -n 2 build/advection_amplitude
 //   mpiexec -n 2 build/advection_amplitude -advection_scheme upwind -ts_type cn -ts_dt 0.05 -tao_monitor
 //   mpiexec -n 2 build/advection_amplitude -advection_scheme fd4 -advection_D 0.05 -advection_D_field 1
+//   mpiexec -n 2 build/advection_amplitude -advection_scheme spectral     (FFTW-MPI Fourier differentiation)
 //   build/advection_amplitude -help        lists every option
 #include "flexipde/scene.hpp"
 #include <cmath>

@@ -31,6 +31,7 @@
 //   mpiexec -n 2 build/transport_diffusion -ts_type cn -ts_dt 0.05 -checkpoint_budget 5
 //   mpiexec -n 2 build/transport_diffusion -advection_ic gaussian -advection_ic_width 0.8 -tao_monitor
 //   mpiexec -n 2 build/transport_diffusion -ts_max_time 0.004 -ts_dt 0.001      (optimum on the bound)
+//   mpiexec -n 2 build/transport_diffusion -advection_scheme spectral -ts_type cn -ts_dt 0.05   (FFTW, GMRES)
 //   build/transport_diffusion -help        lists every option (-td_* are this example's)
 #include "flexipde/scene.hpp"
 #include <cmath>
