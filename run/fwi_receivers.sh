@@ -45,3 +45,4 @@ for rec in ends spread; do
   done
 done
 cat "$OUT/table.md"
+/usr/bin/python3 run/plot_fwi_receivers.py "$OUT" docs/fwi_receivers_1d.png
