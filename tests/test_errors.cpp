@@ -65,7 +65,7 @@ TEST(Errors, UnknownModel) {
   EXPECT_FALSE(m);
   EXPECT_EQ(create_model(PETSC_COMM_WORLD, "wave", m), 0);
   EXPECT_TRUE(m);
-  EXPECT_EQ(model_names(), "advection, vlasov, wave");
+  EXPECT_EQ(model_names(), "advection, vlasov, wave, wave2d");
 }
 
 TEST(Errors, BadGridAndModelOptions) {
