@@ -16,11 +16,10 @@
 //      conserved to round-off (x periodic, x-sums of D_x vanish too).
 //   rho_i = hv sum_j f_ij, and E = K (1 - rho) with K the spectral zero-mean antiderivative:
 //      (K s)^_m = s^_m / (i kappa_m) for 0 < |m| < N_x/2, and 0 for the mean (and Nyquist) mode.
-//      K is a real antisymmetric circulant, applied as a sum with its kernel K_l = (2/N_x)
-//      sum_m sin(kappa_m x_l) / kappa_m; K 1 = 0, so E = -K rho. rho is summed over v on each
-//      rank and MPI_Allreduce'd (a length-N_x array); each rank evaluates E only at the x it owns
-//      (O(N_x x owned columns)), which is cheap next to the phase-space stencils for N_x <= 512 and
-//      needs no FFT library.
+//      K is a real antisymmetric circulant with K 1 = 0, so E = -K rho. rho is summed over the v
+//      rows each rank owns and MPI_Allreduce'd (a length-N_x array); every rank then applies K
+//      to the whole of it with a serial real FFT (FFTW, O(N_x log N_x), negligible next to the
+//      phase-space stencils) and keeps the x it owns.
 //
 //   G(f) = -v D_x f + E(f) D_v f
 //   dG/dU d = -v D_x d + E D_v d + dE D_v f,   dE = -hv K S d  (S: sum over v)
@@ -59,6 +58,7 @@
 //           -objective_type functional -objective_functional field_energy
 #include "flexipde/model.hpp"
 #include <algorithm>
+#include <fftw3.h>
 #include <cmath>
 #include <cstring>
 #include <vector>
@@ -163,14 +163,11 @@ public:
       ratio_index_ = params.add("vlasov_temperature_ratio", ParamKind::Scalar, 0.0, d.ratio);
     }
 
-    // Kernel of the zero-mean antiderivative (see the header).
-    K_.assign(nx_, 0.0);
-    const PetscReal L = grid.x1() - grid.x0();
-    for (PetscInt m = 1; 2 * m < nx_; ++m) {
-      const PetscReal kappa = 2 * PETSC_PI * m / L;
-      for (PetscInt l = 0; l < nx_; ++l) K_[l] += 2.0 / nx_ * std::sin(2 * PETSC_PI * m * l / nx_) / kappa;
-    }
+    // The zero-mean antiderivative K by a serial real FFT of length N_x on every rank: the
+    // multiplier 1 / (i kappa_m) for 0 < m < N_x / 2, 0 for the mean and the Nyquist mode.
+    fft_.setup(nx_, grid.x1() - grid.x0());
     rho_.assign(nx_, 0.0);
+    Efull_.assign(nx_, 0.0);
     w_.assign(nx_, 0.0);
     E_.assign(grid.xm(), 0.0);
     Elin_.assign(grid.xm(), 0.0);
@@ -354,18 +351,12 @@ public:
       PetscCall(DMDAVecGetArrayRead(dm_, U_local_, &f));
       PetscCall(field(f, E_));
       PetscCall(DMDAVecRestoreArrayRead(dm_, U_local_, &f));
-      // W = 0.5 h sum_i E_i^2 over all x: the ranks of the first v row each hold a part.
-      PetscReal w = 0;
-      if (g.ys() == 0)
-        for (PetscReal e : E_) w += 0.5 * h_ * e * e;
-      PetscCallMPI(MPI_Allreduce(&w, &W, 1, MPIU_REAL, MPI_SUM, g.comm()));
-      if (dFdU) { // dW/df_ij = h hv (K E)_i: E over all x first
-        std::fill(w_.begin(), w_.end(), 0.0);
-        if (g.ys() == 0)
-          for (PetscInt il = 0; il < g.xm(); ++il) w_[g.xs() + il] = E_[il];
-        PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, w_.data(), (PetscMPIInt)nx_, MPIU_REAL, MPI_SUM, g.comm()));
+      // W = 0.5 h sum_i E_i^2 over all x (every rank holds the whole E after field()).
+      for (PetscReal e : ks_) W += 0.5 * h_ * e * e;
+      if (dFdU) { // dW/df_ij = h hv (K E)_i
+        Efull_ = ks_;
         KE.resize(g.xm());
-        apply_K(w_, KE);
+        apply_K(Efull_, KE);
       }
     }
     if (which == FIELD) {
@@ -526,12 +517,13 @@ private:
     return s / hv_;
   }
 
-  // E at the owned x from the density of f (collective): E = -K rho.
+  // E at the owned x from the density of f (collective): E = -K rho. ks_ is left holding E at
+  // every x.
   PetscErrorCode field(const PetscScalar *const *f, std::vector<PetscReal> &E) {
     PetscFunctionBeginUser;
     PetscCall(density(f, rho_));
+    for (PetscReal &r : rho_) r = -r;
     apply_K(rho_, E);
-    for (PetscReal &e : E) e = -e;
     PetscFunctionReturn(0);
   }
   // rho_i = hv sum_j f_ij for all i, summed over the ranks.
@@ -544,16 +536,11 @@ private:
     PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, rho.data(), (PetscMPIInt)nx_, MPIU_REAL, MPI_SUM, g.comm()));
     PetscFunctionReturn(0);
   }
-  // out_il = (K s)_i for the owned i = xs + il.
-  void apply_K(const std::vector<PetscReal> &s, std::vector<PetscReal> &out) const {
+  // out_il = (K s)_i for the owned i = xs + il; K s over all x is left in ks_.
+  void apply_K(const std::vector<PetscReal> &s, std::vector<PetscReal> &out) {
     const Grid &g = *grid_;
-    for (PetscInt il = 0; il < g.xm(); ++il) {
-      const PetscInt i = g.xs() + il;
-      PetscReal e = 0;
-      for (PetscInt m = 0; m <= i; ++m) e += K_[i - m] * s[m];
-      for (PetscInt m = i + 1; m < nx_; ++m) e += K_[i - m + nx_] * s[m];
-      out[il] = e;
-    }
+    fft_.antiderivative(s.data(), ks_);
+    for (PetscInt il = 0; il < g.xm(); ++il) out[il] = ks_[g.xs() + il];
   }
 
   static PetscErrorCode zero_mult(Mat, Vec, Vec y) { return VecSet(y, 0.0); }
@@ -626,7 +613,49 @@ private:
   PetscReal h_ = 1, hv_ = 1, k_ = 0.5, E_cfl_ = default_E_cfl, E0_max_ = 0, c_diss_ = 0;
   PetscReal alpha_ = 0, vt_ = 1, v0_ = 0, ratio_ = 1;
   PetscInt alpha_index_ = -1, vt_index_ = -1, v0_index_ = -1, ratio_index_ = -1;
-  std::vector<PetscReal> K_, rho_, w_;    // kernel; length-N_x work arrays
+  // Serial real FFT of length N_x for the zero-mean antiderivative K (the same on every rank).
+  struct Antiderivative {
+    PetscInt n = 0;
+    double *in = nullptr;
+    fftw_complex *out = nullptr;
+    fftw_plan forward = nullptr, backward = nullptr;
+    std::vector<PetscReal> inv_kappa; // 1/kappa_m for the kept modes, 0 for the others
+    void setup(PetscInt n_, PetscReal L) {
+      release();
+      n = n_;
+      in = fftw_alloc_real(n);
+      out = fftw_alloc_complex(n / 2 + 1);
+      forward = fftw_plan_dft_r2c_1d((int)n, in, out, FFTW_ESTIMATE);
+      backward = fftw_plan_dft_c2r_1d((int)n, out, in, FFTW_ESTIMATE);
+      inv_kappa.assign(n / 2 + 1, 0.0);
+      for (PetscInt m = 1; 2 * m < n; ++m) inv_kappa[m] = L / (2 * PETSC_PI * m);
+    }
+    // r = K s over all N_x points: (K s)^_m = s^_m / (i kappa_m).
+    void antiderivative(const PetscReal *s, std::vector<PetscReal> &r) {
+      for (PetscInt l = 0; l < n; ++l) in[l] = s[l];
+      fftw_execute(forward);
+      for (PetscInt m = 0; m <= n / 2; ++m) { // (a + ib) / (i kappa) = (b - ia) / kappa, and 1/n
+        const double a = out[m][0], b = out[m][1], c = inv_kappa[m] / n;
+        out[m][0] = b * c;
+        out[m][1] = -a * c;
+      }
+      fftw_execute(backward);
+      r.resize(n);
+      for (PetscInt l = 0; l < n; ++l) r[l] = in[l];
+    }
+    void release() {
+      if (forward) fftw_destroy_plan(forward);
+      if (backward) fftw_destroy_plan(backward);
+      if (in) fftw_free(in);
+      if (out) fftw_free(out);
+      forward = backward = nullptr;
+      in = nullptr;
+      out = nullptr;
+    }
+    ~Antiderivative() { release(); }
+  };
+  Antiderivative fft_;
+  std::vector<PetscReal> rho_, w_, ks_, Efull_; // length-N_x work arrays
   std::vector<PetscReal> E_, Elin_, dE_; // at the owned x: E(U) of rhs, E at the linearisation state, work
   std::vector<PetscReal> dvf_;           // D_v f at the owned points of the linearisation state
   OwnedVec U_local_, X_local_;
