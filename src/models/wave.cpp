@@ -22,8 +22,9 @@
 // (G_u = v, G_v independent of v) is kept.
 //
 //   mpiexec -n 2 ./flexipde -task gradient -wave_c_field 1 -wave_c 0.9
-//   mpiexec -n 2 ./flexipde -task taylor -wave_c_field 1 -wave_c 0.9 -true_wave_c 1.0 -wave_ic zero \
+//   mpiexec -n 2 ./flexipde -task taylor -wave_c_field 1 -wave_c 0.9 -true_wave_c 1.0 -wave_ic zero
 //           -objective_type receivers -survey_sources_x 0.3,0.7 -survey_receivers_spread 0.05,0.95,10 -ts_max_time 1
+//   (one command line)
 #include "flexipde/differentiator.hpp"
 #include "flexipde/model.hpp"
 #include "flexipde/survey.hpp"

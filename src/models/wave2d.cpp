@@ -23,9 +23,10 @@
 // Gaussian exp(-|x - x_c|^2 / w^2) at rest (-wave2d_ic_x, -wave2d_ic_y, -wave2d_ic_width).
 //
 //   mpiexec -n 2 ./flexipde -model wave2d -task forward -da_grid_x 101 -da_grid_y 101 -wave2d_ic pulse
-//   mpiexec -n 2 ./flexipde -model wave2d -task taylor -da_grid_x 41 -da_grid_y 41 -wave2d_c_field 1 \
-//           -wave2d_c 1.0 -true_wave2d_c 1.1 -objective_type receivers -survey_sources_x 0.5 -survey_sources_y 0.3 \
+//   mpiexec -n 2 ./flexipde -model wave2d -task taylor -da_grid_x 41 -da_grid_y 41 -wave2d_c_field 1
+//           -wave2d_c 1.0 -true_wave2d_c 1.1 -objective_type receivers -survey_sources_x 0.5 -survey_sources_y 0.3
 //           -survey_receivers_spread 0.2,0.8,7 -survey_receivers_y 0.7 -ts_max_time 0.6 -ts_dt 2e-3
+//   (one command line)
 #include "flexipde/model.hpp"
 #include "flexipde/survey.hpp"
 #include <cmath>
