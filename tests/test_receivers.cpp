@@ -4,7 +4,8 @@
 //   - the same in 2D (wave2d with its sponge) with Taylor and 1 vs 2 ranks, and the sponge absorbing,
 //   - a parallel run against a serial one (PETSC_COMM_SELF on every rank), two shots,
 //   - the synthetic misfit at the true model: zero to round-off with cn (data at its step states),
-//   - the data file round trip (-survey_data_write, then -survey_data_file gives the same J),
+//   - the data file round trip (-survey_data_write, then -survey_data_file gives the same J), and
+//     receivers from a text file (-survey_receivers_file) against the same ones from a list,
 //   - the discrete delta of a source integrates to one, receivers interpolate linear functions exactly,
 //   - Tikhonov + smoothed TV in 2D (Taylor test of the regularised objective), TV of a step,
 //   - Adam's first two steps against hand-computed values on a quadratic.
@@ -282,6 +283,36 @@ TEST(ReceiverMisfit, DataFileRoundTrip) {
   if (flexipde_test::is_rank0()) std::remove(shared.c_str());
   EXPECT_GT(Jw, 0.0);
   EXPECT_LE(rel_diff(Jw, Jr), 1e-14);
+}
+
+// Receivers from a text file give the same J as the same receivers from -survey_receivers_x.
+TEST(ReceiverMisfit, ReceiversFromFile) {
+  char name[256];
+  std::snprintf(name, sizeof name, "/tmp/flexipde_test_receivers_%d.txt", (int)getpid());
+  MPI_Bcast(name, sizeof name, MPI_CHAR, 0, PETSC_COMM_WORLD);
+  if (flexipde_test::is_rank0()) {
+    FILE *f = std::fopen(name, "w");
+    ASSERT_NE(f, nullptr);
+    std::fprintf(f, "# x\n0.1\n0.45\n\n0.9\n");
+    std::fclose(f);
+  }
+  MPI_Barrier(PETSC_COMM_WORLD);
+  PetscReal J[2];
+  for (int k = 0; k < 2; ++k) {
+    ScopedOptions o;
+    survey_options(o, "rk");
+    (void)PetscOptionsClearValue(nullptr, "-survey_receivers_spread"); // o clears it again at the end
+    if (k == 0) o.set("-survey_receivers_x", "0.1,0.45,0.9");
+    else o.set("-survey_receivers_file", name);
+    SceneProblem sp;
+    PETSC_ASSERT_OK(sp.setup(PETSC_COMM_WORLD));
+    EXPECT_EQ(sp.scene.objective.survey()->receivers(), 3);
+    PETSC_ASSERT_OK(sp.scene.value(sp.p, &J[k]));
+  }
+  MPI_Barrier(PETSC_COMM_WORLD);
+  if (flexipde_test::is_rank0()) std::remove(name);
+  EXPECT_GT(J[0], 0.0);
+  EXPECT_EQ(J[0], J[1]);
 }
 
 // The discrete delta sums to one over all ranks (weights), and R reproduces a linear field.

@@ -18,8 +18,8 @@
 // Data in time. The traces are samples d_k at t_k = k dt_d (k = 0..nt-1); d(t) between them is the
 // cubic Lagrange interpolant through the four nearest samples (exact at the samples). Synthetic
 // data are recorded by the same code at every step of the integrator (dt_d = the simulation's
-// dt): CN (theta endpoint) evaluates r at the step states only, so at the true model the misfit is
-// zero to round-off; RK evaluates it at its stages too, which are not the solution at the stage
+// dt): CN (theta endpoint) and leapfrog evaluate r at the step states only, so at the true model the
+// misfit is zero to round-off; RK evaluates it at its stages too, which are not the solution at the stage
 // times, so the true model leaves a small misfit floor of the order of the time error (documented
 // in docs/fwi_receivers.md).
 //
