@@ -68,7 +68,7 @@ PetscErrorCode Survey::read_positions() {
   // A list option -name v1,v2,... (up to 1024 values).
   auto read_list = [&](MPI_Comm, const char *name, const char *help, std::vector<PetscReal> &out,
                        PetscBool *set) -> PetscErrorCode {
-    PetscReal buf[1024];
+    PetscReal buf[1024] = {0}; // -help shows the first entry
     PetscInt n = 1024;
     PetscFunctionBeginUser;
     PetscCall(PetscOptionsRealArray(name, help, "Survey", buf, &n, set));
