@@ -8,7 +8,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BUILD_DIR=${BUILD_DIR:-build}
-NP=${NP:-1}        # 1 rank is the fastest for 1000 points (2-rank runs give the same numbers)
+NP=${NP:-1}        # 1 rank: the fastest for 1000 points on a busy 2-core machine
 ITS=${ITS:-200}
 ADAM_LR=${ADAM_LR:-3e-3}
 OUT=results/fwi_receivers
