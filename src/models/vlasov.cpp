@@ -25,7 +25,8 @@
 //   dG/dU d = -v D_x d + E D_v d + dE D_v f,   dE = -hv K S d  (S: sum over v)
 //   (dG/dU)^T y = v D_x y + E D_v^T y + hv K w,   w_i = sum_j y_ij (D_v f)_ij   (K^T = -K, D_x^T = -D_x)
 // dG/dU is a MatShell with MultTranspose (no matrix is stored); the model has no parameter in G, so
-// dG/dp = 0. Integrators: explicit -ts_type rk (an implicit one would need -pc_type none).
+// dG/dp = 0. Integrators: -ts_type rk, and cn/theta/beuler (the Simulation solves their linear
+// systems with GMRES on the shell).
 //
 // Initial condition f0 = (1 + alpha cos(k x)) F(v), k = 2 pi m / L (-vlasov_mode m):
 //   -vlasov_ic landau      F = M(v; vt)                                 (defaults k 0.5, alpha 0.01)
