@@ -46,11 +46,12 @@ PetscErrorCode point_stencil(const Grid &grid, PetscReal x, PetscReal y, PointSt
   PetscFunctionReturn(0);
 }
 
-// Values for the second coordinate: one per point, or one for all, or the default.
-static PetscErrorCode expand(MPI_Comm comm, const char *what, std::vector<PetscReal> &y, size_t n, PetscReal dflt) {
+// Values for the second coordinate: one per point, or one for all.
+// In 2D a depth is required: a silent default on the edge would put the points on the Dirichlet wall.
+static PetscErrorCode expand(MPI_Comm comm, const char *what, std::vector<PetscReal> &y, size_t n) {
   PetscFunctionBeginUser;
-  if (y.empty()) y.assign(n, dflt);
-  else if (y.size() == 1) y.assign(n, y[0]);
+  PetscCheck(n == 0 || !y.empty(), comm, PETSC_ERR_ARG_WRONG, "2D survey: give %s (one value, or one per point)", what);
+  if (y.size() == 1) y.assign(n, y[0]);
   PetscCheck(y.size() == n, comm, PETSC_ERR_ARG_SIZ, "%s: give one value or one per point (%zu), got %zu", what, n,
              y.size());
   PetscFunctionReturn(0);
@@ -145,8 +146,8 @@ PetscErrorCode Survey::read_positions() {
   }
   PetscCheck(!rec_x_.empty(), comm_, PETSC_ERR_ARG_WRONG, "The survey has no receivers");
   if (two_d) {
-    PetscCall(expand(comm_, "-survey_receivers_y", rec_y_, rec_x_.size(), grid_->y0()));
-    PetscCall(expand(comm_, "-survey_sources_y", src_y_, src_x_.size(), grid_->y0()));
+    PetscCall(expand(comm_, "-survey_receivers_y", rec_y_, rec_x_.size()));
+    PetscCall(expand(comm_, "-survey_sources_y", src_y_, src_x_.size()));
   } else {
     rec_y_.assign(rec_x_.size(), 0.0);
     src_y_.assign(src_x_.size(), 0.0);
