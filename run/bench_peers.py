@@ -64,11 +64,11 @@ else:
 
 if scale:
     print()
-    print("## Scale: 1D wave, 10^6 points, 20 leapfrog steps")
+    print("## Scale: 1D wave, 10^6 points, 200 leapfrog steps")
     print()
     print("| ranks | parameters | forward (s) | gradient (s) | forward Mpt-updates/s | gradient Mpt-updates/s |")
     print("|---|---|---|---|---|---|")
-    n, steps = 1_000_000, 20
+    n, steps = 1_000_000, 200
     grads = {}
     for np_ in (1, 2):
         for kind, params in (("scalar", 1), ("field", n)):

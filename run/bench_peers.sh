@@ -40,12 +40,12 @@ $MPIEXEC -n 1 "$FLEXIPDE" -task gradient -ts_type rk -ts_rk_type 4 -wave_c_field
 torch_status=0
 "$PYTHON" "$here/peer_torch.py" 1000 5000 5e-4 0.9 "$(( REPS < 5 ? REPS : 5 ))" "$OUT/torch_gradient.txt" > "$OUT/torch.log" || torch_status=$?
 if [ "$SCALE" = 1 ]; then
-  big="-da_grid_x 1000000 -ts_type leapfrog -ts_dt 2.5e-7 -ts_max_time 5e-6 -wave_c 0.9"   # 20 steps
+  big="-da_grid_x 1000000 -ts_type leapfrog -ts_dt 2.5e-7 -ts_max_time 5e-5 -wave_c 0.9"   # 200 steps
   for np in 1 2; do
     $MPIEXEC -n $np "$FLEXIPDE" -task gradient $big -wave_c_field 0 -timing_repeats 5 > "$OUT/big_scalar_np$np.log"
     $MPIEXEC -n $np "$FLEXIPDE" -task gradient $big -wave_c_field 1 -timing_repeats 5 > "$OUT/big_field_np$np.log"
   done
-  "$OUT/reference_leapfrog" 1000000 20 2.5e-7 0.9 5 > "$OUT/reference_big.log"
+  "$OUT/reference_leapfrog" 1000000 200 2.5e-7 0.9 5 > "$OUT/reference_big.log"
 fi
 "$PYTHON" "$here/bench_peers.py" "$OUT" "$torch_status" "$SCALE"
 echo

@@ -28,6 +28,8 @@
 #pragma once
 #include "flexipde/petsc.hpp"
 #include <petscts.h>
+#include <algorithm>
+#include <memory>
 #include <vector>
 
 namespace flexipde {
@@ -93,8 +95,22 @@ PetscErrorCode binomial_trajectory_set_budget(TSTrajectory tj, PetscInt budget);
 // full storage used when no -checkpoint_budget is given. The buffer may be supplied by the caller
 // (the Simulation keeps one across gradients, so it is allocated once).
 #define FLEXIPDE_TSTRAJECTORY_STORE "store"
+// Uninitialised storage that only grows: zero-filling gigabytes of states that are overwritten
+// anyway cost more than the forward sweep of a large grid.
+struct StateBuffer {
+  std::unique_ptr<PetscScalar[]> data;
+  size_t size = 0;
+  // At least n entries; keep = copy the current contents when it moves.
+  void grow(size_t n, bool keep) {
+    if (n <= size) return;
+    std::unique_ptr<PetscScalar[]> fresh(new PetscScalar[n]);
+    if (keep && size) std::copy(data.get(), data.get() + size, fresh.get());
+    data = std::move(fresh);
+    size = n;
+  }
+};
 PetscErrorCode register_store_trajectory();
-PetscErrorCode store_trajectory_use_buffer(TSTrajectory tj, std::vector<PetscScalar> *buffer);
+PetscErrorCode store_trajectory_use_buffer(TSTrajectory tj, StateBuffer *buffer);
 PetscInt64 store_trajectory_recomputed(TSTrajectory tj);
 PetscInt store_trajectory_states(TSTrajectory tj);
 

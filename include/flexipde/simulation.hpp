@@ -92,7 +92,7 @@ private:
   SimulationStats stats_;
   CheckpointStats checkpoint_stats_;
   // Full-storage trajectory ("store"): kept between gradients, so it is allocated once.
-  std::vector<PetscScalar> trajectory_buffer_;
+  StateBuffer trajectory_buffer_;
 };
 
 } // namespace flexipde

@@ -21,8 +21,8 @@ namespace flexipde {
 namespace {
 
 struct StoreTrajectory {
-  std::vector<PetscScalar> own;
-  std::vector<PetscScalar> *buffer = &own;
+  StateBuffer own;
+  StateBuffer *buffer = &own;
   std::vector<PetscReal> times;
   PetscInt nlocal = 0, last = -1;
   PetscInt64 recomputed = 0;
@@ -34,7 +34,7 @@ PetscErrorCode copy_out(const StoreTrajectory &st, PetscInt k, Vec X) {
   PetscScalar *x;
   PetscFunctionBegin;
   PetscCall(VecGetArrayWrite(X, &x));
-  std::memcpy(x, st.buffer->data() + (size_t)k * st.nlocal, sizeof(PetscScalar) * st.nlocal);
+  std::memcpy(x, st.buffer->data.get() + (size_t)k * st.nlocal, sizeof(PetscScalar) * st.nlocal);
   PetscCall(VecRestoreArrayWrite(X, &x));
   PetscFunctionReturn(0);
 }
@@ -47,7 +47,7 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
   PetscCall(VecGetLocalSize(ts->vec_sol, &st->nlocal));
   if (ts->max_steps < PETSC_MAX_INT) { // reserve the planned trajectory once
     const size_t need = (size_t)(ts->max_steps + 1) * st->nlocal;
-    if (st->buffer->size() < need) st->buffer->resize(need);
+    st->buffer->grow(need, false);
     st->times.reserve(ts->max_steps + 1);
   }
   st->times.clear();
@@ -66,9 +66,9 @@ PetscErrorCode store_set(TSTrajectory tj, TS ts, PetscInt stepnum, PetscReal tim
   st->last = stepnum;
   if (ts->reason) PetscFunctionReturn(0); // the final state stays in the TS for the first adjoint step
   const size_t need = (size_t)(stepnum + 1) * st->nlocal;
-  if (st->buffer->size() < need) st->buffer->resize(std::max(need, 2 * st->buffer->size()));
+  if (st->buffer->size < need) st->buffer->grow(std::max(need, 2 * st->buffer->size), true);
   PetscCall(VecGetArrayRead(X, &x));
-  std::memcpy(st->buffer->data() + (size_t)stepnum * st->nlocal, x, sizeof(PetscScalar) * st->nlocal);
+  std::memcpy(st->buffer->data.get() + (size_t)stepnum * st->nlocal, x, sizeof(PetscScalar) * st->nlocal);
   PetscCall(VecRestoreArrayRead(X, &x));
   PetscFunctionReturn(0);
 }
@@ -139,7 +139,7 @@ PetscErrorCode register_store_trajectory() {
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode store_trajectory_use_buffer(TSTrajectory tj, std::vector<PetscScalar> *buffer) {
+PetscErrorCode store_trajectory_use_buffer(TSTrajectory tj, StateBuffer *buffer) {
   PetscBool match;
   PetscFunctionBegin;
   PetscCall(PetscObjectTypeCompare((PetscObject)tj, FLEXIPDE_TSTRAJECTORY_STORE, &match));
