@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The main job: install what is missing, build, run the seed full-waveform inversions on 2 MPI
-# ranks, write HDF5 results, PNG plots and a summary into results/.
+# ranks (with the seed's own integrator, the leapfrog), a receiver-based 1D inversion and the 2D
+# demo, and write HDF5 results (+ XDMF for ParaView), PNG plots and a summary into results/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash run/setup.sh
@@ -13,9 +14,11 @@ BIN=build/flexipde
 mkdir -p results
 log() { echo "== $*"; }
 
-# Seed scene (driver defaults): n = 1000 on [0,1], u = 0 at both ends, dt = 5e-4, T = 2.5, RK4,
-# travelling Gaussian u0 = exp(-(5(x-0.5))^2), v0 = -c u0'.
-BOUNDS="-inv_lower 0.5 -inv_upper 2 -tao_type blmvm -tao_monitor"
+# Seed scene (driver defaults): n = 1000 on [0,1], u = 0 at both ends, dt = 5e-4, T = 2.5,
+# travelling Gaussian u0 = exp(-(5(x-0.5))^2), v0 = -c u0', integrated with the leapfrog
+# (Stormer-Verlet, the seed's scheme; -ts_type rk runs the same cases with RK4).
+TS=${TS:--ts_type leapfrog}
+BOUNDS="$TS -inv_lower 0.5 -inv_upper 2 -tao_type blmvm -tao_monitor"
 
 log "Case 1a: constant c, data from c = 1.0, BLMVM started at c = 0.8 (the seed's start)"
 $MPI $BIN -task invert -wave_c 0.8 -true_wave_c 1.0 $BOUNDS -output results/fwi_constant_from_0.8.h5 \
@@ -24,7 +27,7 @@ log "Case 1b: the same data, start chosen by a 151-point scan of the bounds, the
 $MPI $BIN -task invert -wave_c 0.8 -true_wave_c 1.0 $BOUNDS -inv_scan 151 \
   -output results/fwi_constant.h5 | tee results/fwi_constant.log
 log "Case 1c: objective landscape J(c) of the seed scene"
-$MPI $BIN -task landscape -true_wave_c 1.0 -landscape_lower 0.5 -landscape_upper 1.5 -landscape_n 101 \
+$MPI $BIN -task landscape $TS -true_wave_c 1.0 -landscape_lower 0.5 -landscape_upper 1.5 -landscape_n 101 \
   -output results/fwi_landscape.h5 | tail -n 3
 
 LINEAR="-wave_c_field 1 -true_wave_c_profile linear -true_wave_c_left 0.9 -true_wave_c_right 1.0 \
@@ -36,8 +39,19 @@ log "Case 2 with LMVM (no bounds)"
 $MPI $BIN -task invert $LINEAR -tao_type lmvm -tao_max_it ${MAX_IT:-500} -inv_tikhonov ${TIKHONOV:-1e-2} \
   -output results/fwi_linear_lmvm.h5 | tee results/fwi_linear_lmvm.log | grep -v " TAO, "
 
+log "Case 3: the linear profile from traces: 3 Ricker shots, 21 receivers along the domain, BLMVM"
+RECEIVERS="-ts_type leapfrog -wave_ic zero -objective_type receivers -survey_sources_x 0.02,0.5,0.98 -survey_ricker_f0 5
+  -survey_receivers_spread 0.002,0.998,21 -inv_lower 0.5 -inv_upper 2 -inv_tikhonov 1e-6"
+$MPI $BIN -task gradient $LINEAR $RECEIVERS -survey_data_write results/fwi_receivers_data.h5 > /dev/null
+$MPI $BIN -task invert $LINEAR $RECEIVERS -survey_data_file results/fwi_receivers_data.h5 -tao_max_it ${RECEIVER_IT:-100} \
+  -output results/fwi_receivers_blmvm.h5 | tee results/fwi_receivers_blmvm.log | grep -v " TAO, "
+
+log "Case 4: 2D layered model with a slow disc, 4 shots, 40 receivers, sponge, BLMVM + TV (examples/fwi_2d)"
+$MPI build/fwi_2d -tao_max_it ${FWI2D_IT:-40} -output results/fwi_2d.h5 | tee results/fwi_2d.log | grep -v " TAO, "
+"$PYTHON" run/plot_fwi_2d.py results/fwi_2d.h5 results/fwi_2d
+
 log "Plots"
 "$PYTHON" run/plot_fwi.py results/fwi_constant_from_0.8.h5 results/fwi_constant.h5 results/fwi_linear_blmvm.h5 \
-  results/fwi_linear_lmvm.h5 -o results
+  results/fwi_linear_lmvm.h5 results/fwi_receivers_blmvm.h5 -o results
 "$PYTHON" run/summarise_fwi.py results > results/summary.md
 cat results/summary.md

@@ -40,6 +40,7 @@ def main():
         ("fwi_constant.h5", "1b constant c, 151-point scan + BLMVM"),
         ("fwi_linear_blmvm.h5", "2 linear c(x), BLMVM, bounds [0.5,2]"),
         ("fwi_linear_lmvm.h5", "2 linear c(x), LMVM"),
+        ("fwi_receivers_blmvm.h5", "3 linear c(x) from traces: 3 shots, 21 receivers, BLMVM"),
     ]
     print("# Seed FWI results (written by run/main.sh)\n")
     print("| case | iterations | initial misfit | final misfit | parameter RMSE | recovered |")
@@ -70,6 +71,11 @@ def main():
         mins = [i for i in range(1, len(J) - 1) if J[i] <= J[i - 1] and J[i] <= J[i + 1]]
         print("\nObjective landscape (results/fwi_landscape.png): local minima of J(c) on the scan at c = "
               + ", ".join("%.3f (J = %.2e)" % (c[i], J[i]) for i in mins) + ".")
+    log2d = os.path.join(d, "fwi_2d.log")
+    if os.path.exists(log2d):
+        with open(log2d) as f:
+            lines = [l.strip() for l in f if l.startswith("fwi_2d:") or l.startswith("recovered RMSE")]
+        print("\nCase 4, 2D (results/fwi_2d_*.png): " + " ".join(lines))
 
 
 if __name__ == "__main__":
