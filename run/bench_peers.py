@@ -83,3 +83,23 @@ if scale:
         print("- %d rank(s): gradient with 10^6 parameters / with 1 parameter = %.2f"
               % (np_, grads[(np_, "field")] / grads[(np_, "scalar")]))
     print("- 1 rank, 10^6 parameters: flexipde gradient / hand-written = %.2f" % (grads[(1, "field")] / ref_big))
+    print()
+    print("## Scale: 2D wave, 2000 x 2000 points, 100 leapfrog steps (no sponge)")
+    print()
+    print("| ranks | parameters | forward (s) | gradient (s) | gradient / forward | forward Mpt-updates/s | gradient Mpt-updates/s |")
+    print("|---|---|---|---|---|---|---|")
+    n, steps = 2000 * 2000, 100
+    g2 = {}
+    for np_ in (1, 2):
+        for kind, params in (("scalar", 1), ("field", n)):
+            fwd, _, grad, _ = timing(read("big2d_%s_np%d.log" % (kind, np_)))
+            g2[(np_, kind)] = grad
+            print("| %d | %d | %.3f | %.3f | %.2f | %.1f | %.1f |" % (np_, params, fwd, grad, grad / fwd,
+                                                                   n * steps / fwd / 1e6, n * steps / grad / 1e6))
+    _, ref2d, _ = peer(read("reference_big2d.log"))
+    print("| hand-written (1 core) | %d | | %.3f | | | %.1f |" % (n, ref2d, n * steps / ref2d / 1e6))
+    print()
+    for np_ in (1, 2):
+        print("- %d rank(s): gradient with 4e6 parameters / with 1 parameter = %.2f"
+              % (np_, g2[(np_, "field")] / g2[(np_, "scalar")]))
+    print("- 1 rank, 4e6 parameters: flexipde gradient / hand-written = %.2f" % (g2[(1, "field")] / ref2d))

@@ -7,7 +7,8 @@
 #   torch      run/peer_torch.py: the same scheme in PyTorch autograd (python3-torch; skipped if absent)
 # The gradients are compared entry by entry (flexipde vs reference must agree to <= 1e-8).
 # Then scale: forward and gradient throughput (grid-point updates per second) of the 1D wave with
-# 10^6 points against the reference, and gradient time with 1 versus 10^6 parameters, on 1 and 2 ranks.
+# 10^6 points and the 2D wave with 2000^2 points against hand-written loops (run/reference_leapfrog*.c),
+# and gradient time with 1 versus 10^6 (4e6) parameters, on 1 and 2 ranks.
 #
 #   bash run/bench_peers.sh              # markdown on stdout, raw logs in $OUT
 #   REPS=5 SCALE=0 bash run/bench_peers.sh
@@ -46,6 +47,15 @@ if [ "$SCALE" = 1 ]; then
     $MPIEXEC -n $np "$FLEXIPDE" -task gradient $big -wave_c_field 1 -timing_repeats 5 > "$OUT/big_field_np$np.log"
   done
   "$OUT/reference_leapfrog" 1000000 200 2.5e-7 0.9 5 > "$OUT/reference_big.log"
+  # 2D: 2000 x 2000 points, 100 leapfrog steps, no sponge (the leapfrog's form), c scalar or a 4e6 field
+  cc -O2 -o "$OUT/reference_leapfrog_2d" "$here/reference_leapfrog_2d.c" -lm
+  big2d="-model wave2d -da_grid_x 2000 -da_grid_y 2000 -ts_type leapfrog -wave2d_sponge_width 0 -wave2d_ic pulse
+         -ts_dt 2e-4 -ts_max_time 2e-2 -wave2d_c 0.9 -true_wave2d_c 1"
+  for np in 1 2; do
+    $MPIEXEC -n $np "$FLEXIPDE" -task gradient $big2d -wave2d_c_field 0 -timing_repeats 3 > "$OUT/big2d_scalar_np$np.log"
+    $MPIEXEC -n $np "$FLEXIPDE" -task gradient $big2d -wave2d_c_field 1 -timing_repeats 3 > "$OUT/big2d_field_np$np.log"
+  done
+  "$OUT/reference_leapfrog_2d" 2000 100 2e-4 0.9 3 > "$OUT/reference_big2d.log"
 fi
 "$PYTHON" "$here/bench_peers.py" "$OUT" "$torch_status" "$SCALE"
 echo
