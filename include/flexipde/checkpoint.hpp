@@ -113,6 +113,7 @@ PetscErrorCode register_store_trajectory();
 PetscErrorCode store_trajectory_use_buffer(TSTrajectory tj, StateBuffer *buffer);
 PetscInt64 store_trajectory_recomputed(TSTrajectory tj);
 PetscInt store_trajectory_states(TSTrajectory tj);
+bool store_trajectory_keeps_stages(TSTrajectory tj); // each step's stages stored too: nothing re-run
 
 // Called on a TS before TSSetFromOptions: saves the trajectory for TSAdjointSolve as full storage
 // (PETSc's memory trajectory) or, with -checkpoint_budget, as a binomial checkpointing

@@ -412,7 +412,7 @@ PetscErrorCode checkpoint_statistics(TS ts, PetscInt step, PetscReal, Vec, Petsc
     stats->stored_peak = store_trajectory_states(tj);
     stats->stores = stats->stored_peak;
     stats->recomputed_steps = store_trajectory_recomputed(tj);
-    stats->optimal_recomputations = is_leapfrog(ts) ? 0 : stats->steps - 1;
+    stats->optimal_recomputations = is_leapfrog(ts) || store_trajectory_keeps_stages(tj) ? 0 : stats->steps - 1;
   } else if (binomial) {
     const BinomialTrajectory *bt = context(tj);
     stats->budget = bt->budget;

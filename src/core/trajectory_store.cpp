@@ -26,16 +26,36 @@ struct StoreTrajectory {
   std::vector<PetscReal> times;
   PetscInt nlocal = 0, last = -1;
   PetscInt64 recomputed = 0;
+  // Keep each step's stages too (slot = U_k and the stages of step k-1 -> k), so that nothing is
+  // re-run in the adjoint: -checkpoint_keep_stages; by default when the buffer stays below
+  // -checkpoint_keep_stages_max_mb per rank. The leapfrog never needs it (its stage is U_{k-1}).
+  PetscBool keep_stages_option = PETSC_TRUE, keep_stages_set = PETSC_FALSE;
+  PetscReal keep_stages_max_mb = 2048;
+  bool keep_stages = false;
+  PetscInt nstages = 0, slot = 0; // entries per step: (1 + nstages) * nlocal when keeping stages
 };
 
 StoreTrajectory *context(TSTrajectory tj) { return static_cast<StoreTrajectory *>(tj->data); }
 
-PetscErrorCode copy_out(const StoreTrajectory &st, PetscInt k, Vec X) {
+PetscScalar *at(const StoreTrajectory &st, PetscInt k, PetscInt part) {
+  return st.buffer->data.get() + (size_t)k * st.slot + (size_t)part * st.nlocal;
+}
+
+PetscErrorCode copy_out(const StoreTrajectory &st, PetscInt k, PetscInt part, Vec X) {
   PetscScalar *x;
   PetscFunctionBegin;
   PetscCall(VecGetArrayWrite(X, &x));
-  std::memcpy(x, st.buffer->data.get() + (size_t)k * st.nlocal, sizeof(PetscScalar) * st.nlocal);
+  std::memcpy(x, at(st, k, part), sizeof(PetscScalar) * st.nlocal);
   PetscCall(VecRestoreArrayWrite(X, &x));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode copy_in(const StoreTrajectory &st, PetscInt k, PetscInt part, Vec X) {
+  const PetscScalar *x;
+  PetscFunctionBegin;
+  PetscCall(VecGetArrayRead(X, &x));
+  std::memcpy(at(st, k, part), x, sizeof(PetscScalar) * st.nlocal);
+  PetscCall(VecRestoreArrayRead(X, &x));
   PetscFunctionReturn(0);
 }
 
@@ -45,9 +65,19 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
   PetscCheck(ts->vec_sol, PetscObjectComm((PetscObject)tj), PETSC_ERR_ORDER,
              "TSTrajectory store: set the TS solution before the solve");
   PetscCall(VecGetLocalSize(ts->vec_sol, &st->nlocal));
+  PetscCall(TSGetStages(ts, &st->nstages, nullptr));
+  st->keep_stages = false;
+  if (!is_leapfrog(ts) && st->nstages > 0 && st->keep_stages_option) {
+    if (st->keep_stages_set) st->keep_stages = true;
+    else if (ts->max_steps < PETSC_MAX_INT) { // by default only within the memory cap, decided alike on every rank
+      PetscReal mb = (PetscReal)(ts->max_steps + 1) * (1 + st->nstages) * st->nlocal * sizeof(PetscScalar) / 1048576.0;
+      PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &mb, 1, MPIU_REAL, MPI_MAX, PetscObjectComm((PetscObject)tj)));
+      st->keep_stages = mb <= st->keep_stages_max_mb;
+    }
+  }
+  st->slot = (st->keep_stages ? 1 + st->nstages : 1) * st->nlocal;
   if (ts->max_steps < PETSC_MAX_INT) { // reserve the planned trajectory once
-    const size_t need = (size_t)(ts->max_steps + 1) * st->nlocal;
-    st->buffer->grow(need, false);
+    st->buffer->grow((size_t)(ts->max_steps + 1) * st->slot, false);
     st->times.reserve(ts->max_steps + 1);
   }
   st->times.clear();
@@ -58,18 +88,20 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
 
 PetscErrorCode store_set(TSTrajectory tj, TS ts, PetscInt stepnum, PetscReal time, Vec X) {
   StoreTrajectory *st = context(tj);
-  const PetscScalar *x;
   PetscFunctionBegin;
   PetscCheck(stepnum == (PetscInt)st->times.size(), PetscObjectComm((PetscObject)tj), PETSC_ERR_PLIB,
              "TSTrajectory store: step %" PetscInt_FMT " stored out of order", stepnum);
   st->times.push_back(time);
   st->last = stepnum;
   if (ts->reason) PetscFunctionReturn(0); // the final state stays in the TS for the first adjoint step
-  const size_t need = (size_t)(stepnum + 1) * st->nlocal;
+  const size_t need = (size_t)(stepnum + 1) * st->slot;
   if (st->buffer->size < need) st->buffer->grow(std::max(need, 2 * st->buffer->size), true);
-  PetscCall(VecGetArrayRead(X, &x));
-  std::memcpy(st->buffer->data.get() + (size_t)stepnum * st->nlocal, x, sizeof(PetscScalar) * st->nlocal);
-  PetscCall(VecRestoreArrayRead(X, &x));
+  PetscCall(copy_in(*st, stepnum, 0, X));
+  if (st->keep_stages && stepnum > 0) {
+    Vec *Y;
+    PetscCall(TSGetStages(ts, nullptr, &Y));
+    for (PetscInt i = 0; i < st->nstages; ++i) PetscCall(copy_in(*st, stepnum, 1 + i, Y[i]));
+  }
   PetscFunctionReturn(0);
 }
 
@@ -83,17 +115,19 @@ PetscErrorCode store_get(TSTrajectory tj, TS ts, PetscInt k, PetscReal *t) {
   PetscCheck(k <= st->last, PetscObjectComm((PetscObject)tj), PETSC_ERR_ARG_OUTOFRANGE,
              "TSTrajectory store: step %" PetscInt_FMT " was never computed (%" PetscInt_FMT " steps)", k, st->last);
   if (k < st->last) { // the last step's stages are still in the TS
-    if (is_leapfrog(ts)) {
+    if (is_leapfrog(ts) || st->keep_stages) {
       Vec *Y;
-      PetscInt ns;
-      PetscCall(TSGetStages(ts, &ns, &Y));
-      PetscCall(copy_out(*st, k - 1, Y[0]));
-      PetscCall(copy_out(*st, k, ts->vec_sol));
+      PetscCall(TSGetStages(ts, nullptr, &Y));
+      if (is_leapfrog(ts)) PetscCall(copy_out(*st, k - 1, 0, Y[0])); // its stage is U_{k-1}
+      else
+        for (PetscInt i = 0; i < st->nstages; ++i)
+          if (Y[i] != ts->vec_sol) PetscCall(copy_out(*st, k, 1 + i, Y[i]));
+      PetscCall(copy_out(*st, k, 0, ts->vec_sol));
       ts->ptime = st->times[k];
       ts->ptime_prev = st->times[k - 1];
     } else {
       const TSConvergedReason reason = ts->reason;
-      PetscCall(copy_out(*st, k - 1, ts->vec_sol));
+      PetscCall(copy_out(*st, k - 1, 0, ts->vec_sol));
       ts->ptime = st->times[k - 1];
       ts->time_step = st->times[k] - st->times[k - 1];
       PetscCall(TSSetStepNumber(ts, k - 1));
@@ -112,6 +146,20 @@ PetscErrorCode store_get(TSTrajectory tj, TS ts, PetscInt k, PetscReal *t) {
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode store_setfromoptions(TSTrajectory tj, PetscOptionItems *PetscOptionsObject) {
+  StoreTrajectory *st = context(tj);
+  PetscFunctionBegin;
+  PetscOptionsHeadBegin(PetscOptionsObject, "Full-storage trajectory (flexipde)");
+  PetscCall(PetscOptionsBool("-checkpoint_keep_stages",
+                             "Full storage keeps every step's stages too, so the adjoint re-runs no step (default: "
+                             "when the buffer fits -checkpoint_keep_stages_max_mb)",
+                             "store", st->keep_stages_option, &st->keep_stages_option, &st->keep_stages_set));
+  PetscCall(PetscOptionsReal("-checkpoint_keep_stages_max_mb", "Largest stage-keeping buffer per rank chosen by default (MB)",
+                             "store", st->keep_stages_max_mb, &st->keep_stages_max_mb, nullptr));
+  PetscOptionsHeadEnd();
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode store_destroy(TSTrajectory tj) {
   PetscFunctionBegin;
   delete context(tj);
@@ -125,6 +173,7 @@ PetscErrorCode store_create(TSTrajectory tj, TS) {
   tj->ops->set = store_set;
   tj->ops->get = store_get;
   tj->ops->setup = store_setup;
+  tj->ops->setfromoptions = store_setfromoptions;
   tj->ops->destroy = store_destroy;
   tj->usehistory = PETSC_FALSE;
   tj->solution_only = PETSC_TRUE;
@@ -149,5 +198,6 @@ PetscErrorCode store_trajectory_use_buffer(TSTrajectory tj, StateBuffer *buffer)
 
 PetscInt64 store_trajectory_recomputed(TSTrajectory tj) { return context(tj)->recomputed; }
 PetscInt store_trajectory_states(TSTrajectory tj) { return context(tj)->last; } // U_0 .. U_{n-1}
+bool store_trajectory_keeps_stages(TSTrajectory tj) { return context(tj)->keep_stages; }
 
 } // namespace flexipde
