@@ -41,22 +41,18 @@ PetscErrorCode kick(const Leapfrog &lf, Vec U, Vec F, PetscReal s) {
   PetscFunctionReturn(0);
 }
 
-// q += s * p (the drift). Its transpose on the adjoint: lambda_p += s * lambda_q.
-PetscErrorCode drift(const Leapfrog &lf, Vec U, PetscReal s, bool transpose) {
-  PetscScalar *u;
+// The drift's transpose on the adjoint: lambda_p += s * lambda_q (the forward drift is fused into
+// start_kick_drift).
+PetscErrorCode drift_transpose(const Leapfrog &lf, Vec lambda, PetscReal s) {
+  PetscScalar *l;
   PetscInt n;
   PetscFunctionBegin;
-  PetscCall(VecGetLocalSize(U, &n));
-  PetscCall(VecGetArray(U, &u));
+  PetscCall(VecGetLocalSize(lambda, &n));
+  PetscCall(VecGetArray(lambda, &l));
   const PetscInt m = lf.pairs, d = lf.dof;
-  if (!transpose) {
-    for (PetscInt i = 0; i < n; i += d)
-      for (PetscInt c = 0; c < m; ++c) u[i + c] += s * u[i + m + c];
-  } else {
-    for (PetscInt i = 0; i < n; i += d)
-      for (PetscInt c = 0; c < m; ++c) u[i + m + c] += s * u[i + c];
-  }
-  PetscCall(VecRestoreArray(U, &u));
+  for (PetscInt i = 0; i < n; i += d)
+    for (PetscInt c = 0; c < m; ++c) l[i + m + c] += s * l[i + c];
+  PetscCall(VecRestoreArray(lambda, &l));
   PetscFunctionReturn(0);
 }
 
@@ -265,7 +261,7 @@ PetscErrorCode TSAdjointStep_Leapfrog(TS ts) {
   const PetscReal dt = -ts->time_step, tk = ts->ptime;
   PetscFunctionBegin;
   if (ts->adjoint_steps == 0) PetscCall(adjoint_level(ts, tk, ts->vec_sol, 0, 0.5 * dt, 0.5 * dt));
-  for (PetscInt k = 0; k < ts->numcost; ++k) PetscCall(drift(*lf, ts->vecs_sensi[k], dt, true));
+  for (PetscInt k = 0; k < ts->numcost; ++k) PetscCall(drift_transpose(*lf, ts->vecs_sensi[k], dt));
   // level k-1: the right half-kick of this step, then (except at t_0) the left one of the step before
   PetscCall(adjoint_level(ts, tk - dt, lf->Y0, 0.5 * dt, ts->steps == 0 ? 0.5 * dt : dt, ts->steps == 0 ? 0 : 0.5 * dt));
   PetscFunctionReturn(0);
