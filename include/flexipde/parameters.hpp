@@ -43,6 +43,8 @@ public:
   // Fill / read field k from / into a grid-shaped Vec (dof = 1 on grid.dm()).
   PetscErrorCode set_field(Vec p, PetscInt k, Vec field) const;
   PetscErrorCode get_field(Vec p, PetscInt k, Vec field) const;
+  // Parameter k on the grid, whatever its kind: a field as get_field, a scalar at every point.
+  PetscErrorCode as_field(Vec p, PetscInt k, Vec field) const;
   PetscErrorCode set_scalar(Vec p, PetscInt k, PetscReal value) const;
   // Gradient accumulation (collective). add_local_sum: grad[k] += sum over ranks of `local`, for
   // a scalar. add_pointwise: g holds one value per owned grid point; a field takes it entry by

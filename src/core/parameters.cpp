@@ -116,6 +116,18 @@ PetscErrorCode Parameters::set_field(Vec p, PetscInt k, Vec field) const {
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode Parameters::as_field(Vec p, PetscInt k, Vec field) const {
+  PetscFunctionBeginUser;
+  if (info_[k].kind == ParamKind::Field) {
+    PetscCall(get_field(p, k, field));
+  } else {
+    PetscReal v;
+    PetscCall(scalar(p, k, &v));
+    PetscCall(VecSet(field, v));
+  }
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode Parameters::get_field(Vec p, PetscInt k, Vec field) const {
   PetscFunctionBeginUser;
   PetscCheck(info_[k].kind == ParamKind::Field, PETSC_COMM_SELF, PETSC_ERR_ARG_WRONG, "%s is not a field",

@@ -88,13 +88,7 @@ public:
 
   PetscErrorCode set_parameters(Vec p) override {
     PetscFunctionBeginUser;
-    if (c_field_) {
-      PetscCall(params_->get_field(p, c_index_, c_));
-    } else {
-      PetscReal c;
-      PetscCall(params_->scalar(p, c_index_, &c));
-      PetscCall(VecSet(c_, c));
-    }
+    PetscCall(params_->as_field(p, c_index_, c_));
     PetscReal cmin;
     PetscCall(VecMin(c_, nullptr, &cmin));
     PetscCheck(cmin > 0, grid_->comm(), PETSC_ERR_ARG_OUTOFRANGE, "Wave speed must be positive, found c = %g", (double)cmin);
