@@ -40,5 +40,11 @@ PetscErrorCode register_leapfrog_ts();
 // Number m of position/velocity pairs per grid point (components 0..m-1 and m..2m-1).
 PetscErrorCode leapfrog_set_pairs(TS ts, PetscInt m);
 bool is_leapfrog(TS ts);
+PetscInt leapfrog_pairs(TS ts); // m, or 0 for another TS type
+// Optional fused adjoint kick at one time level (Model::second_order_adjoint):
+//   lambda_q += w (da/dq)^T lambda_p,  mu += w (da/dtheta)^T lambda_p  (mu null: no parameters).
+// When set, the adjoint calls it instead of computing and applying the RHS Jacobians.
+using LeapfrogAdjointKick = PetscErrorCode (*)(void *ctx, PetscReal t, Vec U, Vec lambda, PetscReal w, Vec mu);
+PetscErrorCode leapfrog_set_adjoint_kick(TS ts, LeapfrogAdjointKick kick, void *ctx);
 
 } // namespace flexipde

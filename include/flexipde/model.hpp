@@ -62,6 +62,16 @@ public:
   // components 0..m-1 are positions q and m..2m-1 their velocities p, with G_q = p exactly and G_p
   // independent of p (it may depend on t, q and the parameters). 0 when the model has no such form.
   virtual PetscInt second_order_pairs() const { return 0; }
+  // Optional, for second-order models: the leapfrog adjoint's work at one time level fused into one
+  // sweep without any matrix: at state U,
+  //   lambda_q += w (dG_p/dq)^T lambda_p   and, unless mu is null,   mu += w (dG_p/dtheta)^T lambda_p
+  // (lambda_p read, lambda_q updated in place). Without it the integrator uses rhs_jacobian and
+  // rhs_jacobian_p with their transposes: the same numbers in more passes.
+  virtual bool has_second_order_adjoint() const { return false; }
+  virtual PetscErrorCode second_order_adjoint(PetscReal t, Vec U, Vec lambda, PetscReal w, Vec mu) {
+    (void)t, (void)lambda, (void)w, (void)mu;
+    SETERRQ(PetscObjectComm((PetscObject)U), PETSC_ERR_SUP, "Model %s has no fused second-order adjoint", name());
+  }
   // Point sources (survey.hpp): a model that takes them adds the source's forcing density to G (the
   // wave: to v_t) from then on; null removes it. The forcing depends on t only, never on U or p.
   virtual bool accepts_point_source() const { return false; }

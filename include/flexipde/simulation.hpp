@@ -67,9 +67,11 @@ private:
   static PetscErrorCode rhs_cb(TS, PetscReal, Vec, Vec, void *);
   static PetscErrorCode rhs_jacobian_cb(TS, PetscReal, Vec, Mat, Mat, void *);
   static PetscErrorCode rhs_jacobian_p_cb(TS, PetscReal, Vec, Mat, void *);
+  static PetscErrorCode adjoint_kick_cb(void *, PetscReal, Vec, Vec, PetscReal, Vec);
   PetscErrorCode check_finite(Vec U, const char *what);
   static PetscErrorCode blowup_monitor(TS, PetscInt, PetscReal, Vec, void *);
   PetscInt blowup_every_ = 100;
+  PetscBool fused_adjoint_ = PETSC_TRUE; // -leapfrog_fused_adjoint: the model's fused kick when it has one
   PetscErrorCode finish_solve(TS ts);
   bool adaptive_ = false;
 

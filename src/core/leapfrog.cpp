@@ -1,5 +1,6 @@
 // The leapfrog TS type and its adjoint; the scheme and its transpose are derived in leapfrog.hpp.
 #include "flexipde/leapfrog.hpp"
+#include "flexipde/checkpoint.hpp" // FLEXIPDE_TSTRAJECTORY_STORE
 #include <petsc/private/petscimpl.h> // PetscObjectStateGet
 #include <petsc/private/tsimpl.h>
 
@@ -20,9 +21,25 @@ struct Leapfrog {
   // r(t_{k+1}, U_{k+1}) of the last forward-integral call, reused by the next step as its start.
   Vec r_end = nullptr;
   PetscInt r_end_step = -1;
+  // the model's fused adjoint kick, when it has one
+  LeapfrogAdjointKick adjoint_kick = nullptr;
+  void *adjoint_kick_ctx = nullptr;
+  // Whether this solve's steps must leave U_k in Y0: for a trajectory that stores stages or re-runs
+  // steps (PETSc's, binomial checkpointing). Plain forward solves and the "store" trajectory (which
+  // hands the adjoint U_{k-1} itself) skip the copy, a third of a step's memory traffic.
+  bool copy_stage = true;
 };
 
 Leapfrog *data(TS ts) { return static_cast<Leapfrog *>(ts->data); }
+
+// The per-point loops below take the number of pairs M as a template argument when it is 1 (the
+// wave equations), so that the compiler sees fixed strides; M = 0 means "m at run time".
+template <int M>
+void kick_loop(PetscScalar *__restrict u, const PetscScalar *__restrict f, PetscInt n, PetscInt m_rt, PetscReal s) {
+  const PetscInt m = M ? M : m_rt, d = 2 * m;
+  for (PetscInt i = 0; i < n; i += d)
+    for (PetscInt c = m; c < d; ++c) u[i + c] += s * f[i + c];
+}
 
 // p += s * F_p on every grid point (the kick).
 PetscErrorCode kick(const Leapfrog &lf, Vec U, Vec F, PetscReal s) {
@@ -33,12 +50,18 @@ PetscErrorCode kick(const Leapfrog &lf, Vec U, Vec F, PetscReal s) {
   PetscCall(VecGetLocalSize(U, &n));
   PetscCall(VecGetArray(U, &u));
   PetscCall(VecGetArrayRead(F, &f));
-  const PetscInt m = lf.pairs, d = lf.dof;
-  for (PetscInt i = 0; i < n; i += d)
-    for (PetscInt c = m; c < d; ++c) u[i + c] += s * f[i + c];
+  if (lf.pairs == 1) kick_loop<1>(u, f, n, 1, s);
+  else kick_loop<0>(u, f, n, lf.pairs, s);
   PetscCall(VecRestoreArrayRead(F, &f));
   PetscCall(VecRestoreArray(U, &u));
   PetscFunctionReturn(0);
+}
+
+template <int M>
+void drift_transpose_loop(PetscScalar *__restrict l, PetscInt n, PetscInt m_rt, PetscReal s) {
+  const PetscInt m = M ? M : m_rt, d = 2 * m;
+  for (PetscInt i = 0; i < n; i += d)
+    for (PetscInt c = 0; c < m; ++c) l[i + m + c] += s * l[i + c];
 }
 
 // The drift's transpose on the adjoint: lambda_p += s * lambda_q (the forward drift is fused into
@@ -49,9 +72,8 @@ PetscErrorCode drift_transpose(const Leapfrog &lf, Vec lambda, PetscReal s) {
   PetscFunctionBegin;
   PetscCall(VecGetLocalSize(lambda, &n));
   PetscCall(VecGetArray(lambda, &l));
-  const PetscInt m = lf.pairs, d = lf.dof;
-  for (PetscInt i = 0; i < n; i += d)
-    for (PetscInt c = 0; c < m; ++c) l[i + m + c] += s * l[i + c];
+  if (lf.pairs == 1) drift_transpose_loop<1>(l, n, 1, s);
+  else drift_transpose_loop<0>(l, n, lf.pairs, s);
   PetscCall(VecRestoreArray(lambda, &l));
   PetscFunctionReturn(0);
 }
@@ -73,27 +95,34 @@ PetscErrorCode add_q_rows(const Leapfrog &lf, Vec lambda, Vec W, PetscReal s) {
   PetscFunctionReturn(0);
 }
 
-// Y0 = U, then the first kick and the drift, in one pass over the state.
-PetscErrorCode start_kick_drift(const Leapfrog &lf, Vec U, Vec F, Vec Y0, PetscReal dt) {
-  PetscScalar *u, *y;
-  const PetscScalar *f;
-  PetscInt n;
-  PetscFunctionBegin;
-  PetscCall(VecGetLocalSize(U, &n));
-  PetscCall(VecGetArray(U, &u));
-  PetscCall(VecGetArrayWrite(Y0, &y));
-  PetscCall(VecGetArrayRead(F, &f));
-  const PetscInt m = lf.pairs, d = lf.dof;
-  for (PetscInt i = 0; i < n; i += d) {
-    for (PetscInt c = 0; c < d; ++c) y[i + c] = u[i + c];
+template <int M>
+void start_kick_drift_loop(PetscScalar *__restrict u, const PetscScalar *__restrict f, PetscScalar *__restrict y,
+                           PetscInt n, PetscInt m_rt, PetscReal dt) {
+  const PetscInt m = M ? M : m_rt, d = 2 * m;
+  if (y)
+    for (PetscInt i = 0; i < n; ++i) y[i] = u[i];
+  for (PetscInt i = 0; i < n; i += d)
     for (PetscInt c = 0; c < m; ++c) {
       const PetscScalar ph = u[i + m + c] + 0.5 * dt * f[i + m + c];
       u[i + m + c] = ph;
       u[i + c] += dt * ph;
     }
-  }
+}
+
+// Y0 = U (when asked for), then the first kick and the drift.
+PetscErrorCode start_kick_drift(const Leapfrog &lf, Vec U, Vec F, Vec Y0, PetscReal dt) {
+  PetscScalar *u, *y = nullptr;
+  const PetscScalar *f;
+  PetscInt n;
+  PetscFunctionBegin;
+  PetscCall(VecGetLocalSize(U, &n));
+  PetscCall(VecGetArray(U, &u));
+  if (Y0) PetscCall(VecGetArrayWrite(Y0, &y));
+  PetscCall(VecGetArrayRead(F, &f));
+  if (lf.pairs == 1) start_kick_drift_loop<1>(u, f, y, n, 1, dt);
+  else start_kick_drift_loop<0>(u, f, y, n, lf.pairs, dt);
   PetscCall(VecRestoreArrayRead(F, &f));
-  PetscCall(VecRestoreArrayWrite(Y0, &y));
+  if (Y0) PetscCall(VecRestoreArrayWrite(Y0, &y));
   PetscCall(VecRestoreArray(U, &u));
   PetscFunctionReturn(0);
 }
@@ -106,7 +135,14 @@ PetscErrorCode TSStep_Leapfrog(TS ts) {
   PetscFunctionBegin;
   PetscCall(PetscObjectStateGet((PetscObject)U, &st));
   if (!lf->F_valid || st != lf->F_state || t != lf->F_time) PetscCall(TSComputeRHSFunction(ts, t, U, lf->F));
-  PetscCall(start_kick_drift(*lf, U, lf->F, lf->Y0, dt));
+  if (ts->steps == 0) { // once per solve: does anything read this solve's stages?
+    PetscBool store = PETSC_FALSE;
+    if (ts->trajectory) PetscCall(PetscObjectTypeCompare((PetscObject)ts->trajectory, FLEXIPDE_TSTRAJECTORY_STORE, &store));
+    lf->copy_stage = ts->trajectory && !store;
+  }
+  // the forward cost integral reads r(t_k, U_k) from Y0 when it does not have it from the last step
+  const bool need_stage = lf->copy_stage || (ts->quadraturets && ts->costintegralfwd && lf->r_end_step != ts->steps);
+  PetscCall(start_kick_drift(*lf, U, lf->F, need_stage ? lf->Y0 : nullptr, dt));
   // G_p does not depend on p, so G at (q_{k+1}, p_h) already gives a(t_{k+1}, q_{k+1})
   PetscCall(TSComputeRHSFunction(ts, t + dt, U, lf->F));
   PetscCall(kick(*lf, U, lf->F, 0.5 * dt));
@@ -158,6 +194,7 @@ PetscErrorCode TSDestroy_Leapfrog(TS ts) {
   delete data(ts);
   ts->data = nullptr;
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetPairs_C", nullptr));
+  PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetAdjointKick_C", nullptr));
   PetscFunctionReturn(0);
 }
 
@@ -203,10 +240,15 @@ PetscErrorCode TSAdjointSetUp_Leapfrog(TS ts) {
 // with quadrature weight w_quad, then the half-kick of the step to its left (w_left), which sees the
 // complete dJ/dU at this level. Without an integrand both half-kicks see the same lambda_p and
 // take one product with weight w_right + w_left.
-PetscErrorCode half_kicks(TS ts, Mat J, PetscReal w) {
+PetscErrorCode half_kicks(TS ts, Mat J, PetscReal t, Vec X, PetscReal w) {
   Leapfrog *lf = data(ts);
   PetscFunctionBegin;
   if (w == 0) PetscFunctionReturn(0);
+  if (lf->adjoint_kick) {
+    for (PetscInt k = 0; k < ts->numcost; ++k)
+      PetscCall(lf->adjoint_kick(lf->adjoint_kick_ctx, t, X, ts->vecs_sensi[k], w, ts->vecs_sensip ? ts->vecs_sensip[k] : nullptr));
+    PetscFunctionReturn(0);
+  }
   for (PetscInt k = 0; k < ts->numcost; ++k) {
     Vec lambda = ts->vecs_sensi[k];
     PetscCall(MatMultTranspose(J, lambda, lf->W)); // q rows: A^T lambda_p (G_q = p has no q)
@@ -221,17 +263,19 @@ PetscErrorCode half_kicks(TS ts, Mat J, PetscReal w) {
 
 PetscErrorCode adjoint_level(TS ts, PetscReal t, Vec X, PetscReal w_right, PetscReal w_quad, PetscReal w_left) {
   TS quadts = ts->quadraturets;
-  Mat J, Jpre, Jquad = nullptr;
+  Mat J = nullptr, Jpre, Jquad = nullptr;
   PetscScalar *col;
   PetscFunctionBegin;
-  PetscCall(TSGetRHSJacobian(ts, &J, &Jpre, nullptr, nullptr));
-  PetscCall(TSComputeRHSJacobian(ts, t, X, J, Jpre));
-  if (ts->vecs_sensip) PetscCall(TSComputeRHSJacobianP(ts, t, X, ts->Jacprhs));
+  if (!data(ts)->adjoint_kick) {
+    PetscCall(TSGetRHSJacobian(ts, &J, &Jpre, nullptr, nullptr));
+    PetscCall(TSComputeRHSJacobian(ts, t, X, J, Jpre));
+    if (ts->vecs_sensip) PetscCall(TSComputeRHSJacobianP(ts, t, X, ts->Jacprhs));
+  }
   if (!quadts) {
-    PetscCall(half_kicks(ts, J, w_right + w_left));
+    PetscCall(half_kicks(ts, J, t, X, w_right + w_left));
     PetscFunctionReturn(0);
   }
-  PetscCall(half_kicks(ts, J, w_right));
+  PetscCall(half_kicks(ts, J, t, X, w_right));
   PetscCall(TSGetRHSJacobian(quadts, &Jquad, nullptr, nullptr, nullptr));
   PetscCall(TSComputeRHSJacobian(quadts, t, X, Jquad, nullptr));
   if (ts->vecs_sensip) PetscCall(TSComputeRHSJacobianP(quadts, t, X, quadts->Jacprhs));
@@ -249,7 +293,7 @@ PetscErrorCode adjoint_level(TS ts, PetscReal t, Vec X, PetscReal w_right, Petsc
       PetscCall(MatDenseRestoreColumn(quadts->Jacprhs, &col));
     }
   }
-  PetscCall(half_kicks(ts, J, w_left));
+  PetscCall(half_kicks(ts, J, t, X, w_left));
   PetscFunctionReturn(0);
 }
 
@@ -291,6 +335,13 @@ PetscErrorCode set_pairs(TS ts, PetscInt m) {
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode set_adjoint_kick(TS ts, LeapfrogAdjointKick kick, void *ctx) {
+  PetscFunctionBegin;
+  data(ts)->adjoint_kick = kick;
+  data(ts)->adjoint_kick_ctx = ctx;
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode TSCreate_Leapfrog(TS ts) {
   PetscFunctionBegin;
   ts->data = new Leapfrog();
@@ -307,6 +358,7 @@ PetscErrorCode TSCreate_Leapfrog(TS ts) {
   ts->default_adapt_type = TSADAPTNONE;
   ts->usessnes = PETSC_FALSE;
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetPairs_C", set_pairs));
+  PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetAdjointKick_C", set_adjoint_kick));
   PetscFunctionReturn(0);
 }
 
@@ -321,6 +373,14 @@ PetscErrorCode register_leapfrog_ts() {
 PetscErrorCode leapfrog_set_pairs(TS ts, PetscInt m) {
   PetscFunctionBegin;
   PetscTryMethod(ts, "FlexipdeLeapfrogSetPairs_C", (TS, PetscInt), (ts, m));
+  PetscFunctionReturn(0);
+}
+
+PetscInt leapfrog_pairs(TS ts) { return is_leapfrog(ts) ? data(ts)->pairs : 0; }
+
+PetscErrorCode leapfrog_set_adjoint_kick(TS ts, LeapfrogAdjointKick kick, void *ctx) {
+  PetscFunctionBegin;
+  PetscTryMethod(ts, "FlexipdeLeapfrogSetAdjointKick_C", (TS, LeapfrogAdjointKick, void *), (ts, kick, ctx));
   PetscFunctionReturn(0);
 }
 

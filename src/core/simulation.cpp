@@ -53,6 +53,13 @@ PetscErrorCode Simulation::rhs_jacobian_p_cb(TS, PetscReal t, Vec U, Mat Jp, voi
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode Simulation::adjoint_kick_cb(void *ctx, PetscReal t, Vec U, Vec lambda, PetscReal w, Vec mu) {
+  auto *sim = static_cast<Simulation *>(ctx);
+  PetscFunctionBeginUser;
+  PetscCall(sim->model_->second_order_adjoint(t, U, lambda, w, mu));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode Simulation::quad_rhs_cb(TS, PetscReal t, Vec U, Vec F, void *ctx) {
   auto *sim = static_cast<Simulation *>(ctx);
   PetscReal r;
@@ -202,6 +209,8 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
   PetscCall(PetscOptionsInt("-sim_blowup_check_every", "Stop with the time and step where the state first holds "
                             "NaN/Inf, checked every N steps (0 = only at the end)",
                             "Simulation", blowup_every_, &blowup_every_, nullptr));
+  PetscCall(PetscOptionsBool("-leapfrog_fused_adjoint", "Leapfrog adjoint through the model's fused sweep when it has "
+                             "one (else its Jacobians)", "Simulation", fused_adjoint_, &fused_adjoint_, nullptr));
   PetscOptionsEnd();
   PetscCheck(blowup_every_ >= 0, comm, PETSC_ERR_ARG_OUTOFRANGE, "-sim_blowup_check_every must be non-negative");
   if (blowup_every_ > 0) PetscCall(TSMonitorSet(ts, blowup_monitor, this, nullptr));
@@ -219,6 +228,8 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
                "choose -ts_type rk, theta, cn or beuler",
                model_->name());
     PetscCall(leapfrog_set_pairs(ts, model_->second_order_pairs()));
+    if (with_adjoint && model_->has_second_order_adjoint() && fused_adjoint_)
+      PetscCall(leapfrog_set_adjoint_kick(ts, adjoint_kick_cb, this));
   }
   if (with_adjoint && Jp_ && !std::strcmp(type, TSRK)) {
     // PETSc 3.18's TSAdjointStep_RK skips dG/dp for a stage whose weight b_i is zero (it rescales

@@ -6,7 +6,9 @@
 // steps and kept by the Simulation between gradients, so a Set is one memcpy.
 //
 // Get(k) leaves the TS ready for the adjoint of step k-1 -> k (see checkpoint.cpp for what that
-// means): the leapfrog's one stage is the step's start U_{k-1}, copied in directly; any other
+// means): the leapfrog's one stage is the step's start U_{k-1}, copied in directly, and since its
+// adjoint reads only the positions q of that state (G_p depends on q alone), only q is stored
+// unless a cost integrand (which may read p) is integrated: half the memory and traffic; any other
 // integrator re-runs the step from U_{k-1} (TSStep) to rebuild its stages, like PETSc's memory
 // trajectory in solution-only mode. Fixed steps only (the Simulation uses PETSc's memory trajectory
 // for adaptive runs).
@@ -33,6 +35,8 @@ struct StoreTrajectory {
   PetscReal keep_stages_max_mb = 2048;
   bool keep_stages = false;
   PetscInt nstages = 0, slot = 0; // entries per step: (1 + nstages) * nlocal when keeping stages
+  // Leapfrog without a cost integrand: only the first `pairs` of every `dof` components are kept.
+  PetscInt pairs = 0, dof = 0;
 };
 
 StoreTrajectory *context(TSTrajectory tj) { return static_cast<StoreTrajectory *>(tj->data); }
@@ -44,6 +48,18 @@ PetscScalar *at(const StoreTrajectory &st, PetscInt k, PetscInt part) {
 PetscErrorCode copy_out(const StoreTrajectory &st, PetscInt k, PetscInt part, Vec X) {
   PetscScalar *x;
   PetscFunctionBegin;
+  if (st.pairs) { // positions only: the other components of X are left as they are
+    PetscCall(VecGetArray(X, &x));
+    const PetscScalar *b = at(st, k, part);
+    const PetscInt m = st.pairs, d = st.dof, npt = st.nlocal / d;
+    if (m == 1)
+      for (PetscInt i = 0; i < npt; ++i) x[i * d] = b[i];
+    else
+      for (PetscInt i = 0; i < npt; ++i)
+        for (PetscInt c = 0; c < m; ++c) x[i * d + c] = b[i * m + c];
+    PetscCall(VecRestoreArray(X, &x));
+    PetscFunctionReturn(0);
+  }
   PetscCall(VecGetArrayWrite(X, &x));
   std::memcpy(x, at(st, k, part), sizeof(PetscScalar) * st.nlocal);
   PetscCall(VecRestoreArrayWrite(X, &x));
@@ -54,7 +70,15 @@ PetscErrorCode copy_in(const StoreTrajectory &st, PetscInt k, PetscInt part, Vec
   const PetscScalar *x;
   PetscFunctionBegin;
   PetscCall(VecGetArrayRead(X, &x));
-  std::memcpy(at(st, k, part), x, sizeof(PetscScalar) * st.nlocal);
+  if (st.pairs) {
+    PetscScalar *b = at(st, k, part);
+    const PetscInt m = st.pairs, d = st.dof, npt = st.nlocal / d;
+    if (m == 1)
+      for (PetscInt i = 0; i < npt; ++i) b[i] = x[i * d];
+    else
+      for (PetscInt i = 0; i < npt; ++i)
+        for (PetscInt c = 0; c < m; ++c) b[i * m + c] = x[i * d + c];
+  } else std::memcpy(at(st, k, part), x, sizeof(PetscScalar) * st.nlocal);
   PetscCall(VecRestoreArrayRead(X, &x));
   PetscFunctionReturn(0);
 }
@@ -75,7 +99,12 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
       st->keep_stages = mb <= st->keep_stages_max_mb;
     }
   }
-  st->slot = (st->keep_stages ? 1 + st->nstages : 1) * st->nlocal;
+  st->pairs = 0;
+  if (is_leapfrog(ts) && !ts->quadraturets) {
+    PetscCall(VecGetBlockSize(ts->vec_sol, &st->dof));
+    st->pairs = leapfrog_pairs(ts);
+  }
+  st->slot = st->pairs ? st->nlocal / st->dof * st->pairs : (st->keep_stages ? 1 + st->nstages : 1) * st->nlocal;
   if (ts->max_steps < PETSC_MAX_INT) { // reserve the planned trajectory once
     st->buffer->grow((size_t)(ts->max_steps + 1) * st->slot, false);
     st->times.reserve(ts->max_steps + 1);
@@ -114,15 +143,20 @@ PetscErrorCode store_get(TSTrajectory tj, TS ts, PetscInt k, PetscReal *t) {
   }
   PetscCheck(k <= st->last, PetscObjectComm((PetscObject)tj), PETSC_ERR_ARG_OUTOFRANGE,
              "TSTrajectory store: step %" PetscInt_FMT " was never computed (%" PetscInt_FMT " steps)", k, st->last);
+  if (is_leapfrog(ts)) { // its one stage is U_{k-1}, also for the last step (whose forward step did not keep it)
+    Vec *Y;
+    PetscCall(TSGetStages(ts, nullptr, &Y));
+    PetscCall(copy_out(*st, k - 1, 0, Y[0]));
+  }
   if (k < st->last) { // the last step's stages are still in the TS
     if (is_leapfrog(ts) || st->keep_stages) {
       Vec *Y;
       PetscCall(TSGetStages(ts, nullptr, &Y));
-      if (is_leapfrog(ts)) PetscCall(copy_out(*st, k - 1, 0, Y[0])); // its stage is U_{k-1}
-      else
+      if (!is_leapfrog(ts)) {
         for (PetscInt i = 0; i < st->nstages; ++i)
           if (Y[i] != ts->vec_sol) PetscCall(copy_out(*st, k, 1 + i, Y[i]));
-      PetscCall(copy_out(*st, k, 0, ts->vec_sol));
+        PetscCall(copy_out(*st, k, 0, ts->vec_sol));
+      } // the leapfrog's adjoint reads only its stage (and U_n, still in the TS, at the first step)
       ts->ptime = st->times[k];
       ts->ptime_prev = st->times[k - 1];
     } else {

@@ -9,8 +9,13 @@
 //   G(U; c)    = [v ; c^2 D2 u]           dG/dU = [0 I ; diag(c^2) D2 0]  (assembled, constant in U)
 //   dG/dc_i    = 2 c_i (D2 u)_i e_{v,i}   (field)   dG/dc = 2 c [0 ; D2 u]  (scalar)
 //
-// dG/dc is a MatShell: its transpose is a pointwise product, so a gradient with respect to a
-// million-entry field costs the same as one with respect to a scalar.
+// G and D2 u are matrix-free stencil sweeps (owned values read in place, only the ghost values of u
+// exchanged, halo.hpp); the assembled dG/dU serves implicit integrators and PETSc's RK/theta
+// adjoints. dG/dc is a MatShell: its transpose is a pointwise product, so a gradient with respect
+// to a million-entry field costs the same as one with respect to a scalar. For the leapfrog the
+// model also offers its fused adjoint (Model::second_order_adjoint): one sweep gives both
+// lambda_u += w D2 (c^2 lambda_v) (D2 is symmetric on the interior points, walls excluded) and
+// mu += w 2 c (D2 u) lambda_v.
 //
 // Initial condition (-wave_ic travelling|rest|zero): u0 = exp(-((x - x_c)/w)^2) (-wave_ic_center,
 // -wave_ic_width); "travelling" sets v0 = -c u0', a pulse moving right (the seed's leapfrog start
@@ -26,8 +31,10 @@
 //           -objective_type receivers -survey_sources_x 0.3,0.7 -survey_receivers_spread 0.05,0.95,10 -ts_max_time 1
 //   (one command line)
 #include "flexipde/differentiator.hpp"
+#include "flexipde/halo.hpp"
 #include "flexipde/model.hpp"
 #include "flexipde/survey.hpp"
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
@@ -72,8 +79,83 @@ public:
     PetscCall(DMCreateGlobalVector(dm_, work_.out()));
     PetscCall(create_operator(dm_));
     dgdc_.assign(grid.xm(), 0.0);
-    two_over_c_.assign(grid.xm(), 0.0);
+    c2_.assign(grid.xm(), 0.0);
     gbuf_.assign(grid.xm(), 0.0);
+    hw_ = d2_.half_width();
+    PetscCall(halo_u_.setup(grid, dm_, 0, hw_));
+    PetscCall(halo_v_.setup(grid, dm_, 1, hw_));
+    PetscCall(halo_c_.setup(grid, grid.dm(), 0, hw_));
+    // Owned points whose D2 row is the plain centred stencil with every point it reads owned and off
+    // the walls: swept without any test; the few others (walls, next to them, next to another rank)
+    // go through SecondDerivative::row and the halo.
+    const PetscInt xs = grid.xs(), xm = grid.xm(), n = grid.n();
+    lo_ = hw_;
+    hi_ = xm - hw_;
+    if (!grid.periodic()) {
+      lo_ = std::max(lo_, hw_ + 1 - xs);
+      hi_ = std::min(hi_, n - 1 - hw_ - xs);
+    }
+    lo_ = std::min(lo_, xm);
+    hi_ = std::max(hi_, lo_);
+    const PetscReal ih2 = 1.0 / (grid.h() * grid.h());
+    if (hw_ == 1) {
+      wt_[0] = wt_[2] = ih2;
+      wt_[1] = -2 * ih2;
+    } else {
+      wt_[0] = wt_[4] = -ih2 / 12;
+      wt_[1] = wt_[3] = 16 * ih2 / 12;
+      wt_[2] = -30 * ih2 / 12;
+    }
+    PetscFunctionReturn(0);
+  }
+
+  bool has_second_order_adjoint() const override { return true; }
+  // lambda_u += w D2 (c^2 lambda_v) and mu += w 2 c (D2 u) lambda_v, in one sweep (wall rows of
+  // lambda_u untouched: the walls' columns are not in D2).
+  PetscErrorCode second_order_adjoint(PetscReal, Vec U, Vec lambda, PetscReal w, Vec mu) override {
+    const ParamInfo &pi = params_->info(c_index_);
+    PetscReal local = 0;
+    PetscFunctionBeginUser;
+    PetscCall(halo_u_.begin(U));
+    PetscCall(halo_v_.begin(lambda));
+    {
+      ConstArray u(U);
+      Array l(lambda);
+      PetscCall(u.error());
+      PetscCall(l.error());
+      PetscScalar *g = nullptr;
+      if (mu && c_field_) PetscCall(VecGetArray(mu, &g));
+      const PetscReal *c2 = c2_.data(), *dg = two_c_.data();
+      PetscScalar *L = l.data();
+      const PetscScalar *ua = u.data();
+      auto body = [&](PetscInt il, PetscReal du, PetscReal dz) {
+        L[2 * il] += w * dz;
+        const PetscReal gi = dg[il] * du * PetscRealPart(L[2 * il + 1]);
+        if (g) g[pi.local_offset + il] += w * gi;
+        else local += gi;
+      };
+      if (hw_ == 1) fused_interior<1>(ua, L, c2, body);
+      else fused_interior<2>(ua, L, c2, body);
+      PetscCall(halo_u_.end(U));
+      PetscCall(halo_v_.end(lambda));
+      for (PetscInt il = 0; il < grid_->xm(); ++il) {
+        if (il == lo_) il = hi_;
+        if (il >= grid_->xm()) break;
+        const PetscInt i = grid_->xs() + il;
+        if (grid_->is_boundary(i)) continue;
+        std::array<StencilEntry, 5> st;
+        const PetscInt m = d2_.row(*grid_, i, st);
+        PetscReal du = 0, dz = 0;
+        for (PetscInt q = 0; q < m; ++q) {
+          const PetscInt jl = local_offset(st[q].j);
+          du += st[q].weight * value(ua, halo_u_, 0, jl);
+          dz += st[q].weight * c2_at(jl) * value(L, halo_v_, 1, jl);
+        }
+        body(il, du, dz);
+      }
+      if (g) PetscCall(VecRestoreArray(mu, &g));
+    }
+    if (mu && !c_field_) PetscCall(params_->add_local_sum(mu, c_index_, w * local));
     PetscFunctionReturn(0);
   }
 
@@ -93,25 +175,25 @@ public:
     PetscCall(VecMin(c_, nullptr, &cmin));
     PetscCheck(cmin > 0, grid_->comm(), PETSC_ERR_ARG_OUTOFRANGE, "Wave speed must be positive, found c = %g", (double)cmin);
     PetscCall(VecMax(c_, nullptr, &cmax_));
-    { // 2/c_i, so that the per-step dG/dc needs no division
+    {
       ConstArray c(c_);
       PetscCall(c.error());
-      for (PetscInt il = 0; il < grid_->xm(); ++il) two_over_c_[il] = 2.0 / PetscRealPart(c[il]);
+      two_c_.assign(grid_->xm(), 0.0);
+      for (PetscInt il = 0; il < grid_->xm(); ++il) {
+        const PetscReal ci = PetscRealPart(c[il]);
+        c2_[il] = ci * ci;
+        two_c_[il] = grid_->is_boundary(grid_->xs() + il) ? 0.0 : 2 * ci;
+      }
     }
+    PetscCall(halo_c_.update(c_));
     PetscCall(assemble(A_));
     PetscFunctionReturn(0);
   }
 
-  // Records dG_v/dc_i = 2 c_i (D2 u)_i at this state; the shell applies dG/dc with it. A U already
-  // holds c_i^2 (D2 u)_i in its v rows, so one MatMult (which does its own ghost exchange) gives it.
+  // Records dG_v/dc_i = 2 c_i (D2 u)_i at this state (0 at the walls); the shell applies dG/dc with it.
   PetscErrorCode rhs_jacobian_p(PetscReal, Vec U, Mat Jp) override {
     PetscFunctionBeginUser;
-    PetscCall(MatMult(A_, U, work_));
-    {
-      ConstArray w(work_);
-      PetscCall(w.error());
-      for (PetscInt il = 0; il < grid_->xm(); ++il) dgdc_[il] = PetscRealPart(w[2 * il + 1]) * two_over_c_[il];
-    }
+    PetscCall(sweep_d2u(U, [&](PetscInt il, PetscReal du, const PetscScalar *) { dgdc_[il] = two_c_[il] * du; }));
     PetscCall(MatAssemblyBegin(Jp, MAT_FINAL_ASSEMBLY)); // resets any scaling TS applied last time
     PetscCall(MatAssemblyEnd(Jp, MAT_FINAL_ASSEMBLY));
     PetscFunctionReturn(0);
@@ -122,10 +204,21 @@ public:
     source_ = src;
     return 0;
   }
-  // G = A U, plus the point source's forcing on v.
+  // G = A U as a stencil sweep (u_t = v, v_t = c^2 D2 u, both 0 at the walls), plus the point
+  // source's forcing on v.
   PetscErrorCode rhs(PetscReal t, Vec U, Vec G) override {
     PetscFunctionBeginUser;
-    PetscCall(MatMult(A_, U, G));
+    {
+      Array g(G);
+      PetscCall(g.error());
+      PetscScalar *ga = g.data();
+      PetscCall(sweep_d2u(U, [&](PetscInt il, PetscReal du, const PetscScalar *u) {
+        ga[2 * il] = u[2 * il + 1];
+        ga[2 * il + 1] = c2_[il] * du;
+      }));
+      for (PetscInt il : {(PetscInt)0, grid_->xm() - 1}) // the walls: G = 0
+        if (grid_->xm() > 0 && grid_->is_boundary(grid_->xs() + il)) ga[2 * il] = ga[2 * il + 1] = 0;
+    }
     if (source_ && source_->stencil.n) {
       Array g(G);
       PetscCall(g.error());
@@ -181,6 +274,68 @@ public:
   }
 
 private:
+  // Local offset (i - xs) of global point j as the stencils see it: periodic neighbours of the
+  // block's ends unwrapped into the halo.
+  PetscInt local_offset(PetscInt j) const {
+    PetscInt jl = j - grid_->xs();
+    if (grid_->periodic()) {
+      if (jl < -hw_) jl += grid_->n();
+      else if (jl >= grid_->xm() + hw_) jl -= grid_->n();
+    }
+    return jl;
+  }
+  static PetscReal value(const PetscScalar *a, const Halo &h, PetscInt comp, PetscInt jl) {
+    return PetscRealPart(jl >= 0 && jl < h.xm() ? a[2 * jl + comp] : h(jl, 0));
+  }
+  PetscReal c2_at(PetscInt jl) const {
+    if (jl >= 0 && jl < grid_->xm()) return c2_[jl];
+    const PetscReal c = PetscRealPart(halo_c_(jl, 0));
+    return c * c;
+  }
+  // emit(il, (D2 u)_il, u) for every owned point off the walls.
+  template <class Emit>
+  PetscErrorCode sweep_d2u(Vec U, Emit &&emit) {
+    PetscFunctionBeginUser;
+    PetscCall(halo_u_.begin(U));
+    ConstArray u(U);
+    PetscCall(u.error());
+    const PetscScalar *ua = u.data();
+    if (hw_ == 1) d2_interior<1>(ua, emit);
+    else d2_interior<2>(ua, emit);
+    PetscCall(halo_u_.end(U));
+    for (PetscInt il = 0; il < grid_->xm(); ++il) {
+      if (il == lo_) il = hi_;
+      if (il >= grid_->xm()) break;
+      const PetscInt i = grid_->xs() + il;
+      if (grid_->is_boundary(i)) continue;
+      std::array<StencilEntry, 5> st;
+      const PetscInt m = d2_.row(*grid_, i, st);
+      PetscReal du = 0;
+      for (PetscInt q = 0; q < m; ++q) du += st[q].weight * value(ua, halo_u_, 0, local_offset(st[q].j));
+      emit(il, du, ua);
+    }
+    PetscFunctionReturn(0);
+  }
+  template <int HW, class Emit>
+  void d2_interior(const PetscScalar *u, Emit &emit) const {
+    for (PetscInt il = lo_; il < hi_; ++il) {
+      PetscReal du = 0;
+      for (int k = -HW; k <= HW; ++k) du += wt_[k + HW] * PetscRealPart(u[2 * (il + k)]);
+      emit(il, du, u);
+    }
+  }
+  template <int HW, class Body>
+  void fused_interior(const PetscScalar *u, const PetscScalar *L, const PetscReal *c2, Body &body) const {
+    for (PetscInt il = lo_; il < hi_; ++il) {
+      PetscReal du = 0, dz = 0;
+      for (int k = -HW; k <= HW; ++k) {
+        du += wt_[k + HW] * PetscRealPart(u[2 * (il + k)]);
+        dz += wt_[k + HW] * c2[il + k] * PetscRealPart(L[2 * (il + k) + 1]);
+      }
+      body(il, du, dz);
+    }
+  }
+
   void pulse(PetscReal x, PetscReal *u, PetscReal *du) const {
     const PetscReal s = (x - center_) / width_;
     *u = std::exp(-s * s);
@@ -267,7 +422,10 @@ private:
   PetscInt ic_ = 0, c_index_ = -1;
   PetscReal center_ = 0.5, width_ = 0.2, cmax_ = 0, c_min_ = 0.01;
   OwnedVec c_, work_;
-  std::vector<PetscReal> dgdc_, two_over_c_, gbuf_; // 2 c D2 u at the last state; 2/c; work
+  std::vector<PetscReal> dgdc_, c2_, two_c_, gbuf_; // 2 c D2 u at the last state; c^2; 2c (0 at walls); work
+  Halo halo_u_, halo_v_, halo_c_; // ghosts of u, of lambda_v (adjoint) and of c
+  PetscInt hw_ = 1, lo_ = 0, hi_ = 0; // stencil half-width; owned points [lo_, hi_) take the plain sweep
+  PetscReal wt_[5] = {0, 0, 0, 0, 0}; // the centred weights / h^2
 };
 
 } // namespace

@@ -1,0 +1,51 @@
+// Ghost values of one component of a DMDA Vec, for stencil sweeps that read the owned block in place.
+//
+// A star stencil of half-width w at owned point (i, j) reads (i +- k, j) and (i, j +- k), k <= w. A
+// Halo communicates and stores only the values of one component at the points within w of the owned
+// block along each axis (strips of w x ym on the left and right, xm x w below and above; in 1D the
+// two ends), so a sweep reads owned values straight from the global Vec's array and ghosts from
+// here: no copy of the state, unlike DMGlobalToLocal, which copies every component of every point.
+// Points beyond a Dirichlet wall do not exist and read as 0; periodic directions wrap (the DMDA's
+// local-to-global map decides). A grid with no ghost on any rank (1 rank, Dirichlet) communicates
+// nothing. Offsets are relative to the owned block: il = i - xs, jl = j - ys.
+#pragma once
+#include "flexipde/grid.hpp"
+#include <vector>
+
+namespace flexipde {
+
+class Halo {
+public:
+  // dm: the DMDA of the Vecs to exchange (same layout as grid), comp: the component, width <= the
+  // DMDA's stencil width.
+  PetscErrorCode setup(const Grid &grid, DM dm, PetscInt comp, PetscInt width);
+  // Start / finish filling the ghost values from X (collective). Owned values may be read between.
+  PetscErrorCode begin(Vec X);
+  PetscErrorCode end(Vec X);
+  PetscErrorCode update(Vec X) {
+    PetscFunctionBeginUser;
+    PetscCall(begin(X));
+    PetscCall(end(X));
+    PetscFunctionReturn(0);
+  }
+  // Ghost value at (il, jl): exactly one of il in [-w, 0) or [xm, xm + w), jl in [-w, 0) or
+  // [ym, ym + w) (jl = 0 in 1D), the other inside the owned block.
+  PetscScalar operator()(PetscInt il, PetscInt jl) const {
+    if (il < 0) return buf_[left_ + jl * w_ + (il + w_)];
+    if (il >= xm_) return buf_[right_ + jl * w_ + (il - xm_)];
+    if (jl < 0) return buf_[bottom_ + (jl + wy_) * xm_ + il];
+    return buf_[top_ + (jl - ym_) * xm_ + il];
+  }
+  PetscInt width() const { return w_; }
+  PetscInt xm() const { return xm_; }
+  PetscInt ym() const { return ym_; }
+
+private:
+  PetscInt w_ = 0, wy_ = 0, xm_ = 0, ym_ = 0;
+  PetscInt left_ = 0, right_ = 0, bottom_ = 0, top_ = 0;
+  std::vector<PetscScalar> buf_;
+  OwnedVec seq_;        // wraps buf_
+  OwnedScatter scatter_; // null when no rank has a ghost
+};
+
+} // namespace flexipde
