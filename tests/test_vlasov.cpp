@@ -110,6 +110,58 @@ TEST_P(VlasovJacobian, TransposeAndCentralDifference) {
 
 INSTANTIATE_TEST_SUITE_P(Vlasov, VlasovJacobian, ::testing::Values("landau", "two_stream", "two_stream_dissipation"));
 
+// The linearisation is a snapshot: rhs_jacobian copies f and E(f); the transpose reads that copy
+// (w = S (f o D_v^T y)), and MatMult makes D_v f from it on first use. Relinearising at a second
+// state, in either order of MatMult and MatMultTranspose, must give what a fresh Jacobian gives,
+// and the dot product must hold on a grid that 2 ranks split in x (40 x 20) as well as in v.
+class VlasovRelinearise : public ::testing::TestWithParam<std::array<const char *, 2>> {};
+
+TEST_P(VlasovRelinearise, SnapshotAndDotProduct) {
+  ScopedOptions o;
+  small_grid(o, "two_stream", GetParam()[0], GetParam()[1]);
+  o.set("-vlasov_dissipation", "0.5");
+  Scene scene;
+  OwnedVec p, U1, U2, x, y, Jx, Jty, Jx_fresh, Jty_fresh;
+  OwnedMat J, Jfresh;
+  PETSC_ASSERT_OK(scene.setup(PETSC_COMM_WORLD));
+  PETSC_ASSERT_OK(scene.params.create_vec(p.out()));
+  PETSC_ASSERT_OK(scene.parameters_from_options("", p));
+  PETSC_ASSERT_OK(scene.sim.create_state(U1.out()));
+  for (Vec *v : {U2.out(), x.out(), y.out(), Jx.out(), Jty.out(), Jx_fresh.out(), Jty_fresh.out()})
+    PETSC_ASSERT_OK(VecDuplicate(U1, v));
+  PETSC_ASSERT_OK(fill_random(U1, 0.0, 1.0, 51));
+  PETSC_ASSERT_OK(fill_random(U2, 0.0, 1.0, 52));
+  PETSC_ASSERT_OK(fill_random(x, -1, 1, 53));
+  PETSC_ASSERT_OK(fill_random(y, -1, 1, 54));
+  PETSC_ASSERT_OK(scene.model->set_parameters(p));
+  PETSC_ASSERT_OK(scene.model->create_jacobian(J.out()));
+  PETSC_ASSERT_OK(scene.model->create_jacobian(Jfresh.out()));
+  // Fresh: linearise at U2 and apply.
+  PETSC_ASSERT_OK(scene.model->rhs_jacobian(0.0, U2, Jfresh));
+  PETSC_ASSERT_OK(MatMult(Jfresh, x, Jx_fresh));
+  PETSC_ASSERT_OK(MatMultTranspose(Jfresh, y, Jty_fresh));
+  // Linearise at U1 and use both products, then relinearise at U2 and change U2 afterwards.
+  PETSC_ASSERT_OK(scene.model->rhs_jacobian(0.0, U1, J));
+  PETSC_ASSERT_OK(MatMultTranspose(J, y, Jty));
+  PETSC_ASSERT_OK(MatMult(J, x, Jx));
+  PETSC_ASSERT_OK(scene.model->rhs_jacobian(0.0, U2, J));
+  PETSC_ASSERT_OK(VecCopy(U2, U1));
+  PETSC_ASSERT_OK(VecSet(U2, 3.0));
+  PETSC_ASSERT_OK(MatMultTranspose(J, y, Jty));
+  PETSC_ASSERT_OK(MatMult(J, x, Jx));
+  EXPECT_EQ(rel_diff(Jx, Jx_fresh), 0.0);
+  EXPECT_EQ(rel_diff(Jty, Jty_fresh), 0.0);
+  const PetscReal lhs = dot(Jx, y), rhs = dot(x, Jty);
+  PetscPrintf(PETSC_COMM_WORLD, "  [%s x %s] <J x, y> = %.15e, <x, J^T y> = %.15e\n", GetParam()[0], GetParam()[1],
+              (double)lhs, (double)rhs);
+  EXPECT_GT(std::fabs(lhs), 1.0);
+  EXPECT_LE(rel_diff(lhs, rhs), 1e-12);
+}
+
+INSTANTIATE_TEST_SUITE_P(Vlasov, VlasovRelinearise,
+                         ::testing::Values(std::array<const char *, 2>{"20", "40"},
+                                           std::array<const char *, 2>{"40", "20"}));
+
 // Functionals: dF/dU against central differences (exact for the linear and quadratic ones).
 TEST(VlasovFunctionals, DerivativesMatchCentralDifferences) {
   ScopedOptions o;

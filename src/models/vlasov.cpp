@@ -173,7 +173,7 @@ public:
     E_.assign(grid.xm(), 0.0);
     Elin_.assign(grid.xm(), 0.0);
     dE_.assign(grid.xm(), 0.0);
-    dvf_.assign(grid.local_points(), 0.0);
+    PetscCall(DMCreateGlobalVector(dm_, f_lin_.out()));
     PetscCall(DMCreateLocalVector(dm_, U_local_.out()));
     PetscCall(DMCreateLocalVector(dm_, X_local_.out()));
     PetscCall(VecSet(U_local_, 0.0));
@@ -234,26 +234,32 @@ public:
     PetscFunctionReturn(0);
   }
 
-  // Records what dG/dU needs of the linearisation state f: E(f) and D_v f at the owned points.
+  // Records what dG/dU needs of the linearisation state f: a copy of f at the owned points and
+  // E(f), in one pass over f (the copy and the density together) and no ghost exchange. D_v f,
+  // which only dG/dU itself needs, is made from the copy on the first MatMult (j_mult); the
+  // transpose reads f directly (w = S (f o D_v^T x), see j_mult_transpose).
   PetscErrorCode rhs_jacobian(PetscReal, Vec U, Mat J) override {
-    const PetscScalar **f;
     const Grid &g = *grid_;
+    const PetscScalar *u;
+    PetscScalar *c;
     PetscFunctionBeginUser;
-    PetscCall(to_local(U, U_local_));
-    PetscCall(DMDAVecGetArrayRead(dm_, U_local_, &f));
-    PetscCall(field(f, Elin_));
-    for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j) {
-      PetscReal *row = &dvf_[(j - g.ys()) * g.xm()];
-      if (j >= 1 && j <= nv_ - 2) {
-        const PetscScalar *m2 = f[j - 2], *m1 = f[j - 1], *p1 = f[j + 1], *p2 = f[j + 2];
-        const PetscReal c = 1.0 / (12 * hv_);
-        for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i)
-          row[i - g.xs()] = c * PetscRealPart(m2[i] - 8.0 * m1[i] + 8.0 * p1[i] - p2[i]);
-      } else {
-        for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i) row[i - g.xs()] = dv(f, i, j);
+    PetscCall(VecGetArrayRead(U, &u));
+    PetscCall(VecGetArrayWrite(f_lin_, &c));
+    std::fill(rho_.begin(), rho_.end(), 0.0);
+    PetscReal *rho = rho_.data() + g.xs();
+    const PetscInt xm = g.xm();
+    for (PetscInt jl = 0; jl < g.ym(); ++jl) {
+      const PetscScalar *ur = u + jl * xm;
+      PetscScalar *cr = c + jl * xm;
+      for (PetscInt il = 0; il < xm; ++il) {
+        cr[il] = ur[il];
+        rho[il] += PetscRealPart(ur[il]);
       }
     }
-    PetscCall(DMDAVecRestoreArrayRead(dm_, U_local_, &f));
+    PetscCall(VecRestoreArrayWrite(f_lin_, &c));
+    PetscCall(VecRestoreArrayRead(U, &u));
+    PetscCall(field_from_row_sums(Elin_));
+    dvf_valid_ = false;
     PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY)); // resets any shift/scale a TS applied
     PetscCall(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
     PetscFunctionReturn(0);
@@ -521,20 +527,21 @@ private:
   // E at the owned x from the density of f (collective): E = -K rho. ks_ is left holding E at
   // every x.
   PetscErrorCode field(const PetscScalar *const *f, std::vector<PetscReal> &E) {
-    PetscFunctionBeginUser;
-    PetscCall(density(f, rho_));
-    for (PetscReal &r : rho_) r = -r;
-    apply_K(rho_, E);
-    PetscFunctionReturn(0);
-  }
-  // rho_i = hv sum_j f_ij for all i, summed over the ranks.
-  PetscErrorCode density(const PetscScalar *const *f, std::vector<PetscReal> &rho) {
     const Grid &g = *grid_;
     PetscFunctionBeginUser;
-    std::fill(rho.begin(), rho.end(), 0.0);
+    std::fill(rho_.begin(), rho_.end(), 0.0);
     for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j)
-      for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i) rho[i] += hv_ * PetscRealPart(f[j][i]);
-    PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, rho.data(), (PetscMPIInt)nx_, MPIU_REAL, MPI_SUM, g.comm()));
+      for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i) rho_[i] += PetscRealPart(f[j][i]);
+    PetscCall(field_from_row_sums(E));
+    PetscFunctionReturn(0);
+  }
+  // E = -K rho at the owned x from rho_ holding this rank's sums over v of f (without hv):
+  // completes rho over the ranks (collective).
+  PetscErrorCode field_from_row_sums(std::vector<PetscReal> &E) {
+    PetscFunctionBeginUser;
+    PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, rho_.data(), (PetscMPIInt)nx_, MPIU_REAL, MPI_SUM, grid_->comm()));
+    for (PetscReal &r : rho_) r *= -hv_;
+    apply_K(rho_, E);
     PetscFunctionReturn(0);
   }
   // out_il = (K s)_i for the owned i = xs + il; K s over all x is left in ks_.
@@ -546,6 +553,25 @@ private:
 
   static PetscErrorCode zero_mult(Mat, Vec, Vec y) { return VecSet(y, 0.0); }
 
+  // D_v f at the owned points of the linearisation state, from the copy rhs_jacobian made (once
+  // per linearisation: only dG/dU x needs it, the transpose does not).
+  PetscErrorCode make_dvf() {
+    const PetscScalar **f;
+    const Grid &g = *grid_;
+    PetscFunctionBeginUser;
+    if (dvf_valid_) PetscFunctionReturn(0);
+    dvf_.resize(g.local_points());
+    PetscCall(to_local(f_lin_, U_local_));
+    PetscCall(DMDAVecGetArrayRead(dm_, U_local_, &f));
+    for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j) {
+      PetscReal *row = &dvf_[(j - g.ys()) * g.xm()];
+      for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i) row[i - g.xs()] = dv(f, i, j);
+    }
+    PetscCall(DMDAVecRestoreArrayRead(dm_, U_local_, &f));
+    dvf_valid_ = true;
+    PetscFunctionReturn(0);
+  }
+
   // y = dG/dU x = -v D_x x + E D_v x + dE D_v f,  dE = -K rho(x)
   static PetscErrorCode j_mult(Mat J, Vec x, Vec y) {
     VlasovModel *m;
@@ -554,6 +580,7 @@ private:
     PetscFunctionBeginUser;
     PetscCall(MatShellGetContext(J, &m));
     const Grid &g = *m->grid_;
+    PetscCall(m->make_dvf());
     PetscCall(m->to_local(x, m->X_local_));
     PetscCall(DMDAVecGetArrayRead(m->dm_, m->X_local_, &xa));
     PetscCall(m->field(xa, m->dE_));
@@ -569,41 +596,59 @@ private:
     PetscFunctionReturn(0);
   }
 
-  // y = (dG/dU)^T x = v D_x x + E D_v^T x + hv K w,  w_i = sum_j x_ij (D_v f)_ij
+  // y = (dG/dU)^T x = v D_x x + E D_v^T x + hv K w,  w_i = sum_j x_ij (D_v f)_ij = sum_j f_ij (D_v^T x)_ij.
+  // The second form of w needs only the owned f (no ghosts of the linearisation state, no stored
+  // D_v f) and D_v^T x, which the sweep for y computes anyway: one sweep makes v D_x x + E D_v^T x
+  // and w together, and after the reduction of w a streaming pass adds hv K w.
   static PetscErrorCode j_mult_transpose(Mat J, Vec x, Vec y) {
     VlasovModel *m;
-    const PetscScalar **xa;
+    const PetscScalar **xa, *fl;
     PetscScalar **ya;
     PetscFunctionBeginUser;
     PetscCall(MatShellGetContext(J, &m));
     const Grid &g = *m->grid_;
+    const PetscInt xs = g.xs(), xm = g.xm(), ys = g.ys(), ym = g.ym(), nv = m->nv_;
     PetscCall(m->to_local(x, m->X_local_));
     PetscCall(DMDAVecGetArrayRead(m->dm_, m->X_local_, &xa));
-    std::fill(m->w_.begin(), m->w_.end(), 0.0);
-    for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j) {
-      const PetscReal *dvf = &m->dvf_[(j - g.ys()) * g.xm()];
-      for (PetscInt il = 0; il < g.xm(); ++il) m->w_[g.xs() + il] += PetscRealPart(xa[j][g.xs() + il]) * dvf[il];
-    }
-    PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, m->w_.data(), (PetscMPIInt)m->nx_, MPIU_REAL, MPI_SUM, g.comm()));
-    m->apply_K(m->w_, m->dE_);
-    for (PetscReal &e : m->dE_) e *= m->hv_;
+    PetscCall(VecGetArrayRead(m->f_lin_, &fl));
     PetscCall(DMDAVecGetArray(m->dm_, y, &ya));
-    for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j) {
-      // D_v^T = -D_v away from the bounds, and D_x^T = -D_x: the row of G with -E, plus hv K w.
-      if (j >= 2 && j <= m->nv_ - 3) {
-        m->advection_row(xa, j, m->Elin_.data(), ya[j], -1.0, m->dE_.data());
-        if (m->c_diss_ > 0) m->dissipation_row(xa, j, ya[j]); // symmetric
+    std::fill(m->w_.begin(), m->w_.end(), 0.0);
+    PetscReal *__restrict w = m->w_.data() + xs;
+    const PetscReal *__restrict E = m->Elin_.data();
+    const PetscReal cv = -1.0 / (12 * m->hv_);
+    for (PetscInt j = ys; j < ys + ym; ++j) {
+      const PetscScalar *__restrict fr = fl + (j - ys) * xm;
+      PetscScalar *__restrict yr = ya[j] + xs;
+      const PetscReal cx = g.y(j) / (12 * m->h_);
+      if (j >= 2 && j <= nv - 3) { // D_v^T = -D_v, D_x^T = -D_x
+        const PetscScalar *__restrict r = xa[j] + xs, *__restrict m2 = xa[j - 2] + xs, *__restrict m1 = xa[j - 1] + xs,
+                                      *__restrict p1 = xa[j + 1] + xs, *__restrict p2 = xa[j + 2] + xs;
+        for (PetscInt il = 0; il < xm; ++il) {
+          const PetscScalar dvt = cv * (m2[il] - 8.0 * m1[il] + 8.0 * p1[il] - p2[il]);
+          yr[il] = cx * (r[il - 2] - 8.0 * r[il - 1] + 8.0 * r[il + 1] - r[il + 2]) + E[il] * dvt;
+          w[il] += PetscRealPart(fr[il] * dvt);
+        }
       } else {
         const PetscReal v = g.y(j);
-        for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i) {
-          const PetscInt il = i - g.xs();
-          ya[j][i] = v * m->dx(xa, i, j) + m->Elin_[il] * m->dv_transpose(xa, i, j) + m->dE_[il];
+        for (PetscInt il = 0; il < xm; ++il) {
+          const PetscReal dvt = m->dv_transpose(xa, xs + il, j);
+          yr[il] = v * m->dx(xa, xs + il, j) + E[il] * dvt;
+          w[il] += PetscRealPart(fr[il]) * dvt;
         }
-        if (m->c_diss_ > 0) m->dissipation_row(xa, j, ya[j]);
       }
+      if (m->c_diss_ > 0) m->dissipation_row(xa, j, ya[j]); // symmetric
+    }
+    PetscCall(VecRestoreArrayRead(m->f_lin_, &fl));
+    PetscCall(DMDAVecRestoreArrayRead(m->dm_, m->X_local_, &xa));
+    PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, m->w_.data(), (PetscMPIInt)m->nx_, MPIU_REAL, MPI_SUM, g.comm()));
+    m->apply_K(m->w_, m->dE_);
+    const PetscReal *__restrict dE = m->dE_.data();
+    const PetscReal hv = m->hv_;
+    for (PetscInt j = ys; j < ys + ym; ++j) {
+      PetscScalar *__restrict yr = ya[j] + xs;
+      for (PetscInt il = 0; il < xm; ++il) yr[il] += hv * dE[il];
     }
     PetscCall(DMDAVecRestoreArray(m->dm_, y, &ya));
-    PetscCall(DMDAVecRestoreArrayRead(m->dm_, m->X_local_, &xa));
     PetscFunctionReturn(0);
   }
 
@@ -658,8 +703,10 @@ private:
   Antiderivative fft_;
   std::vector<PetscReal> rho_, w_, ks_, Efull_; // length-N_x work arrays
   std::vector<PetscReal> E_, Elin_, dE_; // at the owned x: E(U) of rhs, E at the linearisation state, work
-  std::vector<PetscReal> dvf_;           // D_v f at the owned points of the linearisation state
+  std::vector<PetscReal> dvf_;           // D_v f at the owned points of the linearisation state (j_mult only)
+  bool dvf_valid_ = false;               // dvf_ belongs to the current linearisation state
   OwnedVec U_local_, X_local_;
+  OwnedVec f_lin_; // the linearisation state f (owned points), copied by rhs_jacobian
 };
 
 } // namespace
