@@ -445,8 +445,12 @@ private:
         g[i] = cx * (r[i - 2] - 8.0 * r[i - 1] + 8.0 * r[i + 1] - r[i + 2]) +
                E[i - xs] * cv * (m2[i] - 8.0 * m1[i] + 8.0 * p1[i] - p2[i]);
     } else {
+      PetscReal c[5];
+      dv_row(j, c);
+      const PetscScalar *m2 = f[j - 2], *m1 = f[j - 1], *p1 = f[j + 1], *p2 = f[j + 2];
       for (PetscInt i = xs; i < xe; ++i)
-        g[i] = cx * (r[i - 2] - 8.0 * r[i - 1] + 8.0 * r[i + 1] - r[i + 2]) + sign * E[i - xs] * dv(f, i, j);
+        g[i] = cx * (r[i - 2] - 8.0 * r[i - 1] + 8.0 * r[i + 1] - r[i + 2]) +
+               sign * E[i - xs] * (c[0] * m2[i] + c[1] * m1[i] + c[2] * r[i] + c[3] * p1[i] + c[4] * p2[i]);
     }
     if (add)
       for (PetscInt i = xs; i < xe; ++i) g[i] += add[i - xs];
@@ -496,11 +500,6 @@ private:
     }
   }
 
-  // (D_x f)_ij, periodic (ghosts wrap).
-  PetscReal dx(const PetscScalar *const *f, PetscInt i, PetscInt j) const {
-    const PetscScalar *r = f[j];
-    return PetscRealPart(r[i - 2] - 8.0 * r[i - 1] + 8.0 * r[i + 1] - r[i + 2]) / (12 * h_);
-  }
   // Face value F_{j+1/2} (zero for the outer faces j = -1 and j = N_v - 1).
   PetscReal face(const PetscScalar *const *f, PetscInt i, PetscInt j) const {
     if (j < 0 || j > nv_ - 2) return 0;
@@ -511,17 +510,26 @@ private:
       return PetscRealPart(f[j - 2][i] - 8.0 * f[j - 1][i] + 8.0 * f[j + 1][i] - f[j + 2][i]) / (12 * hv_);
     return (face(f, i, j) - face(f, i, j - 1)) / hv_;
   }
-  // (D_v^T z)_ij = sum over the faces q reading f_j of w (z_q - z_{q+1}) / hv.
-  PetscReal dv_transpose(const PetscScalar *const *z, PetscInt i, PetscInt j) const {
-    if (j >= 2 && j <= nv_ - 3)
-      return -PetscRealPart(z[j - 2][i] - 8.0 * z[j - 1][i] + 8.0 * z[j + 1][i] - z[j + 2][i]) / (12 * hv_);
-    PetscReal s = 0;
+  // Row j of D_v as weights c[o] of f_{j+o}, o = -2..2 (c[0] for o = -2): (F_{j+1/2} - F_{j-1/2}) / hv
+  // with no flux through the outer faces. Used on the rows next to the bounds.
+  void dv_row(PetscInt j, PetscReal c[5]) const {
+    for (int o = 0; o < 5; ++o) c[o] = 0;
+    for (PetscInt q = j - 1; q <= j; ++q) { // face q + 1/2 reads f_{q-1+m}
+      if (q < 0 || q > nv_ - 2) continue;
+      const PetscReal sgn = q == j ? 1.0 : -1.0;
+      for (PetscInt m = 0; m < 4; ++m) c[q - 1 + m - j + 2] += sgn * face_w[m] / hv_;
+    }
+  }
+  // Row j of D_v^T in the same form: each face q + 1/2 that reads f_j (with weight w) contributes
+  // w (z_q - z_{q+1}) / hv. Rows beyond the bounds get weight 0 (and read as 0 in the ghosted arrays).
+  void dv_transpose_row(PetscInt j, PetscReal c[5]) const {
+    for (int o = 0; o < 5; ++o) c[o] = 0;
     for (PetscInt m = 0; m < 4; ++m) {
       const PetscInt q = j + 1 - m; // face q + 1/2 reads f_{q-1+m} = f_j
       if (q < 0 || q > nv_ - 2) continue;
-      s += face_w[m] * PetscRealPart(z[q][i] - z[q + 1][i]);
+      c[q - j + 2] += face_w[m] / hv_;
+      c[q + 1 - j + 2] -= face_w[m] / hv_;
     }
-    return s / hv_;
   }
 
   // E at the owned x from the density of f (collective): E = -K rho. ks_ is left holding E at
@@ -628,12 +636,15 @@ private:
           yr[il] = cx * (r[il - 2] - 8.0 * r[il - 1] + 8.0 * r[il + 1] - r[il + 2]) + E[il] * dvt;
           w[il] += PetscRealPart(fr[il] * dvt);
         }
-      } else {
-        const PetscReal v = g.y(j);
+      } else { // the two rows next to each bound: D_v^T row by row (dv_transpose_row)
+        PetscReal c[5];
+        m->dv_transpose_row(j, c);
+        const PetscScalar *__restrict r = xa[j] + xs, *__restrict m2 = xa[j - 2] + xs, *__restrict m1 = xa[j - 1] + xs,
+                                      *__restrict p1 = xa[j + 1] + xs, *__restrict p2 = xa[j + 2] + xs;
         for (PetscInt il = 0; il < xm; ++il) {
-          const PetscReal dvt = m->dv_transpose(xa, xs + il, j);
-          yr[il] = v * m->dx(xa, xs + il, j) + E[il] * dvt;
-          w[il] += PetscRealPart(fr[il]) * dvt;
+          const PetscScalar dvt = c[0] * m2[il] + c[1] * m1[il] + c[2] * r[il] + c[3] * p1[il] + c[4] * p2[il];
+          yr[il] = cx * (r[il - 2] - 8.0 * r[il - 1] + 8.0 * r[il + 1] - r[il + 2]) + E[il] * dvt;
+          w[il] += PetscRealPart(fr[il] * dvt);
         }
       }
       if (m->c_diss_ > 0) m->dissipation_row(xa, j, ya[j]); // symmetric
