@@ -24,6 +24,8 @@
 //   G(f) = -v D_x f + E(f) D_v f
 //   dG/dU d = -v D_x d + E D_v d + dE D_v f,   dE = -hv K S d  (S: sum over v)
 //   (dG/dU)^T y = v D_x y + E D_v^T y + hv K w,   w_i = sum_j y_ij (D_v f)_ij   (K^T = -K, D_x^T = -D_x)
+//   computed as w_i = sum_j f_ij (D_v^T y)_ij in the same sweep as the rest (no D_v f at all: the
+//   adjoint's rhs_jacobian only copies f and sums its density, one pass without ghost exchange).
 // dG/dU is a MatShell with MultTranspose (no matrix is stored); the model has no parameter in G, so
 // dG/dp = 0. Integrators: -ts_type rk, and cn/theta/beuler (the Simulation solves their linear
 // systems with GMRES on the shell).
