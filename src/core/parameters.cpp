@@ -81,11 +81,12 @@ PetscErrorCode Parameters::add_local_sum(Vec grad, PetscInt k, PetscReal local) 
   PetscCheck(info_[k].kind == ParamKind::Scalar, PETSC_COMM_SELF, PETSC_ERR_ARG_WRONG, "%s is not a scalar",
              info_[k].name.c_str());
   PetscCallMPI(MPI_Reduce(&local, &total, 1, MPIU_REAL, MPI_SUM, 0, grid_->comm()));
-  if (info_[k].local_size) {
-    Array G(grad);
-    PetscCall(G.error());
-    G[info_[k].local_offset] += total;
-  }
+  // The array is taken on every rank, not only where the scalar lives: getting it marks grad as
+  // changed, and a rank that skipped it would reuse a cached norm and skip the collective of the
+  // next VecNorm that the others enter.
+  Array G(grad);
+  PetscCall(G.error());
+  if (info_[k].local_size) G[info_[k].local_offset] += total;
   PetscFunctionReturn(0);
 }
 

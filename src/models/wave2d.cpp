@@ -17,7 +17,12 @@
 // Parameter c: one scalar (-wave2d_c_field 0) or a field (-wave2d_c_field 1, one value per point).
 //   G(U; c)   = [v ; c^2 L u - sigma v + f(t)]      dG/dU = [0 I ; diag(c^2) L  -diag(sigma)]
 //   dG/dc_k   = 2 c_k (L u)_k e_{v,k}   (field; a scalar takes the sum)
-// dG/dc is a MatShell whose transpose is a pointwise product.
+// dG/dc is a MatShell whose transpose is a pointwise product. G and L u are matrix-free sweeps
+// (owned values read in place, only the ghosts of u exchanged, halo.hpp); the assembled dG/dU
+// serves implicit integrators and PETSc's RK/theta adjoints. Without a sponge the model also offers
+// the leapfrog's fused adjoint (Model::second_order_adjoint): one sweep gives
+// lambda_u += w L (c^2 lambda_v) (c^2 taken as 0 on the edge rows, which A does not have) and
+// mu += w 2 c (L u) lambda_v.
 //
 // Initial condition (-wave2d_ic zero|pulse): zero (waves from point sources, survey.hpp), or a
 // Gaussian exp(-|x - x_c|^2 / w^2) at rest (-wave2d_ic_x, -wave2d_ic_y, -wave2d_ic_width).
@@ -27,6 +32,7 @@
 //           -wave2d_c 1.0 -true_wave2d_c 1.1 -objective_type receivers -survey_sources_x 0.5 -survey_sources_y 0.3
 //           -survey_receivers_spread 0.2,0.8,7 -survey_receivers_y 0.7 -ts_max_time 0.6 -ts_dt 2e-3
 //   (one command line)
+#include "flexipde/halo.hpp"
 #include "flexipde/model.hpp"
 #include "flexipde/survey.hpp"
 #include <cmath>
@@ -81,10 +87,18 @@ public:
     PetscCheck(ic_w_ > 0, grid.comm(), PETSC_ERR_ARG_OUTOFRANGE, "-wave2d_ic_width must be positive");
     c_index_ = params.add("wave2d_c", c_field_ ? ParamKind::Field : ParamKind::Scalar, c_min_);
     PetscCall(DMCreateGlobalVector(grid.dm(), c_.out()));
-    PetscCall(DMCreateLocalVector(dm_, Uloc_.out()));
+    PetscCall(halo_u_.setup(grid, dm_, 0, 1));
+    PetscCall(halo_v_.setup(grid, dm_, 1, 1));
+    PetscCall(halo_c_.setup(grid, grid.dm(), 0, 1));
     PetscCall(create_operator(dm_));
     const PetscInt n = grid.local_points();
     lap_.assign(n, 0.0);
+    c2m_.assign(n, 0.0);
+    two_c_.assign(n, 0.0);
+    edge_.assign(n, 0);
+    for (PetscInt k = 0; k < n; ++k) edge_[k] = on_edge(k);
+    ihx2_ = 1.0 / (grid.h() * grid.h());
+    ihy2_ = 1.0 / (grid.hy() * grid.hy());
     gbuf_.assign(n, 0.0);
     sigma_.assign(n, 0.0);
     for (PetscInt k = 0; k < n; ++k) {
@@ -111,48 +125,115 @@ public:
     PetscCheck(cmin > 0, grid_->comm(), PETSC_ERR_ARG_OUTOFRANGE, "Wave speed must be positive, found c = %g",
                (double)cmin);
     PetscCall(VecMax(c_, nullptr, &cmax_));
+    {
+      ConstArray c(c_);
+      PetscCall(c.error());
+      for (PetscInt k = 0; k < grid_->local_points(); ++k) {
+        const PetscReal ck = PetscRealPart(c[k]);
+        c2m_[k] = edge_[k] ? 0.0 : ck * ck;
+        two_c_[k] = edge_[k] ? 0.0 : 2 * ck;
+      }
+    }
+    PetscCall(halo_c_.update(c_));
     PetscCall(assemble(A_));
     PetscFunctionReturn(0);
   }
 
+  // G = A U as a sweep: u_t = v, v_t = c^2 L u - sigma v off the edges, 0 on them; plus the source.
   PetscErrorCode rhs(PetscReal t, Vec U, Vec G) override {
     PetscFunctionBeginUser;
-    PetscCall(MatMult(A_, U, G));
+    {
+      Array g(G);
+      PetscCall(g.error());
+      PetscScalar *ga = g.data();
+      const PetscReal *sig = sigma_.data(), *c2 = c2m_.data();
+      PetscCall(sweep_lap(U, [&](PetscInt k, PetscReal lu, const PetscScalar *u) {
+        if (edge_[k]) ga[2 * k] = ga[2 * k + 1] = 0;
+        else {
+          ga[2 * k] = u[2 * k + 1];
+          ga[2 * k + 1] = c2[k] * lu - sig[k] * u[2 * k + 1];
+        }
+      }));
+    }
     if (source_ && source_->stencil.n) {
       Array g(G);
       PetscCall(g.error());
       for (PetscInt k = 0; k < source_->stencil.n; ++k) {
         const PetscInt il = source_->stencil.local[k];
-        if (on_edge(il)) continue;
+        if (edge_[il]) continue;
         g[2 * il + 1] += source_->density(k, t);
       }
     }
     PetscFunctionReturn(0);
   }
 
-  // Records (L u)_k at this state for the shell dG/dc.
+  // Records (L u)_k at this state for the shell dG/dc (0 on the edges).
   PetscErrorCode rhs_jacobian_p(PetscReal, Vec U, Mat Jp) override {
     PetscFunctionBeginUser;
-    PetscCall(DMGlobalToLocal(dm_, U, INSERT_VALUES, Uloc_));
-    {
-      ConstArray u(Uloc_);
-      PetscCall(u.error());
-      PetscInt gxs, gys, gxm, gym;
-      PetscCall(DMDAGetGhostCorners(dm_, &gxs, &gys, nullptr, &gxm, &gym, nullptr));
-      const PetscReal ihx2 = 1.0 / (grid_->h() * grid_->h()), ihy2 = 1.0 / (grid_->hy() * grid_->hy());
-      for (PetscInt k = 0; k < grid_->local_points(); ++k) {
-        const PetscInt i = grid_->xs() + k % grid_->xm(), j = grid_->ys() + k / grid_->xm();
-        if (on_edge(k)) {
-          lap_[k] = 0;
-          continue;
-        }
-        auto at = [&](PetscInt ii, PetscInt jj) { return PetscRealPart(u[2 * ((jj - gys) * gxm + (ii - gxs))]); };
-        const PetscReal c0 = at(i, j);
-        lap_[k] = (at(i - 1, j) - 2 * c0 + at(i + 1, j)) * ihx2 + (at(i, j - 1) - 2 * c0 + at(i, j + 1)) * ihy2;
-      }
-    }
+    PetscCall(sweep_lap(U, [&](PetscInt k, PetscReal lu, const PetscScalar *) { lap_[k] = edge_[k] ? 0.0 : lu; }));
     PetscCall(MatAssemblyBegin(Jp, MAT_FINAL_ASSEMBLY));
     PetscCall(MatAssemblyEnd(Jp, MAT_FINAL_ASSEMBLY));
+    PetscFunctionReturn(0);
+  }
+
+  bool has_second_order_adjoint() const override { return sponge_width_ <= 0; }
+  // lambda_u += w L (c^2 lambda_v) at every point (edge columns included, as in A^T), and
+  // mu += w 2 c (L u) lambda_v off the edges, in one sweep.
+  PetscErrorCode second_order_adjoint(PetscReal, Vec U, Vec lambda, PetscReal w, Vec mu) override {
+    const ParamInfo &pi = params_->info(c_index_);
+    const PetscInt xm = grid_->xm(), ym = grid_->ym();
+    PetscReal local = 0;
+    PetscFunctionBeginUser;
+    PetscCheck(sponge_width_ <= 0, grid_->comm(), PETSC_ERR_SUP, "wave2d: no fused leapfrog adjoint with a sponge");
+    PetscCall(halo_u_.begin(U));
+    PetscCall(halo_v_.begin(lambda));
+    {
+      ConstArray u(U);
+      Array l(lambda);
+      PetscCall(u.error());
+      PetscCall(l.error());
+      PetscScalar *g = nullptr;
+      if (mu && c_field_) PetscCall(VecGetArray(mu, &g));
+      const PetscScalar *ua = u.data();
+      PetscScalar *L = l.data();
+      const PetscReal *c2 = c2m_.data(), *tc = two_c_.data();
+      const PetscReal ax = ihx2_, ay = ihy2_, a0 = -2 * (ihx2_ + ihy2_);
+      auto body = [&](PetscInt k, PetscReal lu, PetscReal lz) {
+        L[2 * k] += w * lz;
+        const PetscReal gk = tc[k] * lu * PetscRealPart(L[2 * k + 1]);
+        if (g) g[pi.local_offset + k] += w * gk;
+        else local += gk;
+      };
+      for (PetscInt jl = 1; jl < ym - 1; ++jl)
+        for (PetscInt k = jl * xm + 1; k < jl * xm + xm - 1; ++k) {
+          const PetscReal lu = ax * PetscRealPart(u[2 * (k - 1)] + ua[2 * (k + 1)]) +
+                               ay * PetscRealPart(ua[2 * (k - xm)] + ua[2 * (k + xm)]) + a0 * PetscRealPart(ua[2 * k]);
+          const PetscReal lz = ax * (c2[k - 1] * PetscRealPart(L[2 * (k - 1) + 1]) + c2[k + 1] * PetscRealPart(L[2 * (k + 1) + 1])) +
+                               ay * (c2[k - xm] * PetscRealPart(L[2 * (k - xm) + 1]) + c2[k + xm] * PetscRealPart(L[2 * (k + xm) + 1])) +
+                               a0 * c2[k] * PetscRealPart(L[2 * k + 1]);
+          body(k, lu, lz);
+        }
+      PetscCall(halo_u_.end(U));
+      PetscCall(halo_v_.end(lambda));
+      auto uat = [&](PetscInt il, PetscInt jl) {
+        return PetscRealPart(inside(il, jl) ? ua[2 * (jl * xm + il)] : halo_u_(il, jl));
+      };
+      auto zat = [&](PetscInt il, PetscInt jl) {
+        if (inside(il, jl)) return c2[jl * xm + il] * PetscRealPart(L[2 * (jl * xm + il) + 1]);
+        if (edge_point(grid_->xs() + il, grid_->ys() + jl)) return 0.0;
+        const PetscReal c = PetscRealPart(halo_c_(il, jl));
+        return c * c * PetscRealPart(halo_v_(il, jl));
+      };
+      PetscCall(for_perimeter([&](PetscInt il, PetscInt jl) {
+        const PetscInt k = jl * xm + il;
+        const PetscReal lz = ax * (zat(il - 1, jl) + zat(il + 1, jl)) + ay * (zat(il, jl - 1) + zat(il, jl + 1)) + a0 * zat(il, jl);
+        const PetscReal lu = edge_[k] ? 0.0 : ax * (uat(il - 1, jl) + uat(il + 1, jl)) + ay * (uat(il, jl - 1) + uat(il, jl + 1)) + a0 * uat(il, jl);
+        body(k, lu, lz);
+        return PetscErrorCode(0);
+      }));
+      if (g) PetscCall(VecRestoreArray(mu, &g));
+    }
+    if (mu && !c_field_) PetscCall(params_->add_local_sum(mu, c_index_, w * local));
     PetscFunctionReturn(0);
   }
 
@@ -178,6 +259,57 @@ public:
   PetscErrorCode initial_condition_transpose(Vec, Vec, Vec) override { return 0; } // U0 does not depend on c
 
 private:
+  bool inside(PetscInt il, PetscInt jl) const { return il >= 0 && il < grid_->xm() && jl >= 0 && jl < grid_->ym(); }
+  // a point on the outer Dirichlet edge, by global index (also for ghosts); periodic directions have none
+  bool edge_point(PetscInt i, PetscInt j) const {
+    auto wrap = [](PetscInt a, PetscInt n) { return (a % n + n) % n; };
+    if (grid_->periodic()) i = wrap(i, grid_->n());
+    if (grid_->periodic_y()) j = wrap(j, grid_->ny());
+    return grid_->is_boundary(i) || grid_->is_boundary_y(j);
+  }
+  // f(il, jl) once for every owned point on the block's perimeter (the points a sweep's interior
+  // loop [1, xm-1) x [1, ym-1) leaves out).
+  template <class F>
+  PetscErrorCode for_perimeter(F &&f) const {
+    const PetscInt xm = grid_->xm(), ym = grid_->ym();
+    PetscFunctionBeginUser;
+    for (PetscInt jl = 0; jl < ym; ++jl) {
+      if (jl == 0 || jl == ym - 1) {
+        for (PetscInt il = 0; il < xm; ++il) PetscCall(f(il, jl));
+      } else {
+        PetscCall(f(0, jl));
+        if (xm > 1) PetscCall(f(xm - 1, jl));
+      }
+    }
+    PetscFunctionReturn(0);
+  }
+  // emit(k, (L u)_k, u) for every owned point (edges included: the caller masks them).
+  template <class Emit>
+  PetscErrorCode sweep_lap(Vec U, Emit &&emit) {
+    const PetscInt xm = grid_->xm(), ym = grid_->ym();
+    const PetscReal ax = ihx2_, ay = ihy2_, a0 = -2 * (ihx2_ + ihy2_);
+    PetscFunctionBeginUser;
+    PetscCall(halo_u_.begin(U));
+    ConstArray u(U);
+    PetscCall(u.error());
+    const PetscScalar *ua = u.data();
+    for (PetscInt jl = 1; jl < ym - 1; ++jl)
+      for (PetscInt k = jl * xm + 1; k < jl * xm + xm - 1; ++k)
+        emit(k,
+             ax * PetscRealPart(ua[2 * (k - 1)] + ua[2 * (k + 1)]) + ay * PetscRealPart(ua[2 * (k - xm)] + ua[2 * (k + xm)]) +
+                 a0 * PetscRealPart(ua[2 * k]),
+             ua);
+    PetscCall(halo_u_.end(U));
+    auto uat = [&](PetscInt il, PetscInt jl) {
+      return PetscRealPart(inside(il, jl) ? ua[2 * (jl * xm + il)] : halo_u_(il, jl));
+    };
+    PetscCall(for_perimeter([&](PetscInt il, PetscInt jl) {
+      emit(jl * xm + il, ax * (uat(il - 1, jl) + uat(il + 1, jl)) + ay * (uat(il, jl - 1) + uat(il, jl + 1)) + a0 * uat(il, jl), ua);
+      return PetscErrorCode(0);
+    }));
+    PetscFunctionReturn(0);
+  }
+
   bool on_edge(PetscInt k) const {
     const PetscInt i = grid_->xs() + k % grid_->xm(), j = grid_->ys() + k / grid_->xm();
     return grid_->is_boundary(i) || grid_->is_boundary_y(j);
@@ -269,8 +401,11 @@ private:
   PetscInt ic_ = 0, c_index_ = -1;
   PetscReal c_min_ = 0.01, cmax_ = 0, sponge_width_ = 0.15, sigma_max_ = 60.0;
   PetscReal ic_x_ = 0.5, ic_y_ = 0.5, ic_w_ = 0.05;
-  OwnedVec c_, Uloc_;
-  std::vector<PetscReal> lap_, gbuf_, sigma_;
+  OwnedVec c_;
+  std::vector<PetscReal> lap_, gbuf_, sigma_, c2m_, two_c_; // L u; work; sponge; c^2 and 2c, 0 on the edges
+  std::vector<char> edge_;                                  // owned point on the outer edge
+  Halo halo_u_, halo_v_, halo_c_;                           // ghosts of u, of lambda_v (adjoint) and of c
+  PetscReal ihx2_ = 0, ihy2_ = 0;
 };
 
 } // namespace

@@ -1,0 +1,143 @@
+// The wave models' matrix-free sweeps against their assembled operators, on 1 and 2 ranks:
+//   * rhs(U) (a stencil sweep with a one-component halo) equals J U with J the assembled dG/dU;
+//   * rhs_jacobian_p's shell (D2 u from a sweep) gives the same dG/dc as (J U)'s v rows / c;
+//   * the leapfrog's fused adjoint kick (Model::second_order_adjoint) equals the assembled
+//     transposes: lambda_q += w (J^T [0; lambda_p])_q and mu += w (dG/dc)^T [0; lambda_p];
+//   * a whole leapfrog gradient with the fused kick equals the one through the Jacobians
+//     (-leapfrog_fused_adjoint 0), for a scalar speed (whose gradient is a sum over ranks) and a field.
+// Cases: 1D fd2/fd4, Dirichlet/periodic; 2D Dirichlet/periodic, with a sponge (rhs only).
+#include "flexipde/scene.hpp"
+#include "test_support.hpp"
+
+using namespace flexipde;
+using flexipde_test::fill_random;
+using flexipde_test::norm;
+using flexipde_test::rel_diff;
+using flexipde_test::ScopedOptions;
+
+namespace {
+
+struct MFCase {
+  const char *name;
+  std::vector<std::pair<const char *, const char *>> opts;
+  bool fused; // the model offers the fused kick in this configuration
+};
+
+std::vector<MFCase> cases() {
+  return {
+      {"wave_fd2_dirichlet_field", {{"-da_grid_x", "61"}, {"-wave_c_field", "1"}}, true},
+      {"wave_fd4_dirichlet_field", {{"-da_grid_x", "61"}, {"-wave_c_field", "1"}, {"-fd_order", "4"}}, true},
+      {"wave_fd4_periodic_scalar", {{"-da_grid_x", "61"}, {"-fd_order", "4"}, {"-grid_periodic", "1"}, {"-wave_ic", "rest"}}, true},
+      {"wave_fd2_periodic_field", {{"-da_grid_x", "61"}, {"-wave_c_field", "1"}, {"-grid_periodic", "1"}, {"-wave_ic", "rest"}}, true},
+      {"wave2d_dirichlet_field",
+       {{"-model", "wave2d"}, {"-da_grid_x", "23"}, {"-da_grid_y", "19"}, {"-wave2d_c_field", "1"},
+        {"-wave2d_sponge_width", "0"}, {"-wave2d_ic", "pulse"}, {"-wave2d_ic_width", "0.2"}},
+       true},
+      {"wave2d_periodic_scalar",
+       {{"-model", "wave2d"}, {"-da_grid_x", "23"}, {"-da_grid_y", "19"}, {"-grid_periodic", "1"},
+        {"-grid_periodic_y", "1"}, {"-wave2d_sponge_width", "0"}, {"-wave2d_ic", "pulse"}, {"-wave2d_ic_width", "0.2"}},
+       true},
+      {"wave2d_sponge_field",
+       {{"-model", "wave2d"}, {"-da_grid_x", "23"}, {"-da_grid_y", "19"}, {"-wave2d_c_field", "1"},
+        {"-wave2d_sponge_width", "0.2"}},
+       false},
+  };
+}
+
+class MatrixFree : public ::testing::TestWithParam<MFCase> {
+protected:
+  void SetUp() override {
+    for (auto &o : GetParam().opts) opts_.set(o.first, o.second);
+    opts_.set("-ts_max_time", "0.1");
+    opts_.set("-ts_dt", "2e-3");
+    PETSC_ASSERT_OK(scene.setup(PETSC_COMM_WORLD));
+    PETSC_ASSERT_OK(scene.params.create_vec(p.out()));
+    PETSC_ASSERT_OK(scene.parameters_from_options("", p));
+    PETSC_ASSERT_OK(fill_random(p, 0.8, 1.2, 21)); // a rough speed: every entry matters
+    PETSC_ASSERT_OK(scene.sim.create_state(U.out()));
+    PETSC_ASSERT_OK(fill_random(U, -1.0, 1.0, 22));
+    PETSC_ASSERT_OK(scene.model->set_parameters(p));
+    PETSC_ASSERT_OK(scene.model->create_jacobian(J.out()));
+    PETSC_ASSERT_OK(scene.model->rhs_jacobian(0.0, U, J));
+    PETSC_ASSERT_OK(scene.model->create_jacobian_p(Jp.out()));
+  }
+  ScopedOptions opts_;
+  Scene scene;
+  OwnedVec p, U;
+  OwnedMat J, Jp;
+};
+
+std::string mf_name(const ::testing::TestParamInfo<MFCase> &i) { return i.param.name; }
+
+} // namespace
+
+TEST_P(MatrixFree, RhsEqualsAssembledOperator) {
+  OwnedVec G, JU;
+  PETSC_ASSERT_OK(VecDuplicate(U, G.out()));
+  PETSC_ASSERT_OK(VecDuplicate(U, JU.out()));
+  PETSC_ASSERT_OK(scene.model->rhs(0.0, U, G));
+  PETSC_ASSERT_OK(MatMult(J, U, JU));
+  EXPECT_LT(rel_diff(G, JU), 1e-13);
+}
+
+TEST_P(MatrixFree, FusedAdjointKickEqualsAssembledTransposes) {
+  if (!GetParam().fused) {
+    EXPECT_FALSE(scene.model->has_second_order_adjoint());
+    return;
+  }
+  ASSERT_TRUE(scene.model->has_second_order_adjoint());
+  const PetscReal w = 0.37;
+  OwnedVec lam, lam_p, JTl, mu, mu_ref;
+  PETSC_ASSERT_OK(VecDuplicate(U, lam.out()));
+  PETSC_ASSERT_OK(fill_random(lam, -1.0, 1.0, 23));
+  // [0; lambda_p]: the q rows zeroed
+  PETSC_ASSERT_OK(VecDuplicate(lam, lam_p.out()));
+  PETSC_ASSERT_OK(VecCopy(lam, lam_p));
+  PETSC_ASSERT_OK(VecStrideScale(lam_p, 0, 0.0));
+  PETSC_ASSERT_OK(VecDuplicate(U, JTl.out()));
+  PETSC_ASSERT_OK(MatMultTranspose(J, lam_p, JTl));
+  PETSC_ASSERT_OK(scene.model->rhs_jacobian_p(0.0, U, Jp));
+  PETSC_ASSERT_OK(scene.params.create_vec(mu_ref.out()));
+  PETSC_ASSERT_OK(MatMultTranspose(Jp, lam_p, mu_ref));
+  PETSC_ASSERT_OK(VecScale(mu_ref, w));
+  // expected lambda: q rows + w (J^T [0; lambda_p])_q, p rows unchanged
+  OwnedVec expect;
+  PETSC_ASSERT_OK(VecDuplicate(lam, expect.out()));
+  PETSC_ASSERT_OK(VecCopy(JTl, expect));
+  PETSC_ASSERT_OK(VecStrideScale(expect, 1, 0.0));
+  PETSC_ASSERT_OK(VecAYPX(expect, w, lam));
+  // the fused kick, on top of a mu that already holds something (it must add, not overwrite)
+  PETSC_ASSERT_OK(scene.params.create_vec(mu.out()));
+  PETSC_ASSERT_OK(fill_random(mu, -1.0, 1.0, 24));
+  OwnedVec mu0;
+  PETSC_ASSERT_OK(VecDuplicate(mu, mu0.out()));
+  PETSC_ASSERT_OK(VecCopy(mu, mu0));
+  PETSC_ASSERT_OK(scene.model->second_order_adjoint(0.0, U, lam, w, mu));
+  EXPECT_LT(rel_diff(lam, expect), 1e-13);
+  PETSC_ASSERT_OK(VecAXPY(mu, -1.0, mu0));
+  EXPECT_LT(rel_diff(mu, mu_ref), 1e-12);
+  EXPECT_GT(norm(mu_ref), 0.0);
+}
+
+TEST_P(MatrixFree, LeapfrogGradientFusedEqualsJacobians) {
+  if (!GetParam().fused) return;
+  ScopedOptions lf{{"-ts_type", "leapfrog"}};
+  OwnedVec p_true, g1, g0;
+  PETSC_ASSERT_OK(scene.params.create_vec(p_true.out()));
+  PETSC_ASSERT_OK(VecCopy(p, p_true));
+  PETSC_ASSERT_OK(VecScale(p_true, 1.05));
+  PETSC_ASSERT_OK(scene.make_synthetic_data(p_true));
+  PETSC_ASSERT_OK(scene.params.create_vec(g1.out()));
+  PETSC_ASSERT_OK(scene.params.create_vec(g0.out()));
+  PetscReal J1, J0;
+  PETSC_ASSERT_OK(scene.gradient(p, &J1, g1));
+  {
+    ScopedOptions off{{"-leapfrog_fused_adjoint", "0"}};
+    PETSC_ASSERT_OK(scene.gradient(p, &J0, g0));
+  }
+  EXPECT_EQ(J1, J0);
+  EXPECT_GT(norm(g0), 0.0);
+  EXPECT_LT(rel_diff(g1, g0), 1e-12);
+}
+
+INSTANTIATE_TEST_SUITE_P(Waves, MatrixFree, ::testing::ValuesIn(cases()), mf_name);
