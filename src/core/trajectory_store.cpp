@@ -37,6 +37,13 @@ struct StoreTrajectory {
   PetscInt nstages = 0, slot = 0; // entries per step: (1 + nstages) * nlocal when keeping stages
   // Leapfrog without a cost integrand: only the first `pairs` of every `dof` components are kept.
   PetscInt pairs = 0, dof = 0;
+  // Explicit RK keeping its stages: the stage Vecs write straight into the buffer (VecPlaceArray on
+  // the next step's slot before it runs; in the adjoint, on the slot being reversed), so no stage is
+  // ever copied in or out. `placed` = the slot the stage Vecs currently point into (-1: their own).
+  // A solve that stops early leaves them placed; their own arrays are still what VecDestroy frees,
+  // and the buffer (kept by the Simulation) outlives the TS.
+  bool place_stages = false;
+  PetscInt placed = -1;
 };
 
 StoreTrajectory *context(TSTrajectory tj) { return static_cast<StoreTrajectory *>(tj->data); }
@@ -83,6 +90,22 @@ PetscErrorCode copy_in(const StoreTrajectory &st, PetscInt k, PetscInt part, Vec
   PetscFunctionReturn(0);
 }
 
+// Point the stage Vecs into slot k (k < 0: back to their own arrays).
+PetscErrorCode place_stages(StoreTrajectory &st, TS ts, PetscInt k) {
+  Vec *Y;
+  PetscFunctionBegin;
+  if (st.placed == k) PetscFunctionReturn(0);
+  PetscCall(TSGetStages(ts, nullptr, &Y));
+  if (st.placed >= 0)
+    for (PetscInt i = 0; i < st.nstages; ++i) PetscCall(VecResetArray(Y[i]));
+  st.placed = -1;
+  if (k >= 0 && (size_t)(k + 1) * st.slot <= st.buffer->size) {
+    for (PetscInt i = 0; i < st.nstages; ++i) PetscCall(VecPlaceArray(Y[i], at(st, k, 1 + i)));
+    st.placed = k;
+  }
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
   StoreTrajectory *st = context(tj);
   PetscFunctionBegin;
@@ -112,8 +135,20 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
   st->times.clear();
   st->last = -1;
   st->recomputed = 0;
+  st->placed = -1;
+  st->place_stages = false;
+  if (st->keep_stages) { // explicit RK only, and only when no stage is the solution itself
+    PetscBool rk;
+    Vec *Y;
+    PetscCall(PetscObjectTypeCompare((PetscObject)ts, TSRK, &rk));
+    PetscCall(TSGetStages(ts, nullptr, &Y));
+    st->place_stages = rk && ts->max_steps < PETSC_MAX_INT;
+    for (PetscInt i = 0; st->place_stages && i < st->nstages; ++i)
+      if (Y[i] == ts->vec_sol) st->place_stages = false;
+  }
   PetscFunctionReturn(0);
 }
+
 
 PetscErrorCode store_set(TSTrajectory tj, TS ts, PetscInt stepnum, PetscReal time, Vec X) {
   StoreTrajectory *st = context(tj);
@@ -124,13 +159,17 @@ PetscErrorCode store_set(TSTrajectory tj, TS ts, PetscInt stepnum, PetscReal tim
   st->last = stepnum;
   if (ts->reason) PetscFunctionReturn(0); // the final state stays in the TS for the first adjoint step
   const size_t need = (size_t)(stepnum + 1) * st->slot;
-  if (st->buffer->size < need) st->buffer->grow(std::max(need, 2 * st->buffer->size), true);
+  if (st->buffer->size < need) {
+    PetscCall(place_stages(*st, ts, -1)); // the buffer moves
+    st->buffer->grow(std::max(need, 2 * st->buffer->size), true);
+  }
   PetscCall(copy_in(*st, stepnum, 0, X));
-  if (st->keep_stages && stepnum > 0) {
+  if (st->keep_stages && stepnum > 0 && st->placed != stepnum) { // placed: the step wrote them here
     Vec *Y;
     PetscCall(TSGetStages(ts, nullptr, &Y));
     for (PetscInt i = 0; i < st->nstages; ++i) PetscCall(copy_in(*st, stepnum, 1 + i, Y[i]));
   }
+  if (st->place_stages) PetscCall(place_stages(*st, ts, stepnum + 1)); // where the next step writes its stages
   PetscFunctionReturn(0);
 }
 
@@ -138,6 +177,7 @@ PetscErrorCode store_get(TSTrajectory tj, TS ts, PetscInt k, PetscReal *t) {
   StoreTrajectory *st = context(tj);
   PetscFunctionBegin;
   if (k == 0) { // the adjoint has finished
+    PetscCall(place_stages(*st, ts, -1));
     PetscCall(TSTrajectoryReset(tj));
     PetscFunctionReturn(0);
   }
@@ -153,8 +193,10 @@ PetscErrorCode store_get(TSTrajectory tj, TS ts, PetscInt k, PetscReal *t) {
       Vec *Y;
       PetscCall(TSGetStages(ts, nullptr, &Y));
       if (!is_leapfrog(ts)) {
-        for (PetscInt i = 0; i < st->nstages; ++i)
-          if (Y[i] != ts->vec_sol) PetscCall(copy_out(*st, k, 1 + i, Y[i]));
+        if (st->place_stages) PetscCall(place_stages(*st, ts, k));
+        if (st->placed != k)
+          for (PetscInt i = 0; i < st->nstages; ++i)
+            if (Y[i] != ts->vec_sol) PetscCall(copy_out(*st, k, 1 + i, Y[i]));
         PetscCall(copy_out(*st, k, 0, ts->vec_sol));
       } // the leapfrog's adjoint reads only its stage (and U_n, still in the TS, at the first step)
       ts->ptime = st->times[k];

@@ -114,7 +114,7 @@ public:
   // lambda_u untouched: the walls' columns are not in D2).
   PetscErrorCode second_order_adjoint(PetscReal, Vec U, Vec lambda, PetscReal w, Vec mu) override {
     const ParamInfo &pi = params_->info(c_index_);
-    PetscReal local = 0;
+    PetscReal local[4] = {0, 0, 0, 0}; // four partial sums: no single dependency chain through the sweep
     PetscFunctionBeginUser;
     PetscCall(halo_u_.begin(U));
     PetscCall(halo_v_.begin(lambda));
@@ -132,7 +132,7 @@ public:
         L[2 * il] += w * dz;
         const PetscReal gi = dg[il] * du * PetscRealPart(L[2 * il + 1]);
         if (g) g[pi.local_offset + il] += w * gi;
-        else local += gi;
+        else local[il & 3] += gi;
       };
       if (hw_ == 1) fused_interior<1>(ua, L, c2, body);
       else fused_interior<2>(ua, L, c2, body);
@@ -155,7 +155,7 @@ public:
       }
       if (g) PetscCall(VecRestoreArray(mu, &g));
     }
-    if (mu && !c_field_) PetscCall(params_->add_local_sum(mu, c_index_, w * local));
+    if (mu && !c_field_) PetscCall(params_->add_local_sum(mu, c_index_, w * (local[0] + local[1] + local[2] + local[3])));
     PetscFunctionReturn(0);
   }
 
