@@ -4,7 +4,9 @@
 //   * the leapfrog's fused adjoint kick (Model::second_order_adjoint) equals the assembled
 //     transposes: lambda_q += w (J^T [0; lambda_p])_q and mu += w (dG/dc)^T [0; lambda_p];
 //   * a whole leapfrog gradient with the fused kick equals the one through the Jacobians
-//     (-leapfrog_fused_adjoint 0), for a scalar speed (whose gradient is a sum over ranks) and a field.
+//     (-leapfrog_fused_adjoint 0), for a scalar speed (whose gradient is a sum over ranks) and a field;
+//   * the matrix-free dG/dU (create_jacobian_matrix_free) applies J and J^T like the assembled one,
+//     and an RK4 gradient through it equals one through the assembled J (-sim_matrix_free_jacobian 0).
 // Cases: 1D fd2/fd4, Dirichlet/periodic; 2D Dirichlet/periodic, with a sponge (rhs only).
 #include "flexipde/scene.hpp"
 #include "test_support.hpp"
@@ -39,7 +41,7 @@ std::vector<MFCase> cases() {
        true},
       {"wave2d_sponge_field",
        {{"-model", "wave2d"}, {"-da_grid_x", "23"}, {"-da_grid_y", "19"}, {"-wave2d_c_field", "1"},
-        {"-wave2d_sponge_width", "0.2"}},
+        {"-wave2d_sponge_width", "0.2"}, {"-wave2d_ic", "pulse"}, {"-wave2d_ic_width", "0.2"}},
        false},
   };
 }
@@ -133,6 +135,44 @@ TEST_P(MatrixFree, LeapfrogGradientFusedEqualsJacobians) {
   PETSC_ASSERT_OK(scene.gradient(p, &J1, g1));
   {
     ScopedOptions off{{"-leapfrog_fused_adjoint", "0"}};
+    PETSC_ASSERT_OK(scene.gradient(p, &J0, g0));
+  }
+  EXPECT_EQ(J1, J0);
+  EXPECT_GT(norm(g0), 0.0);
+  EXPECT_LT(rel_diff(g1, g0), 1e-12);
+}
+
+TEST_P(MatrixFree, MatrixFreeJacobianEqualsAssembled) {
+  OwnedMat Jmf;
+  PETSC_ASSERT_OK(scene.model->create_jacobian_matrix_free(Jmf.out()));
+  ASSERT_TRUE((bool)Jmf);
+  OwnedVec x, y, y_ref;
+  PETSC_ASSERT_OK(VecDuplicate(U, x.out()));
+  PETSC_ASSERT_OK(VecDuplicate(U, y.out()));
+  PETSC_ASSERT_OK(VecDuplicate(U, y_ref.out()));
+  PETSC_ASSERT_OK(fill_random(x, -1.0, 1.0, 25));
+  PETSC_ASSERT_OK(MatMult(Jmf, x, y));
+  PETSC_ASSERT_OK(MatMult(J, x, y_ref));
+  EXPECT_LT(rel_diff(y, y_ref), 1e-13);
+  PETSC_ASSERT_OK(MatMultTranspose(Jmf, x, y));
+  PETSC_ASSERT_OK(MatMultTranspose(J, x, y_ref));
+  EXPECT_LT(rel_diff(y, y_ref), 1e-13);
+  EXPECT_GT(norm(y_ref), 0.0);
+}
+
+TEST_P(MatrixFree, RkGradientMatrixFreeEqualsAssembled) {
+  ScopedOptions rk{{"-ts_type", "rk"}, {"-ts_rk_type", "4"}};
+  OwnedVec p_true, g1, g0;
+  PETSC_ASSERT_OK(scene.params.create_vec(p_true.out()));
+  PETSC_ASSERT_OK(VecCopy(p, p_true));
+  PETSC_ASSERT_OK(VecScale(p_true, 1.05));
+  PETSC_ASSERT_OK(scene.make_synthetic_data(p_true));
+  PETSC_ASSERT_OK(scene.params.create_vec(g1.out()));
+  PETSC_ASSERT_OK(scene.params.create_vec(g0.out()));
+  PetscReal J1, J0;
+  PETSC_ASSERT_OK(scene.gradient(p, &J1, g1));
+  {
+    ScopedOptions off{{"-sim_matrix_free_jacobian", "0"}};
     PETSC_ASSERT_OK(scene.gradient(p, &J0, g0));
   }
   EXPECT_EQ(J1, J0);

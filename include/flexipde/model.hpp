@@ -46,6 +46,13 @@ public:
   // Called once the parameter layout is final, before any solve.
   virtual PetscErrorCode create_jacobian(Mat *J) = 0;
   virtual PetscErrorCode create_jacobian_p(Mat *Jp) = 0;
+  // Optional: dG/dU as a matrix-free operator (a MatShell with Mult and MultTranspose, always at the
+  // current parameters) for explicit integrators, which only apply it; implicit ones factor the
+  // assembled one. *J = null when the model has none.
+  virtual PetscErrorCode create_jacobian_matrix_free(Mat *J) {
+    *J = nullptr;
+    return 0;
+  }
 
   // Tell the model the current parameter values (before each solve).
   virtual PetscErrorCode set_parameters(Vec p) = 0;

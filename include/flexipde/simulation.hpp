@@ -71,7 +71,9 @@ private:
   PetscErrorCode check_finite(Vec U, const char *what);
   static PetscErrorCode blowup_monitor(TS, PetscInt, PetscReal, Vec, void *);
   PetscInt blowup_every_ = 100;
-  PetscBool fused_adjoint_ = PETSC_TRUE; // -leapfrog_fused_adjoint: the model's fused kick when it has one
+  OwnedMat Jmf_; // the model's matrix-free dG/dU, for explicit integrators (null if none)
+  PetscBool fused_adjoint_ = PETSC_TRUE;
+  PetscBool matrix_free_jacobian_ = PETSC_TRUE; // -sim_matrix_free_jacobian // -leapfrog_fused_adjoint: the model's fused kick when it has one
   PetscErrorCode finish_solve(TS ts);
   bool adaptive_ = false;
 

@@ -17,6 +17,7 @@ PetscErrorCode Simulation::setup(Model &model, const Grid &grid, DM state_dm, co
   params_ = &params;
   dm_ = state_dm;
   PetscCall(model.create_jacobian(J_.out()));
+  PetscCall(model.create_jacobian_matrix_free(Jmf_.out()));
   if (params.global_size() > 0) {
     PetscCall(model.create_jacobian_p(Jp_.out()));
     PetscCall(params.create_vec(mu_.out()));
@@ -36,6 +37,7 @@ PetscErrorCode Simulation::rhs_jacobian_cb(TS, PetscReal t, Vec U, Mat A, Mat B,
   auto *sim = static_cast<Simulation *>(ctx);
   PetscObjectState state;
   PetscFunctionBeginUser;
+  if (A == sim->Jmf_) PetscFunctionReturn(0); // applies the model's current parameters itself
   PetscCall(PetscObjectStateGet((PetscObject)A, &state));
   if (sim->model_->jacobian_constant() && sim->jac_param_version_ == sim->param_version_ && state == sim->jac_state_)
     PetscFunctionReturn(0);
@@ -209,6 +211,8 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
   PetscCall(PetscOptionsInt("-sim_blowup_check_every", "Stop with the time and step where the state first holds "
                             "NaN/Inf, checked every N steps (0 = only at the end)",
                             "Simulation", blowup_every_, &blowup_every_, nullptr));
+  PetscCall(PetscOptionsBool("-sim_matrix_free_jacobian", "Explicit RK applies the model's matrix-free dG/dU when it "
+                             "has one (else the assembled one)", "Simulation", matrix_free_jacobian_, &matrix_free_jacobian_, nullptr));
   PetscCall(PetscOptionsBool("-leapfrog_fused_adjoint", "Leapfrog adjoint through the model's fused sweep when it has "
                              "one (else its Jacobians)", "Simulation", fused_adjoint_, &fused_adjoint_, nullptr));
   PetscOptionsEnd();
@@ -231,6 +235,9 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
     if (with_adjoint && model_->has_second_order_adjoint() && fused_adjoint_)
       PetscCall(leapfrog_set_adjoint_kick(ts, adjoint_kick_cb, this));
   }
+  // An explicit RK only applies dG/dU (its adjoint: the transpose): the model's matrix-free operator
+  // when it has one (-sim_matrix_free_jacobian 0 keeps the assembled one).
+  if (Jmf_ && matrix_free_jacobian_ && !std::strcmp(type, TSRK)) PetscCall(TSSetRHSJacobian(ts, Jmf_, Jmf_, rhs_jacobian_cb, this));
   if (with_adjoint && Jp_ && !std::strcmp(type, TSRK)) {
     // PETSc 3.18's TSAdjointStep_RK skips dG/dp for a stage whose weight b_i is zero (it rescales
     // a stale vector instead), so parameter gradients of such tableaux are wrong. The FSAL last

@@ -159,6 +159,15 @@ public:
     PetscFunctionReturn(0);
   }
 
+  PetscErrorCode create_jacobian_matrix_free(Mat *J) override {
+    const PetscInt nstate = grid_->xm() * dof();
+    PetscFunctionBeginUser;
+    PetscCall(MatCreateShell(grid_->comm(), nstate, nstate, PETSC_DETERMINE, PETSC_DETERMINE, this, J));
+    PetscCall(MatShellSetOperation(*J, MATOP_MULT, (void (*)(void))jmf_mult));
+    PetscCall(MatShellSetOperation(*J, MATOP_MULT_TRANSPOSE, (void (*)(void))jmf_mult_transpose));
+    PetscFunctionReturn(0);
+  }
+
   PetscErrorCode create_jacobian_p(Mat *Jp) override {
     const PetscInt nstate = grid_->xm() * dof();
     PetscFunctionBeginUser;
@@ -295,14 +304,21 @@ private:
   // emit(il, (D2 u)_il, u) for every owned point off the walls.
   template <class Emit>
   PetscErrorCode sweep_d2u(Vec U, Emit &&emit) {
+    return sweep_d2<false>(U, emit);
+  }
+  // Z = false: emit(il, (D2 u)_il, x); Z = true: emit(il, (D2 (c^2 v))_il, x), for every owned point
+  // off the walls (u, v the components of X).
+  template <bool Z, class Emit>
+  PetscErrorCode sweep_d2(Vec X, Emit &&emit) {
+    Halo &halo = Z ? halo_v_ : halo_u_;
     PetscFunctionBeginUser;
-    PetscCall(halo_u_.begin(U));
-    ConstArray u(U);
-    PetscCall(u.error());
-    const PetscScalar *ua = u.data();
-    if (hw_ == 1) d2_interior<1>(ua, emit);
-    else d2_interior<2>(ua, emit);
-    PetscCall(halo_u_.end(U));
+    PetscCall(halo.begin(X));
+    ConstArray x(X);
+    PetscCall(x.error());
+    const PetscScalar *xa = x.data();
+    if (hw_ == 1) d2_interior<1, Z>(xa, emit);
+    else d2_interior<2, Z>(xa, emit);
+    PetscCall(halo.end(X));
     for (PetscInt il = 0; il < grid_->xm(); ++il) {
       if (il == lo_) il = hi_;
       if (il >= grid_->xm()) break;
@@ -310,19 +326,60 @@ private:
       if (grid_->is_boundary(i)) continue;
       std::array<StencilEntry, 5> st;
       const PetscInt m = d2_.row(*grid_, i, st);
-      PetscReal du = 0;
-      for (PetscInt q = 0; q < m; ++q) du += st[q].weight * value(ua, halo_u_, 0, local_offset(st[q].j));
-      emit(il, du, ua);
+      PetscReal d = 0;
+      for (PetscInt q = 0; q < m; ++q) {
+        const PetscInt jl = local_offset(st[q].j);
+        d += st[q].weight * (Z ? c2_at(jl) * value(xa, halo, 1, jl) : value(xa, halo, 0, jl));
+      }
+      emit(il, d, xa);
     }
     PetscFunctionReturn(0);
   }
-  template <int HW, class Emit>
-  void d2_interior(const PetscScalar *u, Emit &emit) const {
+  template <int HW, bool Z, class Emit>
+  void d2_interior(const PetscScalar *x, Emit &emit) const {
+    const PetscReal *c2 = c2_.data();
     for (PetscInt il = lo_; il < hi_; ++il) {
-      PetscReal du = 0;
-      for (int k = -HW; k <= HW; ++k) du += wt_[k + HW] * PetscRealPart(u[2 * (il + k)]);
-      emit(il, du, u);
+      PetscReal d = 0;
+      for (int k = -HW; k <= HW; ++k)
+        d += wt_[k + HW] * (Z ? c2[il + k] * PetscRealPart(x[2 * (il + k) + 1]) : PetscRealPart(x[2 * (il + k)]));
+      emit(il, d, x);
     }
+  }
+  // The matrix-free dG/dU = [0 I ; diag(c^2) D2 0] (wall rows and columns empty).
+  static PetscErrorCode jmf_mult(Mat J, Vec x, Vec y) {
+    WaveModel *m;
+    PetscFunctionBeginUser;
+    PetscCall(MatShellGetContext(J, &m));
+    PetscCall(m->apply_jacobian(x, y, false));
+    PetscFunctionReturn(0);
+  }
+  static PetscErrorCode jmf_mult_transpose(Mat J, Vec x, Vec y) {
+    WaveModel *m;
+    PetscFunctionBeginUser;
+    PetscCall(MatShellGetContext(J, &m));
+    PetscCall(m->apply_jacobian(x, y, true));
+    PetscFunctionReturn(0);
+  }
+  // y = J x, or J^T x = [D2 (c^2 x_v) ; x_u] off the walls (D2 symmetric on the interior points).
+  PetscErrorCode apply_jacobian(Vec x, Vec y, bool transpose) {
+    PetscFunctionBeginUser;
+    Array ya(y);
+    PetscCall(ya.error());
+    PetscScalar *Y = ya.data();
+    const PetscInt xm = grid_->xm();
+    for (PetscInt il : {(PetscInt)0, xm - 1}) // the walls
+      if (xm > 0 && grid_->is_boundary(grid_->xs() + il)) Y[2 * il] = Y[2 * il + 1] = 0;
+    if (transpose)
+      PetscCall(sweep_d2<true>(x, [&](PetscInt il, PetscReal dz, const PetscScalar *X) {
+        Y[2 * il] = dz;
+        Y[2 * il + 1] = X[2 * il];
+      }));
+    else
+      PetscCall(sweep_d2<false>(x, [&](PetscInt il, PetscReal du, const PetscScalar *X) {
+        Y[2 * il] = X[2 * il + 1];
+        Y[2 * il + 1] = c2_[il] * du;
+      }));
+    PetscFunctionReturn(0);
   }
   template <int HW, class Body>
   void fused_interior(const PetscScalar *u, const PetscScalar *L, const PetscReal *c2, Body &body) const {

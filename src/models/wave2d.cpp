@@ -108,6 +108,15 @@ public:
     PetscFunctionReturn(0);
   }
 
+  PetscErrorCode create_jacobian_matrix_free(Mat *J) override {
+    const PetscInt nstate = grid_->local_points() * dof();
+    PetscFunctionBeginUser;
+    PetscCall(MatCreateShell(grid_->comm(), nstate, nstate, PETSC_DETERMINE, PETSC_DETERMINE, this, J));
+    PetscCall(MatShellSetOperation(*J, MATOP_MULT, (void (*)(void))jmf_mult));
+    PetscCall(MatShellSetOperation(*J, MATOP_MULT_TRANSPOSE, (void (*)(void))jmf_mult_transpose));
+    PetscFunctionReturn(0);
+  }
+
   PetscErrorCode create_jacobian_p(Mat *Jp) override {
     const PetscInt nstate = grid_->local_points() * dof();
     PetscFunctionBeginUser;
@@ -286,26 +295,69 @@ private:
   // emit(k, (L u)_k, u) for every owned point (edges included: the caller masks them).
   template <class Emit>
   PetscErrorCode sweep_lap(Vec U, Emit &&emit) {
+    return sweep<false>(U, emit);
+  }
+  // Z = false: emit(k, (L u)_k, x); Z = true: emit(k, (L z)_k, x) with z = c^2 v, 0 on the edges;
+  // for every owned point (u, v the components of X).
+  template <bool Z, class Emit>
+  PetscErrorCode sweep(Vec X, Emit &&emit) {
     const PetscInt xm = grid_->xm(), ym = grid_->ym();
     const PetscReal ax = ihx2_, ay = ihy2_, a0 = -2 * (ihx2_ + ihy2_);
+    Halo &halo = Z ? halo_v_ : halo_u_;
+    const PetscReal *c2 = c2m_.data();
     PetscFunctionBeginUser;
-    PetscCall(halo_u_.begin(U));
-    ConstArray u(U);
-    PetscCall(u.error());
-    const PetscScalar *ua = u.data();
+    PetscCall(halo.begin(X));
+    ConstArray x(X);
+    PetscCall(x.error());
+    const PetscScalar *xa = x.data();
+    auto own = [&](PetscInt k) { return Z ? c2[k] * PetscRealPart(xa[2 * k + 1]) : PetscRealPart(xa[2 * k]); };
     for (PetscInt jl = 1; jl < ym - 1; ++jl)
       for (PetscInt k = jl * xm + 1; k < jl * xm + xm - 1; ++k)
-        emit(k,
-             ax * PetscRealPart(ua[2 * (k - 1)] + ua[2 * (k + 1)]) + ay * PetscRealPart(ua[2 * (k - xm)] + ua[2 * (k + xm)]) +
-                 a0 * PetscRealPart(ua[2 * k]),
-             ua);
-    PetscCall(halo_u_.end(U));
-    auto uat = [&](PetscInt il, PetscInt jl) {
-      return PetscRealPart(inside(il, jl) ? ua[2 * (jl * xm + il)] : halo_u_(il, jl));
+        emit(k, ax * (own(k - 1) + own(k + 1)) + ay * (own(k - xm) + own(k + xm)) + a0 * own(k), xa);
+    PetscCall(halo.end(X));
+    auto at = [&](PetscInt il, PetscInt jl) -> PetscReal {
+      if (inside(il, jl)) return own(jl * xm + il);
+      if (!Z) return PetscRealPart(halo(il, jl));
+      if (edge_point(grid_->xs() + il, grid_->ys() + jl)) return 0.0;
+      const PetscReal c = PetscRealPart(halo_c_(il, jl));
+      return c * c * PetscRealPart(halo(il, jl));
     };
     PetscCall(for_perimeter([&](PetscInt il, PetscInt jl) {
-      emit(jl * xm + il, ax * (uat(il - 1, jl) + uat(il + 1, jl)) + ay * (uat(il, jl - 1) + uat(il, jl + 1)) + a0 * uat(il, jl), ua);
+      emit(jl * xm + il, ax * (at(il - 1, jl) + at(il + 1, jl)) + ay * (at(il, jl - 1) + at(il, jl + 1)) + a0 * at(il, jl), xa);
       return PetscErrorCode(0);
+    }));
+    PetscFunctionReturn(0);
+  }
+  // The matrix-free dG/dU = [0 I ; diag(c^2) L  -diag(sigma)] (edge rows empty) and its transpose
+  // [L (c^2 x_v) ; x_u - sigma x_v] (edge rows of the second block empty).
+  static PetscErrorCode jmf_mult(Mat J, Vec x, Vec y) {
+    Wave2DModel *m;
+    PetscFunctionBeginUser;
+    PetscCall(MatShellGetContext(J, &m));
+    Array ya(y);
+    PetscCall(ya.error());
+    PetscScalar *Y = ya.data();
+    const PetscReal *sig = m->sigma_.data(), *c2 = m->c2m_.data();
+    PetscCall(m->sweep<false>(x, [&](PetscInt k, PetscReal lu, const PetscScalar *X) {
+      if (m->edge_[k]) Y[2 * k] = Y[2 * k + 1] = 0;
+      else {
+        Y[2 * k] = X[2 * k + 1];
+        Y[2 * k + 1] = c2[k] * lu - sig[k] * X[2 * k + 1];
+      }
+    }));
+    PetscFunctionReturn(0);
+  }
+  static PetscErrorCode jmf_mult_transpose(Mat J, Vec x, Vec y) {
+    Wave2DModel *m;
+    PetscFunctionBeginUser;
+    PetscCall(MatShellGetContext(J, &m));
+    Array ya(y);
+    PetscCall(ya.error());
+    PetscScalar *Y = ya.data();
+    const PetscReal *sig = m->sigma_.data();
+    PetscCall(m->sweep<true>(x, [&](PetscInt k, PetscReal lz, const PetscScalar *X) {
+      Y[2 * k] = lz;
+      Y[2 * k + 1] = m->edge_[k] ? 0.0 : X[2 * k] - sig[k] * X[2 * k + 1];
     }));
     PetscFunctionReturn(0);
   }
