@@ -17,7 +17,9 @@
  *   cc -O2 -o /tmp/reference_leapfrog run/reference_leapfrog.c -lm
  *   /tmp/reference_leapfrog [n=1000] [steps=5000] [dt=5e-4] [c0=0.9] [repeats=7] [gradient_out]
  * prints J, ||dJ/dc||, and the median wall time of value+gradient over the repeats (the forward
- * stores every u_k, like flexipde's full storage); gradient_out receives dJ/dc as text.
+ * stores every u_k, like flexipde's full storage), then the median of a forward solve alone (three
+ * rolling rows, nothing stored: what the gradient's cost is compared with); gradient_out receives
+ * dJ/dc as text.
  */
 #include <math.h>
 #include <stdio.h>
@@ -61,6 +63,29 @@ static void forward(int n, int steps, double dt, const double *c, const double *
     for (int i = 1; i < n - 1; ++i)
       up[i] = 2 * uk[i] - um[i] + dt2 * c[i] * c[i] * (uk[i - 1] - 2 * uk[i] + uk[i + 1]) * h2;
   }
+}
+
+/* The value alone: the same recurrence in three rolling rows, nothing stored. */
+static double value(int n, int steps, double dt, const double *c, const double *u0, const double *du0,
+                    const double *d, double *a, double *b, double *e, double *w) {
+  const double h = 1.0 / (n - 1), h2 = 1.0 / (h * h), dt2 = dt * dt;
+  d2(n, u0, w, h2);
+  for (int i = 0; i < n; ++i) {
+    const int wall = i == 0 || i == n - 1;
+    a[i] = u0[i];
+    b[i] = wall ? 0 : u0[i] + dt * (-c[i] * du0[i]) + 0.5 * dt2 * c[i] * c[i] * w[i];
+  }
+  for (int k = 1; k < steps; ++k) { /* a = u_{k-1}, b = u_k -> e = u_{k+1} */
+    e[0] = e[n - 1] = 0;
+    for (int i = 1; i < n - 1; ++i) e[i] = 2 * b[i] - a[i] + dt2 * c[i] * c[i] * (b[i - 1] - 2 * b[i] + b[i + 1]) * h2;
+    double *t = a;
+    a = b;
+    b = e;
+    e = t;
+  }
+  double J = 0;
+  for (int i = 0; i < n; ++i) J += 0.5 * (b[i] - d[i]) * (b[i] - d[i]);
+  return J;
 }
 
 /* Value and gradient; returns J. */
@@ -134,6 +159,16 @@ int main(int argc, char **argv) {
   const double median = m % 2 ? times[m / 2] : 0.5 * (times[m / 2 - 1] + times[m / 2]);
   printf("reference: n %d, %d steps of %g, J = %.12e, ||dJ/dc|| = %.12e, value+gradient median %.6f s (min %.6f) over %d\n",
          n, steps, dt, J, sqrt(gn), median, times[0], repeats);
+  double Jv = 0;
+  for (int r = 0; r < m; ++r) {
+    const double t0 = now();
+    Jv = value(n, steps, dt, c, u0, du0, d, la, lb, lc, w);
+    times[r] = now() - t0;
+  }
+  qsort(times, m, sizeof(double), cmp);
+  const double fmed = m % 2 ? times[m / 2] : 0.5 * (times[m / 2 - 1] + times[m / 2]);
+  printf("reference forward: J = %.12e, forward median %.6f s (min %.6f), value+gradient / forward %.2f\n", Jv, fmed,
+         times[0], median / fmed);
   if (out) {
     FILE *f = fopen(out, "w");
     if (!f) {
