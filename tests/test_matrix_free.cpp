@@ -4,7 +4,8 @@
 //   * the leapfrog's fused adjoint kick (Model::second_order_adjoint) equals the assembled
 //     transposes: lambda_q += w (J^T [0; lambda_p])_q and mu += w (dG/dc)^T [0; lambda_p];
 //   * a whole leapfrog gradient with the fused kick equals the one through the Jacobians
-//     (-leapfrog_fused_adjoint 0), for a scalar speed (whose gradient is a sum over ranks) and a field;
+//     (-leapfrog_fused_adjoint 0), for a scalar speed (whose gradient is a sum over ranks) and a field,
+//     and full storage of positions only (-checkpoint_positions_only) the same as of whole states;
 //   * the matrix-free dG/dU (create_jacobian_matrix_free) applies J and J^T like the assembled one,
 //     and an RK4 gradient through it equals one through the assembled J (-sim_matrix_free_jacobian 0).
 // Cases: 1D fd2/fd4, Dirichlet/periodic; 2D Dirichlet/periodic, with a sponge (rhs only).
@@ -140,6 +141,15 @@ TEST_P(MatrixFree, LeapfrogGradientFusedEqualsJacobians) {
   EXPECT_EQ(J1, J0);
   EXPECT_GT(norm(g0), 0.0);
   EXPECT_LT(rel_diff(g1, g0), 1e-12);
+  { // full storage keeping only the positions gives the same gradient (to round-off)
+    ScopedOptions q{{"-checkpoint_positions_only", "1"}};
+    OwnedVec gq;
+    PetscReal Jq;
+    PETSC_ASSERT_OK(scene.params.create_vec(gq.out()));
+    PETSC_ASSERT_OK(scene.gradient(p, &Jq, gq));
+    EXPECT_EQ(Jq, J1);
+    EXPECT_LT(rel_diff(gq, g1), 1e-14);
+  }
 }
 
 TEST_P(MatrixFree, MatrixFreeJacobianEqualsAssembled) {

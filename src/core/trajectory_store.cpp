@@ -6,9 +6,10 @@
 // steps and kept by the Simulation between gradients, so a Set is one memcpy.
 //
 // Get(k) leaves the TS ready for the adjoint of step k-1 -> k (see checkpoint.cpp for what that
-// means): the leapfrog's one stage is the step's start U_{k-1}, copied in directly, and since its
-// adjoint reads only the positions q of that state (G_p depends on q alone), only q is stored
-// unless a cost integrand (which may read p) is integrated: half the memory and traffic; any other
+// means): the leapfrog's one stage is the step's start U_{k-1}: its stage Vec is pointed at the
+// stored state (VecPlaceArray), nothing copied. With -checkpoint_positions_only only the positions q
+// are stored (its adjoint reads nothing else: G_p depends on q alone; not with a cost integrand,
+// which may read p): half the memory, and a strided copy into the stage per step; any other
 // integrator re-runs the step from U_{k-1} (TSStep) to rebuild its stages, like PETSc's memory
 // trajectory in solution-only mode. Fixed steps only (the Simulation uses PETSc's memory trajectory
 // for adaptive runs).
@@ -44,6 +45,8 @@ struct StoreTrajectory {
   // and the buffer (kept by the Simulation) outlives the TS.
   bool place_stages = false;
   PetscInt placed = -1;
+  bool lf_placed = false; // the leapfrog's stage Vec points into the buffer
+  PetscBool positions_only = PETSC_FALSE; // -checkpoint_positions_only
 };
 
 StoreTrajectory *context(TSTrajectory tj) { return static_cast<StoreTrajectory *>(tj->data); }
@@ -123,7 +126,7 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
     }
   }
   st->pairs = 0;
-  if (is_leapfrog(ts) && !ts->quadraturets) {
+  if (is_leapfrog(ts) && !ts->quadraturets && st->positions_only) {
     PetscCall(VecGetBlockSize(ts->vec_sol, &st->dof));
     st->pairs = leapfrog_pairs(ts);
   }
@@ -137,6 +140,7 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
   st->recomputed = 0;
   st->placed = -1;
   st->place_stages = false;
+  st->lf_placed = false;
   if (st->keep_stages) { // explicit RK only, and only when no stage is the solution itself
     PetscBool rk;
     Vec *Y;
@@ -178,6 +182,12 @@ PetscErrorCode store_get(TSTrajectory tj, TS ts, PetscInt k, PetscReal *t) {
   PetscFunctionBegin;
   if (k == 0) { // the adjoint has finished
     PetscCall(place_stages(*st, ts, -1));
+    if (st->lf_placed) {
+      Vec *Y;
+      PetscCall(TSGetStages(ts, nullptr, &Y));
+      PetscCall(VecResetArray(Y[0]));
+      st->lf_placed = false;
+    }
     PetscCall(TSTrajectoryReset(tj));
     PetscFunctionReturn(0);
   }
@@ -186,7 +196,12 @@ PetscErrorCode store_get(TSTrajectory tj, TS ts, PetscInt k, PetscReal *t) {
   if (is_leapfrog(ts)) { // its one stage is U_{k-1}, also for the last step (whose forward step did not keep it)
     Vec *Y;
     PetscCall(TSGetStages(ts, nullptr, &Y));
-    PetscCall(copy_out(*st, k - 1, 0, Y[0]));
+    if (st->pairs) PetscCall(copy_out(*st, k - 1, 0, Y[0]));
+    else { // the whole state is stored: the stage Vec reads it in place
+      if (st->lf_placed) PetscCall(VecResetArray(Y[0]));
+      PetscCall(VecPlaceArray(Y[0], at(*st, k - 1, 0)));
+      st->lf_placed = true;
+    }
   }
   if (k < st->last) { // the last step's stages are still in the TS
     if (is_leapfrog(ts) || st->keep_stages) {
@@ -230,6 +245,10 @@ PetscErrorCode store_setfromoptions(TSTrajectory tj, PetscOptionItems *PetscOpti
                              "Full storage keeps every step's stages too, so the adjoint re-runs no step (default: "
                              "when the buffer fits -checkpoint_keep_stages_max_mb)",
                              "store", st->keep_stages_option, &st->keep_stages_option, &st->keep_stages_set));
+  PetscCall(PetscOptionsBool("-checkpoint_positions_only",
+                             "Leapfrog full storage keeps only the positions q of each state: half the memory, one "
+                             "strided copy per adjoint step (default: whole states, read in place)",
+                             "store", st->positions_only, &st->positions_only, nullptr));
   PetscCall(PetscOptionsReal("-checkpoint_keep_stages_max_mb", "Largest stage-keeping buffer per rank chosen by default (MB)",
                              "store", st->keep_stages_max_mb, &st->keep_stages_max_mb, nullptr));
   PetscOptionsHeadEnd();
