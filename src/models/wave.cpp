@@ -167,13 +167,7 @@ public:
         for (PetscInt il = lo_; il < hi_; ++il) local[il & 3] += out[il];
       PetscCall(halo_u_.end(U));
       PetscCall(halo_v_.end(lambda));
-      for (PetscInt il = 0; il < grid_->xm(); ++il) {
-        if (il == lo_) il = hi_;
-        if (il >= grid_->xm()) break;
-        const PetscInt i = grid_->xs() + il;
-        if (grid_->is_boundary(i)) continue;
-        std::array<StencilEntry, 5> st;
-        const PetscInt m = d2_.row(*grid_, i, st);
+      for_edge_points([&](PetscInt il, const std::array<StencilEntry, 5> &st, PetscInt m) {
         PetscReal du = 0, dz = 0;
         for (PetscInt q = 0; q < m; ++q) {
           const PetscInt jl = local_offset(st[q].j);
@@ -181,7 +175,7 @@ public:
           dz += st[q].weight * c2_at(jl) * value(L, halo_v_, 1, jl);
         }
         body(il, du, dz);
-      }
+      });
       if (g) PetscCall(VecRestoreArray(mu, &g));
     }
     if (mu && !c_field_) PetscCall(params_->add_local_sum(mu, c_index_, w * (local[0] + local[1] + local[2] + local[3])));
@@ -348,21 +342,28 @@ private:
     if (hw_ == 1) d2_interior<1, Z>(xa, emit);
     else d2_interior<2, Z>(xa, emit);
     PetscCall(halo.end(X));
-    for (PetscInt il = 0; il < grid_->xm(); ++il) {
-      if (il == lo_) il = hi_;
-      if (il >= grid_->xm()) break;
-      const PetscInt i = grid_->xs() + il;
-      if (grid_->is_boundary(i)) continue;
-      std::array<StencilEntry, 5> st;
-      const PetscInt m = d2_.row(*grid_, i, st);
+    for_edge_points([&](PetscInt il, const std::array<StencilEntry, 5> &st, PetscInt m) {
       PetscReal d = 0;
       for (PetscInt q = 0; q < m; ++q) {
         const PetscInt jl = local_offset(st[q].j);
         d += st[q].weight * (Z ? c2_at(jl) * value(xa, halo, 1, jl) : value(xa, halo, 0, jl));
       }
       emit(il, d, xa);
-    }
+    });
     PetscFunctionReturn(0);
+  }
+  // f(il, row, entries) for the owned points off the walls outside the plain interior [lo_, hi_):
+  // their D2 row from SecondDerivative::row (reflected closure, global indices).
+  template <class F>
+  void for_edge_points(F &&f) const {
+    for (PetscInt il = 0; il < grid_->xm(); ++il) {
+      if (il == lo_) il = hi_;
+      if (il >= grid_->xm()) break;
+      const PetscInt i = grid_->xs() + il;
+      if (grid_->is_boundary(i)) continue;
+      std::array<StencilEntry, 5> st;
+      f(il, st, d2_.row(*grid_, i, st));
+    }
   }
   template <int HW, bool Z, class Emit>
   void d2_interior(const PetscScalar *x, Emit &emit) const {

@@ -112,8 +112,8 @@ public:
     const PetscInt nstate = grid_->local_points() * dof();
     PetscFunctionBeginUser;
     PetscCall(MatCreateShell(grid_->comm(), nstate, nstate, PETSC_DETERMINE, PETSC_DETERMINE, this, J));
-    PetscCall(MatShellSetOperation(*J, MATOP_MULT, (void (*)(void))jmf_mult));
-    PetscCall(MatShellSetOperation(*J, MATOP_MULT_TRANSPOSE, (void (*)(void))jmf_mult_transpose));
+    PetscCall(MatShellSetOperation(*J, MATOP_MULT, (void (*)(void))jmf_apply<false>));
+    PetscCall(MatShellSetOperation(*J, MATOP_MULT_TRANSPOSE, (void (*)(void))jmf_apply<true>));
     PetscFunctionReturn(0);
   }
 
@@ -330,7 +330,8 @@ private:
   }
   // The matrix-free dG/dU = [0 I ; diag(c^2) L  -diag(sigma)] (edge rows empty) and its transpose
   // [L (c^2 x_v) ; x_u - sigma x_v] (edge rows of the second block empty).
-  static PetscErrorCode jmf_mult(Mat J, Vec x, Vec y) {
+  template <bool T>
+  static PetscErrorCode jmf_apply(Mat J, Vec x, Vec y) {
     Wave2DModel *m;
     PetscFunctionBeginUser;
     PetscCall(MatShellGetContext(J, &m));
@@ -338,26 +339,16 @@ private:
     PetscCall(ya.error());
     PetscScalar *Y = ya.data();
     const PetscReal *sig = m->sigma_.data(), *c2 = m->c2m_.data();
-    PetscCall(m->sweep<false>(x, [&](PetscInt k, PetscReal lu, const PetscScalar *X) {
-      if (m->edge_[k]) Y[2 * k] = Y[2 * k + 1] = 0;
-      else {
+    const char *edge = m->edge_.data();
+    PetscCall(m->sweep<T>(x, [&](PetscInt k, PetscReal l, const PetscScalar *X) {
+      if (T) { // [L (c^2 x_v) ; x_u - sigma x_v]
+        Y[2 * k] = l;
+        Y[2 * k + 1] = edge[k] ? 0.0 : X[2 * k] - sig[k] * X[2 * k + 1];
+      } else if (edge[k]) Y[2 * k] = Y[2 * k + 1] = 0;
+      else { // [x_v ; c^2 L x_u - sigma x_v]
         Y[2 * k] = X[2 * k + 1];
-        Y[2 * k + 1] = c2[k] * lu - sig[k] * X[2 * k + 1];
+        Y[2 * k + 1] = c2[k] * l - sig[k] * X[2 * k + 1];
       }
-    }));
-    PetscFunctionReturn(0);
-  }
-  static PetscErrorCode jmf_mult_transpose(Mat J, Vec x, Vec y) {
-    Wave2DModel *m;
-    PetscFunctionBeginUser;
-    PetscCall(MatShellGetContext(J, &m));
-    Array ya(y);
-    PetscCall(ya.error());
-    PetscScalar *Y = ya.data();
-    const PetscReal *sig = m->sigma_.data();
-    PetscCall(m->sweep<true>(x, [&](PetscInt k, PetscReal lz, const PetscScalar *X) {
-      Y[2 * k] = lz;
-      Y[2 * k + 1] = m->edge_[k] ? 0.0 : X[2 * k] - sig[k] * X[2 * k + 1];
     }));
     PetscFunctionReturn(0);
   }
