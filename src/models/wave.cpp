@@ -186,8 +186,8 @@ public:
     const PetscInt nstate = grid_->xm() * dof();
     PetscFunctionBeginUser;
     PetscCall(MatCreateShell(grid_->comm(), nstate, nstate, PETSC_DETERMINE, PETSC_DETERMINE, this, J));
-    PetscCall(MatShellSetOperation(*J, MATOP_MULT, (void (*)(void))jmf_mult));
-    PetscCall(MatShellSetOperation(*J, MATOP_MULT_TRANSPOSE, (void (*)(void))jmf_mult_transpose));
+    PetscCall(MatShellSetOperation(*J, MATOP_MULT, (void (*)(void))jmf_apply<false>));
+    PetscCall(MatShellSetOperation(*J, MATOP_MULT_TRANSPOSE, (void (*)(void))jmf_apply<true>));
     PetscFunctionReturn(0);
   }
 
@@ -377,18 +377,12 @@ private:
     }
   }
   // The matrix-free dG/dU = [0 I ; diag(c^2) D2 0] (wall rows and columns empty).
-  static PetscErrorCode jmf_mult(Mat J, Vec x, Vec y) {
+  template <bool T>
+  static PetscErrorCode jmf_apply(Mat J, Vec x, Vec y) {
     WaveModel *m;
     PetscFunctionBeginUser;
     PetscCall(MatShellGetContext(J, &m));
-    PetscCall(m->apply_jacobian(x, y, false));
-    PetscFunctionReturn(0);
-  }
-  static PetscErrorCode jmf_mult_transpose(Mat J, Vec x, Vec y) {
-    WaveModel *m;
-    PetscFunctionBeginUser;
-    PetscCall(MatShellGetContext(J, &m));
-    PetscCall(m->apply_jacobian(x, y, true));
+    PetscCall(m->apply_jacobian(x, y, T));
     PetscFunctionReturn(0);
   }
   // y = J x, or J^T x = [D2 (c^2 x_v) ; x_u] off the walls (D2 symmetric on the interior points).
