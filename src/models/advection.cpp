@@ -68,8 +68,10 @@
 //           -advection_a 0.8 -advection_b 0.5 -true_advection_b 0.6 -advection_D 0.01 -ts_dt 0.005
 //           -ts_max_time 0.2 -task gradient -check_fd
 #include "flexipde/differentiator.hpp"
+#include "flexipde/halo.hpp"
 #include "flexipde/model.hpp"
 #include "flexipde/spectral.hpp"
+#include <petsc/private/petscimpl.h> // PetscObjectStateGet
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -251,6 +253,12 @@ public:
     } else {
       PetscCall(DMCreateLocalVector(dm_, U_local_.out()));
       PetscCall(DMCreateLocalVector(dm_, X_local_.out()));
+      PetscCall(DMDAGetInfo(dm_, nullptr, nullptr, nullptr, nullptr, nullptr, nullptr, nullptr, nullptr, &radius_, nullptr,
+                            nullptr, nullptr, nullptr));
+      // One rank holding every point of each (periodic) direction fills the ghosts by wrapping its
+      // own rows around; otherwise the Halo communicates them.
+      wrap_ = grid.xm() == grid.n() && (dim_ == 1 || grid.ym() == grid.ny());
+      if (!wrap_) PetscCall(halo_.setup(grid, dm_, 0, radius_));
     }
     if (diffusion_) {
       PetscCall(DMCreateGlobalVector(grid.dm(), D_.out()));
@@ -263,6 +271,7 @@ public:
     PetscCall(create_operator(dm_));
     for (PetscInt d = 0; d < dim_; ++d) dGdv_[d].assign(grid.local_points(), 0.0);
     dGdD_.assign(grid.local_points(), 0.0);
+    if (diffusion_ && D_field_) gD_.assign(grid.local_points(), 0.0);
     PetscFunctionReturn(0);
   }
 
@@ -277,6 +286,20 @@ public:
     PetscCall(MatCreateShell(grid_->comm(), n, n, PETSC_DETERMINE, PETSC_DETERMINE, this, J));
     PetscCall(MatShellSetOperation(*J, MATOP_MULT, (void (*)(void))spectral_mult));
     PetscCall(MatShellSetOperation(*J, MATOP_MULT_TRANSPOSE, (void (*)(void))spectral_mult_transpose));
+    PetscFunctionReturn(0);
+  }
+
+  // Finite differences: dG/dU for explicit RK as a MatShell. Mult is the assembled A (the forward's
+  // own operator); MultTranspose is one stencil sweep over x with its ghosts (Halo, or wrapped on
+  // one rank) instead of AIJ's scatter-add transpose. Spectral has no other form than its shell.
+  PetscErrorCode create_jacobian_matrix_free(Mat *J) override {
+    PetscFunctionBeginUser;
+    *J = nullptr;
+    if (scheme_ == SPECTRAL) PetscFunctionReturn(0);
+    const PetscInt n = grid_->local_points();
+    PetscCall(MatCreateShell(grid_->comm(), n, n, PETSC_DETERMINE, PETSC_DETERMINE, this, J));
+    PetscCall(MatShellSetOperation(*J, MATOP_MULT, (void (*)(void))jmf_mult));
+    PetscCall(MatShellSetOperation(*J, MATOP_MULT_TRANSPOSE, (void (*)(void))jmf_mult_transpose));
     PetscFunctionReturn(0);
   }
 
@@ -311,6 +334,7 @@ public:
         PetscCall(face_diffusivity_range());
       }
     }
+    if (scheme_ != SPECTRAL) set_taps();
     PetscCall(assemble(A_));
     PetscFunctionReturn(0);
   }
@@ -321,8 +345,18 @@ public:
     PetscFunctionBeginUser;
     if (scheme_ == SPECTRAL) PetscCall(spectral_columns(U));
     else PetscCall(fd_columns(U));
-    PetscCall(MatAssemblyBegin(Jp, MAT_FINAL_ASSEMBLY)); // resets any scaling TS applied last time
-    PetscCall(MatAssemblyEnd(Jp, MAT_FINAL_ASSEMBLY));
+    // Reassembly resets any scaling TS applied since (theta's adjoint scales by -1). It costs an
+    // options lookup (-mat_view) per call, so only when Jp changed since we last assembled it.
+    PetscObjectId id;
+    PetscObjectState state;
+    PetscCall(PetscObjectGetId((PetscObject)Jp, &id));
+    PetscCall(PetscObjectStateGet((PetscObject)Jp, &state));
+    if (id != jp_id_ || state != jp_state_) {
+      PetscCall(MatAssemblyBegin(Jp, MAT_FINAL_ASSEMBLY));
+      PetscCall(MatAssemblyEnd(Jp, MAT_FINAL_ASSEMBLY));
+      jp_id_ = id;
+      PetscCall(PetscObjectStateGet((PetscObject)Jp, &jp_state_));
+    }
     PetscFunctionReturn(0);
   }
 
@@ -469,6 +503,162 @@ private:
     return s / h_[d];
   }
 
+  // Stencil taps per direction, offsets -3..3 at [k + 3], for the constant-coefficient sweeps
+  // (finite differences): the velocity columns read w1_ (scaled by -1/h afterwards, as
+  // first_derivative does), a scalar D's column -B^T B u / h^2, and A^T. With a field D, A^T's taps
+  // hold its advection part only; the (symmetric) diffusion goes face by face.
+  void set_taps() {
+    for (PetscInt d = 0; d < 2; ++d) {
+      for (PetscInt e = 0; e < 2; ++e) vel_taps_[d][e].fill(0.0);
+      lap_taps_[d].fill(0.0);
+      at_taps_[d].fill(0.0);
+    }
+    for (PetscInt d = 0; d < dim_; ++d) {
+      for (PetscInt k = -2; k <= 2; ++k) {
+        vel_taps_[d][d][k + 3] = w1_[d][k + 2];
+        at_taps_[d][-k + 3] += -vel_[d] * w1_[d][k + 2] / h_[d]; // A_d[k] lands at offset -k of A^T
+      }
+      if (!diffusion_) continue;
+      const PetscReal ih2 = 1.0 / (h_[d] * h_[d]);
+      PetscReal Df = 0; // a scalar D at the faces, as face_value computes it
+      for (PetscInt m = 0; m < face_.width; ++m) Df += face_.interp[m] * D_scalar_;
+      for (PetscInt m = 0; m < face_.width; ++m)
+        for (PetscInt q = 0; q < face_.width; ++q) {
+          const PetscReal bb = face_.grad[m] * face_.grad[q];
+          if (D_field_) continue;
+          lap_taps_[d][q - m + 3] -= bb * ih2;
+          at_taps_[d][m - q + 3] -= bb * Df * ih2; // symmetric: the same taps reflected
+        }
+    }
+  }
+
+  // Fills the owned points and the star ghosts (radius_ along each axis; no corners: every sweep
+  // here is a star) of the ghosted local array L from the global X. Replaces DMGlobalToLocal, whose
+  // scatter costs more than the sweeps themselves on small grids.
+  PetscErrorCode fill_ghosted(Vec X, Vec L) {
+    const PetscInt xm = grid_->xm(), ym = grid_->ym(), r = radius_, sy = stride_[1];
+    PetscScalar *l;
+    PetscFunctionBeginUser;
+    if (!wrap_) PetscCall(halo_.begin(X));
+    PetscCall(VecGetArray(L, &l));
+    {
+      ConstArray x(X);
+      PetscCall(x.error());
+      for (PetscInt jl = 0; jl < ym; ++jl) std::copy(x.data() + jl * xm, x.data() + (jl + 1) * xm, row(l, jl));
+    }
+    if (wrap_) {
+      for (PetscInt jl = 0; jl < ym; ++jl) {
+        PetscScalar *rw = row(l, jl);
+        for (PetscInt k = 1; k <= r; ++k) {
+          rw[-k] = rw[xm - k];
+          rw[xm - 1 + k] = rw[k - 1];
+        }
+      }
+      if (dim_ == 2)
+        for (PetscInt k = 1; k <= r; ++k) {
+          std::copy(row(l, ym - k), row(l, ym - k) + xm, row(l, 0) - k * sy);
+          std::copy(row(l, k - 1), row(l, k - 1) + xm, row(l, ym - 1) + k * sy);
+        }
+    } else {
+      PetscCall(halo_.end(X));
+      for (PetscInt jl = 0; jl < ym; ++jl) {
+        PetscScalar *rw = row(l, jl);
+        for (PetscInt k = 1; k <= r; ++k) {
+          rw[-k] = halo_(-k, jl);
+          rw[xm - 1 + k] = halo_(xm - 1 + k, jl);
+        }
+      }
+      if (dim_ == 2)
+        for (PetscInt k = 1; k <= r; ++k)
+          for (PetscInt il = 0; il < xm; ++il) {
+            row(l, 0)[il - k * sy] = halo_(il, -k);
+            row(l, ym - 1)[il + k * sy] = halo_(il, ym - 1 + k);
+          }
+    }
+    PetscCall(VecRestoreArray(L, &l));
+    PetscFunctionReturn(0);
+  }
+  // Owned row jl (j = ys + jl) of a ghosted local array.
+  PetscScalar *row(PetscScalar *l, PetscInt jl) const { return l + ghost_index(grid_->xs(), grid_->ys() + jl); }
+  const PetscScalar *row(const PetscScalar *l, PetscInt jl) const {
+    return l + ghost_index(grid_->xs(), grid_->ys() + jl);
+  }
+
+  // emit(il, s) with s = sum_d sum_{|k| <= R} t[d][k + 3] l[g + k stride_d] at every owned point, in
+  // the order of first_derivative (x taps, then y, each from -R up).
+  template <int R, int DIM, class Emit>
+  void sweep(const PetscScalar *l, const std::array<PetscReal, 7> *t, Emit &emit) const {
+    const PetscInt xm = grid_->xm(), ym = grid_->ym(), sy = stride_[1];
+    PetscInt il = 0;
+    for (PetscInt jl = 0; jl < ym; ++jl) {
+      const PetscScalar *rw = row(l, jl);
+      for (PetscInt i = 0; i < xm; ++i, ++il) {
+        PetscReal s = 0;
+#pragma GCC unroll 8
+        for (int k = -R; k <= R; ++k) s += t[0][k + 3] * PetscRealPart(rw[i + k]);
+        if (DIM == 2) {
+#pragma GCC unroll 8
+          for (int k = -R; k <= R; ++k) s += t[1][k + 3] * PetscRealPart(rw[i + k * sy]);
+        }
+        emit(il, s);
+      }
+    }
+  }
+  template <class Emit>
+  void sweep(const PetscScalar *l, const std::array<PetscReal, 7> *t, Emit &&emit) const {
+    const int key = 10 * (int)dim_ + (int)radius_;
+    switch (key) {
+    case 11: sweep<1, 1>(l, t, emit); break;
+    case 12: sweep<2, 1>(l, t, emit); break;
+    case 13: sweep<3, 1>(l, t, emit); break;
+    case 21: sweep<1, 2>(l, t, emit); break;
+    case 22: sweep<2, 2>(l, t, emit); break;
+    default: sweep<3, 2>(l, t, emit); break;
+    }
+  }
+
+  // The matrix-free dG/dU (finite differences).
+  static PetscErrorCode jmf_mult(Mat J, Vec x, Vec y) {
+    AdvectionModel *m;
+    PetscFunctionBeginUser;
+    PetscCall(MatShellGetContext(J, &m));
+    PetscCall(MatMult(m->A_, x, y));
+    PetscFunctionReturn(0);
+  }
+  static PetscErrorCode jmf_mult_transpose(Mat J, Vec x, Vec y) {
+    AdvectionModel *m;
+    const PetscScalar *xl, *D = nullptr;
+    PetscFunctionBeginUser;
+    PetscCall(MatShellGetContext(J, &m));
+    PetscCall(m->fill_ghosted(x, m->X_local_));
+    PetscCall(VecGetArrayRead(m->X_local_, &xl));
+    const bool field = m->diffusion_ && m->D_field_;
+    if (field) PetscCall(VecGetArrayRead(m->D_local_, &D));
+    {
+      Array Y(y);
+      PetscCall(Y.error());
+      m->sweep(xl, m->at_taps_, [&](PetscInt il, PetscReal s) { Y[il] = s; });
+      if (field) { // -sum_d B_d^T diag(D_f) B_d x: symmetric, the forward's faces
+        const Grid &g = *m->grid_;
+        PetscInt il = 0;
+        for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j)
+          for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i, ++il) {
+            const PetscInt gc = m->ghost_index(i, j);
+            PetscReal v = 0;
+            for (PetscInt d = 0; d < m->dim_; ++d)
+              for (PetscInt q = 0; q < m->face_.width; ++q) {
+                const PetscInt gf = gc - (m->face_.offset + q) * m->stride_[d];
+                v -= m->face_.grad[q] * m->face_value(D, gf, d) * m->face_gradient(xl, gf, d) / (m->h_[d] * m->h_[d]);
+              }
+            Y[il] += v;
+          }
+      }
+    }
+    if (field) PetscCall(VecRestoreArrayRead(m->D_local_, &D));
+    PetscCall(VecRestoreArrayRead(m->X_local_, &xl));
+    PetscFunctionReturn(0);
+  }
+
   // Largest face diffusivity (for the spectrum) and a check that none is negative: a negative
   // D_f makes the operator anti-diffusive, which only the 4-point interpolation can produce.
   PetscErrorCode face_diffusivity_range() {
@@ -606,23 +796,17 @@ private:
   PetscErrorCode fd_columns(Vec U) {
     const PetscScalar *u;
     PetscFunctionBeginUser;
-    PetscCall(DMGlobalToLocal(dm_, U, INSERT_VALUES, U_local_));
+    PetscCall(fill_ghosted(U, U_local_));
     PetscCall(VecGetArrayRead(U_local_, &u));
-    PetscInt il = 0;
-    for (PetscInt j = grid_->ys(); j < grid_->ys() + grid_->ym(); ++j)
-      for (PetscInt i = grid_->xs(); i < grid_->xs() + grid_->xm(); ++i, ++il) {
-        const PetscInt g = ghost_index(i, j);
-        PetscReal dD = 0;
-        for (PetscInt d = 0; d < dim_; ++d) {
-          dGdv_[d][il] = -first_derivative(u, g, d);
-          if (!diffusion_ || D_field_) continue;
-          for (PetscInt m = 0; m < face_.width; ++m) {
-            const PetscInt gf = g - (face_.offset + m) * stride_[d]; // faces whose gradient reads u_(i,j)
-            dD -= face_.grad[m] * face_gradient(u, gf, d) / (h_[d] * h_[d]);
-          }
-        }
-        dGdD_[il] = dD;
-      }
+    for (PetscInt d = 0; d < dim_; ++d) {
+      PetscReal *col = dGdv_[d].data();
+      const PetscReal h = h_[d];
+      sweep(u, vel_taps_[d], [&](PetscInt il, PetscReal s) { col[il] = -(s / h); });
+    }
+    if (diffusion_ && !D_field_) {
+      PetscReal *col = dGdD_.data();
+      sweep(u, lap_taps_, [&](PetscInt il, PetscReal s) { col[il] = s; });
+    }
     PetscCall(VecRestoreArrayRead(U_local_, &u));
     PetscFunctionReturn(0);
   }
@@ -703,27 +887,49 @@ private:
     PetscFunctionReturn(0);
   }
 
-  // y = (dG/dp)^T x   (x in state space, y in parameter space)
+  // y = (dG/dp)^T x   (x in state space, y in parameter space). The scalars' dot products share one
+  // reduction to rank 0 (which holds every scalar) and one write of y.
   static PetscErrorCode jp_mult_transpose(Mat Jp, Vec x, Vec y) {
     AdvectionModel *m;
     PetscFunctionBeginUser;
     PetscCall(MatShellGetContext(Jp, &m));
     const Grid &g = *m->grid_;
-    PetscReal sv[2] = {0, 0}, sD = 0;
-    const bool field = m->diffusion_ && m->D_field_;
-    PetscCall(VecSet(y, 0.0));
+    const PetscInt n = g.local_points(), nd = m->dim_;
+    const bool field = m->diffusion_ && m->D_field_, scalar_D = m->diffusion_ && !field;
+    PetscReal local[3] = {0, 0, 0}, total[3] = {0, 0, 0};
     {
       ConstArray X(x);
       PetscCall(X.error());
-      for (PetscInt il = 0; il < g.local_points(); ++il) {
-        for (PetscInt d = 0; d < m->dim_; ++d) sv[d] += m->dGdv_[d][il] * PetscRealPart(X[il]);
-        sD += m->dGdD_[il] * PetscRealPart(X[il]);
+      const PetscScalar *xa = X.data();
+      for (PetscInt d = 0; d < nd; ++d) {
+        const PetscReal *c = m->dGdv_[d].data();
+        PetscReal s = 0;
+        for (PetscInt il = 0; il < n; ++il) s += c[il] * PetscRealPart(xa[il]);
+        local[d] = s;
+      }
+      if (scalar_D) {
+        const PetscReal *c = m->dGdD_.data();
+        PetscReal s = 0;
+        for (PetscInt il = 0; il < n; ++il) s += c[il] * PetscRealPart(xa[il]);
+        local[nd] = s;
       }
     }
-    for (PetscInt d = 0; d < m->dim_; ++d) PetscCall(m->params_->add_local_sum(y, m->vel_index_[d], sv[d]));
-    if (m->diffusion_ && !field) PetscCall(m->params_->add_local_sum(y, m->D_index_, sD));
+    const PetscInt nsum = nd + (scalar_D ? 1 : 0);
+    PetscCallMPI(MPI_Reduce(local, total, (PetscMPIInt)nsum, MPIU_REAL, MPI_SUM, 0, g.comm()));
+    {
+      Array Y(y);
+      PetscCall(Y.error());
+      PetscInt ny;
+      PetscCall(VecGetLocalSize(y, &ny));
+      std::fill(&Y[0], &Y[0] + ny, 0.0);
+      for (PetscInt q = 0; q < nsum; ++q) {
+        const ParamInfo &pi = m->params_->info(q < nd ? m->vel_index_[q] : m->D_index_);
+        if (pi.local_size) Y[pi.local_offset] = total[q];
+      }
+    }
     if (!field) PetscFunctionReturn(0);
-    std::vector<PetscReal> gD(g.local_points(), 0.0);
+    std::vector<PetscReal> &gD = m->gD_;
+    std::fill(gD.begin(), gD.end(), 0.0);
     if (m->scheme_ == SPECTRAL) { // sum_d P (E_d u .* E_d^T x)
       PetscCall(VecSet(m->t3_, 0.0));
       for (PetscInt d = 0; d < m->dim_; ++d) {
@@ -737,7 +943,7 @@ private:
       for (PetscInt il = 0; il < g.local_points(); ++il) gD[il] = PetscRealPart(a[il]);
     } else { // -sum_d I_d^T (B_d u .* B_d x): faces around each owned D_k
       const PetscScalar *u, *xl;
-      PetscCall(DMGlobalToLocal(m->dm_, x, INSERT_VALUES, m->X_local_));
+      PetscCall(m->fill_ghosted(x, m->X_local_));
       PetscCall(VecGetArrayRead(m->U_local_, &u));
       PetscCall(VecGetArrayRead(m->X_local_, &xl));
       PetscInt il = 0;
@@ -774,7 +980,15 @@ private:
   OwnedVec D_, D_local_, dD_, dD_local_, U_local_, X_local_;
   SpectralDifferentiator spectral_;
   OwnedVec t1_, t2_, t3_, w_[2]; // spectral work vectors; w_[d] = E_d u for a field D
-  std::vector<PetscReal> dGdv_[2], dGdD_;
+  std::vector<PetscReal> dGdv_[2], dGdD_, gD_; // gD_: a field D's gradient (jp_mult_transpose)
+  // Finite differences: sweep taps (set_taps), ghost fill (fill_ghosted), and the last assembly of
+  // the dG/dp shell (rhs_jacobian_p).
+  std::array<PetscReal, 7> vel_taps_[2][2] = {}, lap_taps_[2] = {}, at_taps_[2] = {};
+  PetscInt radius_ = 1;
+  bool wrap_ = false;
+  Halo halo_;
+  PetscObjectId jp_id_ = -1;
+  PetscObjectState jp_state_ = -1;
 };
 
 } // namespace
