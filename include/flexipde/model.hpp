@@ -108,6 +108,7 @@ public:
   bool jacobian_constant() const override { return true; }
   PetscErrorCode rhs(PetscReal, Vec U, Vec G) override {
     PetscFunctionBeginUser;
+    PetscCall(assembled_operator());
     PetscCall(MatMult(A_, U, G));
     PetscFunctionReturn(0);
   }
@@ -117,6 +118,7 @@ public:
     MatInfo ia, ij;
     PetscBool aij;
     PetscFunctionBeginUser;
+    PetscCall(assembled_operator());
     PetscCall(PetscObjectTypeCompareAny((PetscObject)J, &aij, MATSEQAIJ, MATMPIAIJ, ""));
     if (aij) {
       PetscCall(MatGetInfo(A_, MAT_GLOBAL_SUM, &ia));
@@ -144,8 +146,19 @@ protected:
     PetscCall(create_jacobian(A_.out()));
     PetscFunctionReturn(0);
   }
+  // A model whose G and products are matrix-free marks A stale when the parameters change instead
+  // of assembling it; it is assembled on first use (implicit integrators, PETSc's adjoints with the
+  // assembled Jacobian), and never by a solve that does not need it.
+  void mark_operator_stale() { operator_stale_ = true; }
+  PetscErrorCode assembled_operator() {
+    PetscFunctionBeginUser;
+    if (operator_stale_) PetscCall(assemble(A_));
+    operator_stale_ = false;
+    PetscFunctionReturn(0);
+  }
   DM operator_dm_ = nullptr;
-  OwnedMat A_; // A(p) for the current parameters
+  OwnedMat A_; // A(p) for the current parameters (when not stale)
+  bool operator_stale_ = false;
 };
 
 using ModelFactory = std::function<std::unique_ptr<Model>()>;

@@ -218,7 +218,7 @@ public:
       }
     }
     PetscCall(halo_c_.update(c_));
-    PetscCall(assemble(A_));
+    mark_operator_stale(); // assembled when an integrator asks for dG/dU
     PetscFunctionReturn(0);
   }
 
