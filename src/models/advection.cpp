@@ -584,36 +584,56 @@ private:
     return l + ghost_index(grid_->xs(), grid_->ys() + jl);
   }
 
-  // emit(il, s) with s = sum_d sum_{|k| <= R} t[d][k + 3] l[g + k stride_d] at every owned point, in
-  // the order of first_derivative (x taps, then y, each from -R up).
-  template <int R, int DIM, class Emit>
-  void sweep(const PetscScalar *l, const std::array<PetscReal, 7> *t, Emit &emit) const {
-    const PetscInt xm = grid_->xm(), ym = grid_->ym(), sy = stride_[1];
-    PetscInt il = 0;
-    for (PetscInt jl = 0; jl < ym; ++jl) {
-      const PetscScalar *rw = row(l, jl);
-      for (PetscInt i = 0; i < xm; ++i, ++il) {
+  // out[il] = sum_d sum_{|k| <= R} t[d][k + 3] l[g + k stride_d] at every owned point (il the owned
+  // index, g the ghosted one), summed in the order of first_derivative (x taps, then y, each from
+  // -R up). The taps are copied to locals and the pointers are restrict so that the row loop needs
+  // no reloads.
+  // sum_i c_i x_i with four partial sums (latency, not bandwidth, bounds a single chain).
+  static PetscReal dot4(const PetscReal *__restrict c, const PetscScalar *__restrict x, PetscInt n) {
+    PetscReal s0 = 0, s1 = 0, s2 = 0, s3 = 0;
+    PetscInt i = 0;
+    for (; i + 3 < n; i += 4) {
+      s0 += c[i] * PetscRealPart(x[i]);
+      s1 += c[i + 1] * PetscRealPart(x[i + 1]);
+      s2 += c[i + 2] * PetscRealPart(x[i + 2]);
+      s3 += c[i + 3] * PetscRealPart(x[i + 3]);
+    }
+    for (; i < n; ++i) s0 += c[i] * PetscRealPart(x[i]);
+    return (s0 + s1) + (s2 + s3);
+  }
+
+  template <int R, int DIM>
+  __attribute__((optimize("tree-vectorize", "vect-cost-model=dynamic"))) // across points; each sum keeps its order
+  static void sweep_rows(const PetscScalar *__restrict l, const std::array<PetscReal, 7> *t, PetscReal *__restrict out,
+                         PetscInt xm, PetscInt ym, PetscInt sy) {
+    PetscReal tx[2 * R + 1], ty[2 * R + 1];
+    for (int k = -R; k <= R; ++k) {
+      tx[k + R] = t[0][k + 3];
+      ty[k + R] = DIM == 2 ? t[1][k + 3] : 0.0;
+    }
+    for (PetscInt jl = 0; jl < ym; ++jl, l += sy, out += xm) {
+      for (PetscInt i = 0; i < xm; ++i) {
         PetscReal s = 0;
 #pragma GCC unroll 8
-        for (int k = -R; k <= R; ++k) s += t[0][k + 3] * PetscRealPart(rw[i + k]);
+        for (int k = -R; k <= R; ++k) s += tx[k + R] * PetscRealPart(l[i + k]);
         if (DIM == 2) {
 #pragma GCC unroll 8
-          for (int k = -R; k <= R; ++k) s += t[1][k + 3] * PetscRealPart(rw[i + k * sy]);
+          for (int k = -R; k <= R; ++k) s += ty[k + R] * PetscRealPart(l[i + k * sy]);
         }
-        emit(il, s);
+        out[i] = s;
       }
     }
   }
-  template <class Emit>
-  void sweep(const PetscScalar *l, const std::array<PetscReal, 7> *t, Emit &&emit) const {
-    const int key = 10 * (int)dim_ + (int)radius_;
-    switch (key) {
-    case 11: sweep<1, 1>(l, t, emit); break;
-    case 12: sweep<2, 1>(l, t, emit); break;
-    case 13: sweep<3, 1>(l, t, emit); break;
-    case 21: sweep<1, 2>(l, t, emit); break;
-    case 22: sweep<2, 2>(l, t, emit); break;
-    default: sweep<3, 2>(l, t, emit); break;
+  void sweep(const PetscScalar *l, const std::array<PetscReal, 7> *t, PetscReal *out) const {
+    const PetscInt xm = grid_->xm(), ym = grid_->ym(), sy = stride_[1];
+    const PetscScalar *l0 = row(l, 0);
+    switch (10 * (int)dim_ + (int)radius_) {
+    case 11: sweep_rows<1, 1>(l0, t, out, xm, ym, sy); break;
+    case 12: sweep_rows<2, 1>(l0, t, out, xm, ym, sy); break;
+    case 13: sweep_rows<3, 1>(l0, t, out, xm, ym, sy); break;
+    case 21: sweep_rows<1, 2>(l0, t, out, xm, ym, sy); break;
+    case 22: sweep_rows<2, 2>(l0, t, out, xm, ym, sy); break;
+    default: sweep_rows<3, 2>(l0, t, out, xm, ym, sy); break;
     }
   }
 
@@ -637,7 +657,7 @@ private:
     {
       Array Y(y);
       PetscCall(Y.error());
-      m->sweep(xl, m->at_taps_, [&](PetscInt il, PetscReal s) { Y[il] = s; });
+      m->sweep(xl, m->at_taps_, &Y[0]);
       if (field) { // -sum_d B_d^T diag(D_f) B_d x: symmetric, the forward's faces
         const Grid &g = *m->grid_;
         PetscInt il = 0;
@@ -801,11 +821,11 @@ private:
     for (PetscInt d = 0; d < dim_; ++d) {
       PetscReal *col = dGdv_[d].data();
       const PetscReal h = h_[d];
-      sweep(u, vel_taps_[d], [&](PetscInt il, PetscReal s) { col[il] = -(s / h); });
+      sweep(u, vel_taps_[d], col); // (D_d u) h_d; the consumers scale by dGdv_scale_[d] = -1/h_d
+      dGdv_scale_[d] = -1.0 / h;
     }
     if (diffusion_ && !D_field_) {
-      PetscReal *col = dGdD_.data();
-      sweep(u, lap_taps_, [&](PetscInt il, PetscReal s) { col[il] = s; });
+      sweep(u, lap_taps_, dGdD_.data());
     }
     PetscCall(VecRestoreArrayRead(U_local_, &u));
     PetscFunctionReturn(0);
@@ -817,7 +837,8 @@ private:
       PetscCall(spectral_.derivative(d, 1, U, t1_));
       ConstArray a(t1_);
       PetscCall(a.error());
-      for (PetscInt il = 0; il < grid_->local_points(); ++il) dGdv_[d][il] = -PetscRealPart(a[il]);
+      for (PetscInt il = 0; il < grid_->local_points(); ++il) dGdv_[d][il] = PetscRealPart(a[il]);
+      dGdv_scale_[d] = -1.0;
     }
     if (!diffusion_) PetscFunctionReturn(0);
     if (D_field_) {
@@ -846,7 +867,7 @@ private:
       PetscCall(Y.error());
       for (PetscInt il = 0; il < g.local_points(); ++il) {
         PetscReal v = m->dGdD_[il] * dD;
-        for (PetscInt d = 0; d < m->dim_; ++d) v += m->dGdv_[d][il] * dv[d];
+        for (PetscInt d = 0; d < m->dim_; ++d) v += m->dGdv_[d][il] * m->dGdv_scale_[d] * dv[d];
         Y[il] = v;
       }
     }
@@ -901,18 +922,8 @@ private:
       ConstArray X(x);
       PetscCall(X.error());
       const PetscScalar *xa = X.data();
-      for (PetscInt d = 0; d < nd; ++d) {
-        const PetscReal *c = m->dGdv_[d].data();
-        PetscReal s = 0;
-        for (PetscInt il = 0; il < n; ++il) s += c[il] * PetscRealPart(xa[il]);
-        local[d] = s;
-      }
-      if (scalar_D) {
-        const PetscReal *c = m->dGdD_.data();
-        PetscReal s = 0;
-        for (PetscInt il = 0; il < n; ++il) s += c[il] * PetscRealPart(xa[il]);
-        local[nd] = s;
-      }
+      for (PetscInt d = 0; d < nd; ++d) local[d] = m->dGdv_scale_[d] * dot4(m->dGdv_[d].data(), xa, n);
+      if (scalar_D) local[nd] = dot4(m->dGdD_.data(), xa, n);
     }
     const PetscInt nsum = nd + (scalar_D ? 1 : 0);
     PetscCallMPI(MPI_Reduce(local, total, (PetscMPIInt)nsum, MPIU_REAL, MPI_SUM, 0, g.comm()));
@@ -980,10 +991,12 @@ private:
   OwnedVec D_, D_local_, dD_, dD_local_, U_local_, X_local_;
   SpectralDifferentiator spectral_;
   OwnedVec t1_, t2_, t3_, w_[2]; // spectral work vectors; w_[d] = E_d u for a field D
+  // dG/dv_d = dGdv_scale_[d] * dGdv_[d] (the scale kept apart: no division per point).
   std::vector<PetscReal> dGdv_[2], dGdD_, gD_; // gD_: a field D's gradient (jp_mult_transpose)
   // Finite differences: sweep taps (set_taps), ghost fill (fill_ghosted), and the last assembly of
   // the dG/dp shell (rhs_jacobian_p).
   std::array<PetscReal, 7> vel_taps_[2][2] = {}, lap_taps_[2] = {}, at_taps_[2] = {};
+  PetscReal dGdv_scale_[2] = {-1, -1};
   PetscInt radius_ = 1;
   bool wrap_ = false;
   Halo halo_;
