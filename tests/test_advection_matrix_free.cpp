@@ -8,6 +8,7 @@
 //     next rhs_jacobian_p, although that call skips reassembly when nothing touched the shell;
 //   * an RK4 gradient through the matrix-free J equals one through the assembled J
 //     (-sim_matrix_free_jacobian 0), and a CN gradient (assembled J, scaled dG/dp) is unchanged.
+//   * spectral (1D, no diffusion): the dG/dp transpose reusing D_x y left by J^T equals a fresh one.
 // Cases: 1D fd2, fd4, upwind with a < 0, scalar and field D at -fd_order 2 and 4; 2D with scalar and
 // field D; spectral (no matrix-free J: its J is already a shell).
 #include "flexipde/scene.hpp"
@@ -49,6 +50,7 @@ std::vector<AdvMFCase> cases() {
       {"dim2_upwind_field_D", with(dim2, {{"-advection_scheme", "upwind"}, {"-advection_D", "0.05"},
                                           {"-advection_D_field", "1"}, {"-fd_order", "4"}})},
       {"spectral", {{"-advection_scheme", "spectral"}, {"-da_grid_x", "40"}}},
+      {"spectral_scalar_D", {{"-advection_scheme", "spectral"}, {"-da_grid_x", "40"}, {"-advection_D", "0.05"}}},
   };
 }
 
@@ -123,8 +125,27 @@ void expect_same_gradient(Scene &scene, Vec p, const Options &on, const Options 
 TEST_P(AdvectionMatrixFree, JacobianEqualsAssembled) {
   OwnedMat Jmf;
   PETSC_ASSERT_OK(scene.model->create_jacobian_matrix_free(Jmf.out()));
-  if (spectral()) {
+  if (spectral()) { // J is already a shell; its transpose leaves D_x y for the dG/dp transpose
     EXPECT_FALSE((bool)Jmf);
+    OwnedVec x, y, z, g_fresh, g_shared;
+    for (auto *v : {&x, &y, &z}) PETSC_ASSERT_OK(VecDuplicate(U, v->out()));
+    PETSC_ASSERT_OK(VecDuplicate(p, g_fresh.out()));
+    PETSC_ASSERT_OK(VecDuplicate(p, g_shared.out()));
+    PETSC_ASSERT_OK(fill_random(x, -1.0, 1.0, 25));
+    PETSC_ASSERT_OK(fill_random(y, -1.0, 1.0, 26));
+    PETSC_ASSERT_OK(scene.model->rhs_jacobian_p(0.0, U, Jp));
+    PETSC_ASSERT_OK(MatMultTranspose(Jp, y, g_fresh)); // no D_x y kept yet
+    PETSC_ASSERT_OK(MatMult(J, x, z));
+    const PetscReal lhs = dot(z, y);
+    PETSC_ASSERT_OK(MatMultTranspose(J, y, z));
+    EXPECT_LT(rel_diff(lhs, dot(x, z)), 1e-13);
+    PETSC_ASSERT_OK(MatMultTranspose(Jp, y, g_shared)); // reuses it
+    EXPECT_GT(norm(g_fresh), 0.0);
+    EXPECT_LT(rel_diff(g_shared, g_fresh), 1e-14);
+    PETSC_ASSERT_OK(VecScale(y, 3.0)); // a changed y is differentiated again
+    PETSC_ASSERT_OK(MatMultTranspose(Jp, y, g_shared));
+    PETSC_ASSERT_OK(VecScale(g_fresh, 3.0));
+    EXPECT_LT(rel_diff(g_shared, g_fresh), 1e-14);
     return;
   }
   ASSERT_TRUE((bool)Jmf);

@@ -248,6 +248,9 @@ public:
     stride_[1] = gxm_;
     if (scheme_ == SPECTRAL) {
       for (auto *v : {&t1_, &t2_, &t3_}) PetscCall(DMCreateGlobalVector(grid.dm(), v->out()));
+      shared_dx_ = dim_ == 1 && !diffusion_;
+      if (shared_dx_)
+        for (auto *v : {&u_stage_, &dx_}) PetscCall(DMCreateGlobalVector(grid.dm(), v->out()));
       if (diffusion_ && D_field_)
         for (PetscInt d = 0; d < dim_; ++d) PetscCall(DMCreateGlobalVector(grid.dm(), w_[d].out()));
     } else {
@@ -343,7 +346,10 @@ public:
   // column of a scalar D), and for a field D the ghosted u (FD) or the de-aliased E_d u (spectral).
   PetscErrorCode rhs_jacobian_p(PetscReal, Vec U, Mat Jp) override {
     PetscFunctionBeginUser;
-    if (scheme_ == SPECTRAL) PetscCall(spectral_columns(U));
+    if (shared_dx_) { // the dot products wait for the adjoint's D_x x (see spectral_mult_transpose)
+      PetscCall(VecCopy(U, u_stage_));
+      columns_ready_ = false;
+    } else if (scheme_ == SPECTRAL) PetscCall(spectral_columns(U));
     else PetscCall(fd_columns(U));
     // Reassembly resets any scaling TS applied since (theta's adjoint scales by -1). It costs an
     // options lookup (-mat_view) per call, so only when Jp changed since we last assembled it.
@@ -805,11 +811,38 @@ private:
     PetscCall(m->spectral_apply(x, y, false));
     PetscFunctionReturn(0);
   }
+  // Spectral 1D without diffusion: A^T x = a D_x x (A = -a D_x, D_x skew), and (dG/da)^T x =
+  // <-D_x u, x> = <u, D_x x>. So the transpose keeps D_x x, tagged with x's id and state, and the
+  // dG/dp transpose that an RK adjoint stage applies next to the same x reuses it: one transform
+  // pair per adjoint stage instead of two.
   static PetscErrorCode spectral_mult_transpose(Mat A, Vec x, Vec y) {
     AdvectionModel *m;
     PetscFunctionBeginUser;
     PetscCall(MatShellGetContext(A, &m));
-    PetscCall(m->spectral_apply(x, y, true));
+    if (!m->shared_dx_) {
+      PetscCall(m->spectral_apply(x, y, true));
+      PetscFunctionReturn(0);
+    }
+    PetscCall(m->derivative_of(x));
+    const PetscReal a = m->vel_[0];
+    ConstArray w(m->dx_);
+    Array Y(y);
+    PetscCall(w.error());
+    PetscCall(Y.error());
+    for (PetscInt il = 0; il < m->grid_->local_points(); ++il) Y[il] = a * w[il];
+    PetscFunctionReturn(0);
+  }
+  // dx_ = D_x x unless it already holds it.
+  PetscErrorCode derivative_of(Vec x) {
+    PetscObjectId id;
+    PetscObjectState state;
+    PetscFunctionBeginUser;
+    PetscCall(PetscObjectGetId((PetscObject)x, &id));
+    PetscCall(PetscObjectStateGet((PetscObject)x, &state));
+    if (id == dx_id_ && state == dx_state_) PetscFunctionReturn(0);
+    PetscCall(spectral_.derivative(0, 1, x, dx_));
+    dx_id_ = id;
+    dx_state_ = state;
     PetscFunctionReturn(0);
   }
 
@@ -857,6 +890,10 @@ private:
     AdvectionModel *m;
     PetscFunctionBeginUser;
     PetscCall(MatShellGetContext(Jp, &m));
+    if (m->shared_dx_ && !m->columns_ready_) { // the recorded stage's column, on demand
+      PetscCall(m->spectral_columns(m->u_stage_));
+      m->columns_ready_ = true;
+    }
     const Grid &g = *m->grid_;
     PetscReal dv[2] = {0, 0}, dD = 0;
     for (PetscInt d = 0; d < m->dim_; ++d) PetscCall(m->params_->scalar(x, m->vel_index_[d], &dv[d]));
@@ -918,7 +955,13 @@ private:
     const PetscInt n = g.local_points(), nd = m->dim_;
     const bool field = m->diffusion_ && m->D_field_, scalar_D = m->diffusion_ && !field;
     PetscReal local[3] = {0, 0, 0}, total[3] = {0, 0, 0};
-    {
+    if (m->shared_dx_) { // <u, D_x x>, D_x x usually left by the transpose of J just before
+      PetscCall(m->derivative_of(x));
+      ConstArray u(m->u_stage_), w(m->dx_);
+      PetscCall(u.error());
+      PetscCall(w.error());
+      local[0] = dot4(u.data(), w.data(), n);
+    } else {
       ConstArray X(x);
       PetscCall(X.error());
       const PetscScalar *xa = X.data();
@@ -991,6 +1034,12 @@ private:
   OwnedVec D_, D_local_, dD_, dD_local_, U_local_, X_local_;
   SpectralDifferentiator spectral_;
   OwnedVec t1_, t2_, t3_, w_[2]; // spectral work vectors; w_[d] = E_d u for a field D
+  // Spectral 1D without diffusion: the stage u recorded by rhs_jacobian_p, and D_x of the Vec
+  // (id, state) last differentiated (spectral_mult_transpose).
+  bool shared_dx_ = false, columns_ready_ = false;
+  OwnedVec u_stage_, dx_;
+  PetscObjectId dx_id_ = -1;
+  PetscObjectState dx_state_ = -1;
   // dG/dv_d = dGdv_scale_[d] * dGdv_[d] (the scale kept apart: no division per point).
   std::vector<PetscReal> dGdv_[2], dGdD_, gD_; // gD_: a field D's gradient (jp_mult_transpose)
   // Finite differences: sweep taps (set_taps), ghost fill (fill_ghosted), and the last assembly of
