@@ -237,7 +237,16 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
   }
   // An explicit RK only applies dG/dU (its adjoint: the transpose): the model's matrix-free operator
   // when it has one (-sim_matrix_free_jacobian 0 keeps the assembled one).
-  if (Jmf_ && matrix_free_jacobian_ && !std::strcmp(type, TSRK)) PetscCall(TSSetRHSJacobian(ts, Jmf_, Jmf_, rhs_jacobian_cb, this));
+  if (Jmf_ && matrix_free_jacobian_ && !std::strcmp(type, TSRK)) {
+    PetscCall(TSSetRHSJacobian(ts, Jmf_, Jmf_, rhs_jacobian_cb, this));
+    // PETSc's RK adjoint asks SNESComputeJacobian for dG/dU at every stage, which also runs its
+    // -snes_test_* options checks each time; the matrix-free operator never needs recomputing (it
+    // applies the model's current parameters), so the SNES evaluates it once and then reuses it.
+    SNES snes;
+    PetscCall(TSGetSNES(ts, &snes));
+    PetscCall(SNESSetLagJacobian(snes, -2));
+    PetscCall(SNESSetLagJacobianPersists(snes, PETSC_TRUE));
+  }
   if (with_adjoint && Jp_ && !std::strcmp(type, TSRK)) {
     // PETSc 3.18's TSAdjointStep_RK skips dG/dp for a stage whose weight b_i is zero (it rescales
     // a stale vector instead), so parameter gradients of such tableaux are wrong. The FSAL last
