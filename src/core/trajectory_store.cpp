@@ -247,7 +247,8 @@ PetscErrorCode store_setfromoptions(TSTrajectory tj, PetscOptionItems *PetscOpti
                              "store", st->keep_stages_option, &st->keep_stages_option, &st->keep_stages_set));
   PetscCall(PetscOptionsBool("-checkpoint_positions_only",
                              "Leapfrog full storage keeps only the positions q of each state: half the memory, one "
-                             "strided copy per adjoint step (default: whole states, read in place)",
+                             "strided copy per adjoint step (default: whole states, read in place; whole states "
+                             "always with a time-integrated objective)",
                              "store", st->positions_only, &st->positions_only, nullptr));
   PetscCall(PetscOptionsReal("-checkpoint_keep_stages_max_mb", "Largest stage-keeping buffer per rank chosen by default (MB)",
                              "store", st->keep_stages_max_mb, &st->keep_stages_max_mb, nullptr));
