@@ -28,7 +28,7 @@ MPIEXEC=${MPIEXEC:-mpiexec}
 [ "$(id -u)" = 0 ] && MPIEXEC="$MPIEXEC --allow-run-as-root"
 [ -x "$FLEXIPDE" ] || { echo "bench_peers: $FLEXIPDE not found (build first: bash run/build.sh)" >&2; exit 1; }
 
-cc -O2 -o "$OUT/reference_leapfrog" "$here/reference_leapfrog.c" -lm
+cc -O3 -o "$OUT/reference_leapfrog" "$here/reference_leapfrog.c" -lm
 seed="-ts_type leapfrog -wave_c_field 1 -wave_c 0.9"
 
 echo "## Gradient speed against peers (seed FWI, 1000 parameters, 5000 steps, 1 core)"
@@ -48,7 +48,7 @@ if [ "$SCALE" = 1 ]; then
   done
   "$OUT/reference_leapfrog" 1000000 200 2.5e-7 0.9 5 > "$OUT/reference_big.log"
   # 2D: 2000 x 2000 points, 100 leapfrog steps, no sponge (the leapfrog's form), c scalar or a 4e6 field
-  cc -O2 -o "$OUT/reference_leapfrog_2d" "$here/reference_leapfrog_2d.c" -lm
+  cc -O3 -o "$OUT/reference_leapfrog_2d" "$here/reference_leapfrog_2d.c" -lm
   big2d="-model wave2d -da_grid_x 2000 -da_grid_y 2000 -ts_type leapfrog -wave2d_sponge_width 0 -wave2d_ic pulse
          -ts_dt 2e-4 -ts_max_time 2e-2 -wave2d_c 0.9 -true_wave2d_c 1"
   for np in 1 2; do

@@ -14,7 +14,7 @@
  *             + lam_{1,i} (dt dv0_i/dc_i + dt^2 c_i (D2 u_0)_i),   dv0_i/dc_i = -u0'_i
  *   with lam_0 = (I + B^T/2) lam_1 - lam_2 (not needed for dJ/dc).
  *
- *   cc -O2 -o /tmp/reference_leapfrog run/reference_leapfrog.c -lm
+ *   cc -O3 -o /tmp/reference_leapfrog run/reference_leapfrog.c -lm
  *   /tmp/reference_leapfrog [n=1000] [steps=5000] [dt=5e-4] [c0=0.9] [repeats=7] [gradient_out]
  * prints J, ||dJ/dc||, and the median wall time of value+gradient over the repeats (the forward
  * stores every u_k, like flexipde's full storage), then the median of a forward solve alone (three

@@ -7,7 +7,7 @@
  *   lam_n = u_n - d,  lam_{k-1} = 2 lam_k + dt^2 L (c^2 lam_k) - lam_{k+1}
  *   dJ/dc = sum_k lam_{k+1} dt^2 2 c L u_k  (+ lam_1 dt^2 c L u_0 for the start)
  *
- *   cc -O2 -o /tmp/reference_leapfrog_2d run/reference_leapfrog_2d.c -lm
+ *   cc -O3 -o /tmp/reference_leapfrog_2d run/reference_leapfrog_2d.c -lm
  *   /tmp/reference_leapfrog_2d [n=2000] [steps=100] [dt=2e-4] [c0=0.9] [repeats=3]
  */
 #include <math.h>
