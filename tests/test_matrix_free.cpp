@@ -17,6 +17,7 @@ using flexipde_test::fill_random;
 using flexipde_test::norm;
 using flexipde_test::rel_diff;
 using flexipde_test::ScopedOptions;
+using flexipde_test::expect_same_gradient;
 
 namespace {
 
@@ -122,30 +123,6 @@ TEST_P(MatrixFree, FusedAdjointKickEqualsAssembledTransposes) {
   EXPECT_GT(norm(mu_ref), 0.0);
 }
 
-// Gradients of the scene (data from 1.05 p) with the options `on` and with `on` plus `alt`: the
-// same J, and gradients within tol of each other.
-void expect_same_gradient(Scene &scene, Vec p, const std::vector<std::pair<const char *, const char *>> &on,
-                          const std::vector<std::pair<const char *, const char *>> &alt, PetscReal tol) {
-  ScopedOptions base;
-  for (auto &o : on) base.set(o.first, o.second);
-  OwnedVec p_true, g1, g0;
-  PETSC_ASSERT_OK(scene.params.create_vec(p_true.out()));
-  PETSC_ASSERT_OK(VecCopy(p, p_true));
-  PETSC_ASSERT_OK(VecScale(p_true, 1.05));
-  PETSC_ASSERT_OK(scene.make_synthetic_data(p_true));
-  PETSC_ASSERT_OK(scene.params.create_vec(g1.out()));
-  PETSC_ASSERT_OK(scene.params.create_vec(g0.out()));
-  PetscReal J1, J0;
-  PETSC_ASSERT_OK(scene.gradient(p, &J1, g1));
-  {
-    ScopedOptions other;
-    for (auto &o : alt) other.set(o.first, o.second);
-    PETSC_ASSERT_OK(scene.gradient(p, &J0, g0));
-  }
-  EXPECT_EQ(J1, J0);
-  EXPECT_GT(norm(g0), 0.0);
-  EXPECT_LT(rel_diff(g1, g0), tol);
-}
 
 TEST_P(MatrixFree, LeapfrogGradientFusedEqualsJacobians) {
   if (!GetParam().fused) return;

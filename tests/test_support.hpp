@@ -179,4 +179,32 @@ inline void expect_matches_serial(const std::string &label, PetscReal Jpar, Pets
   EXPECT_LE(worst[1], 1e-10);
 }
 
+using OptionList = std::vector<std::pair<const char *, const char *>>;
+
+// Two gradients of the scene at p, with data from 1.05 p: one with the options `on`, one with `on`
+// and `alt` (e.g. a matrix-free path against the assembled one): the same J, gradients within tol
+// (relative, max norm) of each other, and not zero.
+inline void expect_same_gradient(flexipde::Scene &scene, Vec p, const OptionList &on, const OptionList &alt,
+                                 PetscReal tol) {
+  ScopedOptions base;
+  for (auto &o : on) base.set(o.first, o.second);
+  flexipde::OwnedVec p_true, g1, g0;
+  PETSC_ASSERT_OK(scene.params.create_vec(p_true.out()));
+  PETSC_ASSERT_OK(VecCopy(p, p_true));
+  PETSC_ASSERT_OK(VecScale(p_true, 1.05));
+  PETSC_ASSERT_OK(scene.make_synthetic_data(p_true));
+  PETSC_ASSERT_OK(scene.params.create_vec(g1.out()));
+  PETSC_ASSERT_OK(scene.params.create_vec(g0.out()));
+  PetscReal J1, J0;
+  PETSC_ASSERT_OK(scene.gradient(p, &J1, g1));
+  {
+    ScopedOptions other;
+    for (auto &o : alt) other.set(o.first, o.second);
+    PETSC_ASSERT_OK(scene.gradient(p, &J0, g0));
+  }
+  EXPECT_EQ(J1, J0);
+  EXPECT_GT(norm(g0), 0.0);
+  EXPECT_LT(rel_diff(g1, g0), tol);
+}
+
 } // namespace flexipde_test
