@@ -6,10 +6,10 @@
 // steps and kept by the Simulation between gradients, so a Set is one memcpy.
 //
 // Get(k) leaves the TS ready for the adjoint of step k-1 -> k (see checkpoint.cpp for what that
-// means): the leapfrog's one stage is the step's start U_{k-1}: its stage Vec is pointed at the
-// stored state (VecPlaceArray), nothing copied. With -checkpoint_positions_only only the positions q
-// are stored (its adjoint reads nothing else: G_p depends on q alone; not with a cost integrand,
-// which may read p): half the memory, and a strided copy into the stage per step; any other
+// means): the leapfrog's one stage is the step's start U_{k-1}. By default only its positions q are
+// stored (its adjoint reads nothing else: G_p depends on q alone), half the memory, and copied into
+// the stage per step; with -checkpoint_positions_only 0, or a cost integrand (which may read p), whole
+// states are stored and the stage Vec is pointed at them (VecPlaceArray), nothing copied; any other
 // integrator re-runs the step from U_{k-1} (TSStep) to rebuild its stages, like PETSc's memory
 // trajectory in solution-only mode. Fixed steps only (the Simulation uses PETSc's memory trajectory
 // for adaptive runs).
@@ -46,7 +46,7 @@ struct StoreTrajectory {
   bool place_stages = false;
   PetscInt placed = -1;
   bool lf_placed = false; // the leapfrog's stage Vec points into the buffer
-  PetscBool positions_only = PETSC_FALSE; // -checkpoint_positions_only
+  PetscBool positions_only = PETSC_TRUE; // -checkpoint_positions_only
 };
 
 StoreTrajectory *context(TSTrajectory tj) { return static_cast<StoreTrajectory *>(tj->data); }
@@ -247,8 +247,8 @@ PetscErrorCode store_setfromoptions(TSTrajectory tj, PetscOptionItems *PetscOpti
                              "store", st->keep_stages_option, &st->keep_stages_option, &st->keep_stages_set));
   PetscCall(PetscOptionsBool("-checkpoint_positions_only",
                              "Leapfrog full storage keeps only the positions q of each state: half the memory, one "
-                             "strided copy per adjoint step (default: whole states, read in place; whole states "
-                             "always with a time-integrated objective)",
+                             "strided copy into the stage per adjoint step (0: whole states, read in place; whole "
+                             "states always with a time-integrated objective)",
                              "store", st->positions_only, &st->positions_only, nullptr));
   PetscCall(PetscOptionsReal("-checkpoint_keep_stages_max_mb", "Largest stage-keeping buffer per rank chosen by default (MB)",
                              "store", st->keep_stages_max_mb, &st->keep_stages_max_mb, nullptr));
