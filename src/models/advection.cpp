@@ -663,7 +663,7 @@ private:
     {
       Array Y(y);
       PetscCall(Y.error());
-      m->sweep(xl, m->at_taps_, &Y[0]);
+      m->sweep(xl, m->at_taps_, Y.data());
       if (field) { // -sum_d B_d^T diag(D_f) B_d x: symmetric, the forward's faces
         const Grid &g = *m->grid_;
         PetscInt il = 0;
@@ -975,7 +975,7 @@ private:
       PetscCall(Y.error());
       PetscInt ny;
       PetscCall(VecGetLocalSize(y, &ny));
-      std::fill(&Y[0], &Y[0] + ny, 0.0);
+      std::fill(Y.data(), Y.data() + ny, 0.0); // data(): ny may be 0 (no scalar on this rank)
       for (PetscInt q = 0; q < nsum; ++q) {
         const ParamInfo &pi = m->params_->info(q < nd ? m->vel_index_[q] : m->D_index_);
         if (pi.local_size) Y[pi.local_offset] = total[q];
