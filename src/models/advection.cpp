@@ -501,6 +501,24 @@ private:
     for (PetscInt m = 0; m < face_.width; ++m) v += face_.interp[m] * PetscRealPart(D[gf + (face_.offset + m) * stride_[d]]);
     return v;
   }
+  // y_k += -sum_d B_d^T diag(I_d c) B_d w at every owned point k (ghosted arrays c, w): the
+  // variable-coefficient diffusion face by face, used with (c, w) = (D, x) for dG/dU^T and
+  // (dD, u) for the field-D column of dG/dp.
+  void add_face_diffusion(const PetscScalar *c, const PetscScalar *w, PetscScalar *y) const {
+    const Grid &g = *grid_;
+    PetscInt il = 0;
+    for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j)
+      for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i, ++il) {
+        const PetscInt gc = ghost_index(i, j);
+        PetscReal v = 0;
+        for (PetscInt d = 0; d < dim_; ++d)
+          for (PetscInt q = 0; q < face_.width; ++q) {
+            const PetscInt gf = gc - (face_.offset + q) * stride_[d];
+            v -= face_.grad[q] * face_value(c, gf, d) * face_gradient(w, gf, d) / (h_[d] * h_[d]);
+          }
+        y[il] += v;
+      }
+  }
   // (D_d u) at ghosted index g, with the 1/h.
   PetscReal first_derivative(const PetscScalar *u, PetscInt g, PetscInt d) const {
     PetscReal s = 0;
@@ -664,21 +682,7 @@ private:
       Array Y(y);
       PetscCall(Y.error());
       m->sweep(xl, m->at_taps_, Y.data());
-      if (field) { // -sum_d B_d^T diag(D_f) B_d x: symmetric, the forward's faces
-        const Grid &g = *m->grid_;
-        PetscInt il = 0;
-        for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j)
-          for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i, ++il) {
-            const PetscInt gc = m->ghost_index(i, j);
-            PetscReal v = 0;
-            for (PetscInt d = 0; d < m->dim_; ++d)
-              for (PetscInt q = 0; q < m->face_.width; ++q) {
-                const PetscInt gf = gc - (m->face_.offset + q) * m->stride_[d];
-                v -= m->face_.grad[q] * m->face_value(D, gf, d) * m->face_gradient(xl, gf, d) / (m->h_[d] * m->h_[d]);
-              }
-            Y[il] += v;
-          }
-      }
+      if (field) m->add_face_diffusion(D, xl, Y.data()); // symmetric: the forward's faces
     }
     if (field) PetscCall(VecRestoreArrayRead(m->D_local_, &D));
     PetscCall(VecRestoreArrayRead(m->X_local_, &xl));
@@ -927,18 +931,7 @@ private:
     {
       Array Y(y);
       PetscCall(Y.error());
-      PetscInt il = 0;
-      for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j)
-        for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i, ++il) {
-          const PetscInt gc = m->ghost_index(i, j);
-          PetscReal v = 0;
-          for (PetscInt d = 0; d < m->dim_; ++d)
-            for (PetscInt q = 0; q < m->face_.width; ++q) {
-              const PetscInt gf = gc - (m->face_.offset + q) * m->stride_[d];
-              v -= m->face_.grad[q] * m->face_gradient(u, gf, d) * m->face_value(ddl, gf, d) / (m->h_[d] * m->h_[d]);
-            }
-          Y[il] += v;
-        }
+      m->add_face_diffusion(ddl, u, Y.data());
     }
     PetscCall(VecRestoreArrayRead(m->dD_local_, &ddl));
     PetscCall(VecRestoreArrayRead(m->U_local_, &u));
