@@ -230,6 +230,7 @@ PetscErrorCode TSAdjointSetUp_Leapfrog(TS ts) {
              "-ts_type leapfrog has no second-order adjoint");
   PetscCheck(!ts->quadraturets || ts->costintegralfwd, PetscObjectComm((PetscObject)ts), PETSC_ERR_SUP,
              "-ts_type leapfrog accumulates cost integrals in the forward sweep only");
+  if (lf->adjoint_kick) PetscFunctionReturn(0); // the model's fused kick needs no work vectors
   if (!lf->W) PetscCall(VecDuplicate(ts->vecs_sensi[0], &lf->W));
   if (ts->vecs_sensip && !lf->dmu) PetscCall(VecDuplicate(ts->vecs_sensip[0], &lf->dmu));
   PetscFunctionReturn(0);

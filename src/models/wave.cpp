@@ -99,7 +99,6 @@ public:
                (double)width_);
     c_index_ = params.add("wave_c", c_field_ ? ParamKind::Field : ParamKind::Scalar, c_min_);
     PetscCall(DMCreateGlobalVector(grid.dm(), c_.out()));
-    PetscCall(DMCreateGlobalVector(dm_, work_.out()));
     PetscCall(create_operator(dm_));
     dgdc_.assign(grid.xm(), 0.0);
     c2_.assign(grid.xm(), 0.0);
@@ -492,7 +491,7 @@ private:
   PetscBool c_field_ = PETSC_FALSE;
   PetscInt ic_ = 0, c_index_ = -1;
   PetscReal center_ = 0.5, width_ = 0.2, cmax_ = 0, c_min_ = 0.01;
-  OwnedVec c_, work_;
+  OwnedVec c_;
   std::vector<PetscReal> dgdc_, c2_, two_c_, gbuf_; // 2 c D2 u at the last state; c^2; 2c (0 at walls); work
   Halo halo_u_, halo_v_, halo_c_; // ghosts of u, of lambda_v (adjoint) and of c
   PetscInt hw_ = 1, lo_ = 0, hi_ = 0; // stencil half-width; owned points [lo_, hi_) take the plain sweep
