@@ -9,6 +9,11 @@
 //   * an RK4 gradient through the matrix-free J equals one through the assembled J
 //     (-sim_matrix_free_jacobian 0), and a CN gradient (assembled J, scaled dG/dp) is unchanged.
 //   * spectral (1D, no diffusion): the dG/dp transpose reusing D_x y left by J^T equals a fresh one.
+//   * finite differences: the dG/dp transpose that J^T forms from the same vector in its sweep
+//     (-advection_fused_adjoint, the RK adjoint's order: J^T then (dG/dp)^T of one unchanged Vec) equals
+//     the one from the columns, is used only for that Vec in that state at that stage, and an RK4
+//     gradient with it equals one without (-advection_fused_adjoint 0); dG/dp applied after its state
+//     changed is an error, never other data.
 // Cases: 1D fd2, fd4, upwind with a < 0, scalar and field D at -fd_order 2 and 4; 2D with scalar and
 // field D; spectral (no matrix-free J: its J is already a shell).
 #include "flexipde/scene.hpp"
@@ -188,6 +193,90 @@ TEST_P(AdvectionMatrixFree, ParameterColumnsConsistentAndRescaled) {
   PETSC_ASSERT_OK(MatMultTranspose(Jp, y, Jty2));
   PETSC_ASSERT_OK(VecScale(Jty, 2.0));
   EXPECT_LT(rel_diff(Jty2, Jty), 1e-14);
+}
+
+TEST_P(AdvectionMatrixFree, FusedParameterTransposeEqualsColumns) {
+  if (spectral()) return; // its sharing is checked in JacobianEqualsAssembled
+  OwnedMat Jmf;
+  OwnedVec x, y, z, U2, g_cols, g_fused, Jx;
+  PETSC_ASSERT_OK(scene.model->create_jacobian_matrix_free(Jmf.out()));
+  for (auto *v : {&y, &z, &U2, &Jx}) PETSC_ASSERT_OK(VecDuplicate(U, v->out()));
+  for (auto *v : {&x, &g_cols, &g_fused}) PETSC_ASSERT_OK(VecDuplicate(p, v->out()));
+  PETSC_ASSERT_OK(fill_random(x, -1.0, 1.0, 29));
+  PETSC_ASSERT_OK(fill_random(y, -1.0, 1.0, 30));
+  PETSC_ASSERT_OK(fill_random(U2, -1.0, 1.0, 31));
+  PETSC_ASSERT_OK(scene.model->rhs_jacobian_p(0.0, U, Jp));
+  PETSC_ASSERT_OK(MatMultTranspose(Jp, y, g_cols)); // before any J^T: from the columns
+  PETSC_ASSERT_OK(MatMultTranspose(Jmf, y, z));     // forms (dG/dp)^T y too
+  PETSC_ASSERT_OK(MatMultTranspose(Jp, y, g_fused)); // takes it
+  EXPECT_GT(norm(g_cols), 0.0);
+  EXPECT_LT(rel_diff(g_fused, g_cols), 1e-13);
+  PETSC_ASSERT_OK(MatMult(Jp, x, Jx)); // dot-product identity with the fused transpose
+  EXPECT_LT(rel_diff(dot(Jx, y), dot(x, g_fused)), 1e-12);
+  // y changed since J^T: differentiated again
+  PETSC_ASSERT_OK(MatMultTranspose(Jmf, y, z));
+  PETSC_ASSERT_OK(VecScale(y, 3.0));
+  PETSC_ASSERT_OK(MatMultTranspose(Jp, y, g_fused));
+  PETSC_ASSERT_OK(VecScale(g_cols, 3.0));
+  EXPECT_LT(rel_diff(g_fused, g_cols), 1e-13);
+  // a new stage after J^T: the product of the old one is not taken
+  PETSC_ASSERT_OK(MatMultTranspose(Jmf, y, z));
+  PETSC_ASSERT_OK(scene.model->rhs_jacobian_p(0.0, U2, Jp));
+  PETSC_ASSERT_OK(MatMultTranspose(Jp, y, g_fused));
+  PETSC_ASSERT_OK(MatMultTranspose(Jmf, y, z));
+  PETSC_ASSERT_OK(MatMultTranspose(Jp, y, g_cols));
+  EXPECT_LT(rel_diff(g_fused, g_cols), 1e-13);
+  {
+    OwnedVec g_ref;
+    PETSC_ASSERT_OK(VecDuplicate(p, g_ref.out()));
+    PETSC_ASSERT_OK(scene.model->rhs_jacobian_p(0.0, U, Jp));
+    PETSC_ASSERT_OK(MatMultTranspose(Jp, y, g_ref));
+    EXPECT_GT(rel_diff(g_fused, g_ref), 1e-3); // U2's, not U's
+  }
+  // new parameters after J^T: not taken either
+  PETSC_ASSERT_OK(MatMultTranspose(Jmf, y, z));
+  PETSC_ASSERT_OK(scene.model->set_parameters(p));
+  PETSC_ASSERT_OK(scene.model->rhs_jacobian_p(0.0, U, Jp));
+  PETSC_ASSERT_OK(MatMultTranspose(Jp, y, g_fused));
+  PETSC_ASSERT_OK(MatMultTranspose(Jmf, y, z));
+  PETSC_ASSERT_OK(MatMultTranspose(Jp, y, g_cols));
+  EXPECT_LT(rel_diff(g_fused, g_cols), 1e-13);
+  // the recorded state changed: dG/dp there is gone, and applying it is an error
+  PETSC_ASSERT_OK(VecScale(U, 2.0));
+  {
+    flexipde_test::QuietErrors quiet;
+    PetscErrorCode err = MatMultTranspose(Jp, y, g_fused);
+    bool lazy = err != 0; // field D keeps its columns (never lazy)
+    if (lazy) EXPECT_EQ(err, PETSC_ERR_ARG_WRONGSTATE);
+    else EXPECT_LT(rel_diff(g_fused, g_cols), 1e-13);
+  }
+}
+
+TEST_P(AdvectionMatrixFree, RkGradientFusedEqualsUnfused) {
+  OwnedVec g0, g1;
+  PetscReal J0, J1;
+  ScopedOptions rk;
+  rk.set("-ts_type", "rk");
+  rk.set("-ts_rk_type", "4");
+  OwnedVec p_true;
+  PETSC_ASSERT_OK(scene.params.create_vec(p_true.out()));
+  PETSC_ASSERT_OK(VecCopy(p, p_true));
+  PETSC_ASSERT_OK(VecScale(p_true, 1.05));
+  PETSC_ASSERT_OK(scene.make_synthetic_data(p_true));
+  PETSC_ASSERT_OK(scene.params.create_vec(g1.out()));
+  PETSC_ASSERT_OK(scene.gradient(p, &J1, g1));
+  Scene unfused; // the same scene without the fused product
+  {
+    ScopedOptions off;
+    off.set("-advection_fused_adjoint", "0");
+    PETSC_ASSERT_OK(unfused.setup(PETSC_COMM_WORLD));
+  }
+  PETSC_ASSERT_OK(unfused.make_synthetic_data(p_true));
+  PETSC_ASSERT_OK(unfused.params.create_vec(g0.out()));
+  PETSC_ASSERT_OK(unfused.gradient(p, &J0, g0));
+  EXPECT_EQ(J1, J0);
+  EXPECT_GT(norm(g0), 0.0);
+  EXPECT_LT(rel_diff(g1, g0), 1e-12);
 }
 
 TEST_P(AdvectionMatrixFree, RkGradientMatrixFreeEqualsAssembled) {

@@ -93,6 +93,102 @@ constexpr PetscInt default_points_2d = 64;
 
 using cplx = std::complex<PetscReal>;
 
+// The state U that rhs_jacobian_p was last given, kept by reference instead of copied: dG/dp is
+// evaluated at it only when applied (or fused into the transpose of dG/dU, see FusedProducts). Every
+// use checks that U is the same Vec in the same state as when recorded, so data changed since can
+// never be used: that is an error instead. serial() changes with every record and with every
+// invalidate() (new parameters), so a product computed at one record is never taken for another.
+class RecordedStage {
+public:
+  RecordedStage() = default;
+  RecordedStage(const RecordedStage &) = delete;
+  RecordedStage &operator=(const RecordedStage &) = delete;
+  ~RecordedStage() { (void)VecDestroy(&U_); }
+  // Keeps U and starts loading its values into the cache: the integrator does its own vector work
+  // before the products read them (the stored stages are cold: each is read once per adjoint).
+  PetscErrorCode record(Vec U) {
+    PetscFunctionBeginUser;
+    PetscCall(PetscObjectReference((PetscObject)U));
+    PetscCall(VecDestroy(&U_));
+    U_ = U;
+    PetscCall(PetscObjectGetId((PetscObject)U, &id_));
+    PetscCall(PetscObjectStateGet((PetscObject)U, &state_));
+    ++serial_;
+    const PetscScalar *u;
+    PetscInt n;
+    PetscCall(VecGetLocalSize(U, &n));
+    PetscCall(VecGetArrayRead(U, &u));
+    // A hint only (a prefetch never faults, whatever the address): U, and the block of the same
+    // size just below it, which is where a full-storage trajectory keeps the stage (or state) the
+    // adjoint reads next (descending through the buffer). Capped: large arrays stream anyway.
+    const size_t bytes = std::min<size_t>((size_t)n * sizeof(PetscScalar), 256 * 1024);
+    const char *b = reinterpret_cast<const char *>(u);
+    for (size_t c = 0; c < bytes; c += 64) __builtin_prefetch(b + c, 0, 3);
+    for (size_t c = 0; c < bytes; c += 64) __builtin_prefetch(b - (size_t)n * sizeof(PetscScalar) + c, 0, 2);
+    PetscCall(VecRestoreArrayRead(U, &u));
+    PetscFunctionReturn(0);
+  }
+  void invalidate() { ++serial_; }
+  unsigned long serial() const { return serial_; }
+  bool recorded() const { return U_ != nullptr; }
+  // True when U is unchanged since record().
+  PetscErrorCode unchanged(bool *same) const {
+    PetscObjectState state;
+    PetscFunctionBeginUser;
+    *same = false;
+    if (!U_) PetscFunctionReturn(0);
+    PetscCall(PetscObjectStateGet((PetscObject)U_, &state));
+    *same = state == state_;
+    PetscFunctionReturn(0);
+  }
+  // U for the products; an error when none was recorded or U changed since.
+  PetscErrorCode get(Vec *U) const {
+    bool same = false;
+    PetscFunctionBeginUser;
+    PetscCall(unchanged(&same));
+    PetscCheck(same, PETSC_COMM_SELF, PETSC_ERR_ARG_WRONGSTATE,
+               "dG/dp applied %s: call rhs_jacobian_p at the state first", U_ ? "after its state U was changed" : "before any rhs_jacobian_p");
+    *U = U_;
+    PetscFunctionReturn(0);
+  }
+
+private:
+  Vec U_ = nullptr;
+  PetscObjectId id_ = -1;
+  PetscObjectState state_ = -1;
+  unsigned long serial_ = 0;
+};
+
+// (dG/dp)^T x computed by the transpose of dG/dU (which reads the same x in the same sweep) for the
+// dG/dp transpose that follows: an explicit RK adjoint stage applies J^T and then (dG/dp)^T to one
+// unchanged Vec. Valid only for that Vec (id) in that state, at the same recorded stage (serial).
+struct FusedProducts {
+  bool valid = false;
+  PetscObjectId x_id = -1;
+  PetscObjectState x_state = -1;
+  unsigned long serial = 0;
+  PetscReal local[3] = {0, 0, 0}; // this rank's partial dot products (velocities, then a scalar D)
+  PetscErrorCode store(Vec x, unsigned long stage_serial) {
+    PetscFunctionBeginUser;
+    PetscCall(PetscObjectGetId((PetscObject)x, &x_id));
+    PetscCall(PetscObjectStateGet((PetscObject)x, &x_state));
+    serial = stage_serial;
+    valid = true;
+    PetscFunctionReturn(0);
+  }
+  PetscErrorCode matches(Vec x, unsigned long stage_serial, bool *hit) const {
+    PetscObjectId id;
+    PetscObjectState state;
+    PetscFunctionBeginUser;
+    *hit = false;
+    if (!valid || serial != stage_serial) PetscFunctionReturn(0);
+    PetscCall(PetscObjectGetId((PetscObject)x, &id));
+    PetscCall(PetscObjectStateGet((PetscObject)x, &state));
+    *hit = id == x_id && state == x_state;
+    PetscFunctionReturn(0);
+  }
+};
+
 // The choices that fix the grid and the stencils. Read before the grid exists (its dimension and
 // ghost width depend on them) without registering help, and again in setup with help.
 struct StencilChoice {
@@ -211,6 +307,10 @@ public:
       PetscCall(PetscOptionsReal("-advection_ic_center_y", "gaussian, square: centre (y)", "Advection", center_[1],
                                  &center_[1], nullptr));
     }
+    PetscCall(PetscOptionsBool("-advection_fused_adjoint",
+                               "Finite differences: the transpose of dG/dU also forms the dG/dp transpose of the same "
+                               "vector at the recorded stage (RK adjoint stages apply both), else each is applied alone",
+                               "Advection", fuse_adjoint_, &fuse_adjoint_, nullptr));
     PetscCall(PetscOptionsReal("-advection_ic_width", "gaussian: width w of exp(-(d/w)^2); square: full width", "Advection",
                                width_, &width_, nullptr));
     PetscOptionsEnd();
@@ -234,6 +334,7 @@ public:
                  half_width(now), dim_opt, grid.stencil_width(), dim_);
     }
     if (scheme_ == SPECTRAL) PetscCall(spectral_.setup(grid));
+    lazy_ = scheme_ != SPECTRAL && !(diffusion_ && D_field_);
 
     for (PetscInt d = 0; d < dim_; ++d) vel_index_[d] = params.add(velocity_names[d], ParamKind::Scalar);
     if (diffusion_)
@@ -242,6 +343,7 @@ public:
 
     h_[0] = grid.h();
     h_[1] = dim_ == 2 ? grid.hy() : 1.0;
+    for (PetscInt d = 0; d < 2; ++d) dGdv_scale_[d] = scheme_ == SPECTRAL ? -1.0 : -1.0 / h_[d];
     PetscCall(DMDAGetGhostCorners(dm_, &gxs_, &gys_, nullptr, &gxm_, nullptr, nullptr));
     if (dim_ == 1) gys_ = 0;
     stride_[0] = 1;
@@ -249,8 +351,7 @@ public:
     if (scheme_ == SPECTRAL) {
       for (auto *v : {&t1_, &t2_, &t3_}) PetscCall(DMCreateGlobalVector(grid.dm(), v->out()));
       shared_dx_ = dim_ == 1 && !diffusion_;
-      if (shared_dx_)
-        for (auto *v : {&u_stage_, &dx_}) PetscCall(DMCreateGlobalVector(grid.dm(), v->out()));
+      if (shared_dx_) PetscCall(DMCreateGlobalVector(grid.dm(), dx_.out()));
       if (diffusion_ && D_field_)
         for (PetscInt d = 0; d < dim_; ++d) PetscCall(DMCreateGlobalVector(grid.dm(), w_[d].out()));
     } else {
@@ -274,6 +375,7 @@ public:
     PetscCall(create_operator(dm_));
     for (PetscInt d = 0; d < dim_; ++d) dGdv_[d].assign(grid.local_points(), 0.0);
     dGdD_.assign(grid.local_points(), 0.0);
+    if (lazy_) scratch_.assign(grid.local_points(), 0.0);
     if (diffusion_ && D_field_) gD_.assign(grid.local_points(), 0.0);
     PetscFunctionReturn(0);
   }
@@ -338,18 +440,21 @@ public:
       }
     }
     if (scheme_ != SPECTRAL) set_taps();
+    stage_.invalidate(); // dG/dp and any fused product are taken at the new parameters
     PetscCall(assemble(A_));
     PetscFunctionReturn(0);
   }
 
-  // Records what the dG/dp shell needs at this state: -D_d u (the velocity columns), -B^T B u (the
-  // column of a scalar D), and for a field D the ghosted u (FD) or the de-aliased E_d u (spectral).
+  // Records what the dG/dp shell needs at this state. Finite differences without a field D, and
+  // spectral 1D without diffusion: the state U itself (RecordedStage, no copy); the columns -D_d u
+  // and -B^T B u are formed only if the shell's Mult or an unfused transpose needs them, else the
+  // transposes take <u, D_d^T x> from the sweep of dG/dU^T (FD) or <u, D_x x> from D_x x
+  // (spectral). Otherwise: the columns now, and for a field D the ghosted u (FD) or the de-aliased
+  // E_d u (spectral).
   PetscErrorCode rhs_jacobian_p(PetscReal, Vec U, Mat Jp) override {
     PetscFunctionBeginUser;
-    if (shared_dx_) { // the dot products wait for the adjoint's D_x x (see spectral_mult_transpose)
-      PetscCall(VecCopy(U, u_stage_));
-      columns_ready_ = false;
-    } else if (scheme_ == SPECTRAL) PetscCall(spectral_columns(U));
+    if (shared_dx_ || lazy_) PetscCall(stage_.record(U));
+    else if (scheme_ == SPECTRAL) PetscCall(spectral_columns(U));
     else PetscCall(fd_columns(U));
     // Reassembly resets any scaling TS applied since (theta's adjoint scales by -1). It costs an
     // options lookup (-mat_view) per call, so only when Jp changed since we last assembled it.
@@ -533,13 +638,14 @@ private:
   // hold its advection part only; the (symmetric) diffusion goes face by face.
   void set_taps() {
     for (PetscInt d = 0; d < 2; ++d) {
-      for (PetscInt e = 0; e < 2; ++e) vel_taps_[d][e].fill(0.0);
+      for (PetscInt e = 0; e < 2; ++e) vel_taps_[d][e].fill(0.0), vel_taps_t_[d][e].fill(0.0);
       lap_taps_[d].fill(0.0);
       at_taps_[d].fill(0.0);
     }
     for (PetscInt d = 0; d < dim_; ++d) {
       for (PetscInt k = -2; k <= 2; ++k) {
         vel_taps_[d][d][k + 3] = w1_[d][k + 2];
+        vel_taps_t_[d][d][-k + 3] = w1_[d][k + 2]; // D_d^T (times h)
         at_taps_[d][-k + 3] += -vel_[d] * w1_[d][k + 2] / h_[d]; // A_d[k] lands at offset -k of A^T
       }
       if (!diffusion_) continue;
@@ -669,11 +775,17 @@ private:
     PetscCall(MatMult(m->A_, x, y));
     PetscFunctionReturn(0);
   }
+  // y = A^T x, and with the recorded stage u (rhs_jacobian_p; -advection_fused_adjoint) also this
+  // rank's share of (dG/dp)^T x from the same ghosted x: (dG/dv_d)^T x = -<u, D_d^T x> / h_d and a
+  // scalar D's <u, B^T B x>-column, (-B^T B symmetric), kept in fused_ for jp_mult_transpose. 1D
+  // without diffusion: A^T = -(a / h) D^T, so one sweep gives D^T x for both.
   static PetscErrorCode jmf_mult_transpose(Mat J, Vec x, Vec y) {
     AdvectionModel *m;
     const PetscScalar *xl, *D = nullptr;
+    bool fuse = false;
     PetscFunctionBeginUser;
     PetscCall(MatShellGetContext(J, &m));
+    if (m->lazy_ && m->fuse_adjoint_) PetscCall(m->stage_.unchanged(&fuse));
     PetscCall(m->fill_ghosted(x, m->X_local_));
     PetscCall(VecGetArrayRead(m->X_local_, &xl));
     const bool field = m->diffusion_ && m->D_field_;
@@ -681,11 +793,39 @@ private:
     {
       Array Y(y);
       PetscCall(Y.error());
-      m->sweep(xl, m->at_taps_, Y.data());
-      if (field) m->add_face_diffusion(D, xl, Y.data()); // symmetric: the forward's faces
+      PetscScalar *ya = Y.data();
+      const PetscInt n = m->grid_->local_points(), nd = m->dim_;
+      const PetscScalar *u = nullptr;
+      Vec U = nullptr;
+      if (fuse) {
+        PetscCall(m->stage_.get(&U));
+        PetscCall(VecGetArrayRead(U, &u));
+      }
+      if (nd == 1 && !m->diffusion_) {
+        m->sweep(xl, m->vel_taps_t_[0], ya); // D^T x (times h)
+        if (fuse) m->fused_.local[0] = m->dGdv_scale_[0] * dot4(ya, u, n);
+        const PetscReal s = m->vel_[0] * m->dGdv_scale_[0];
+        for (PetscInt il = 0; il < n; ++il) ya[il] *= s;
+      } else {
+        m->sweep(xl, m->at_taps_, ya);
+        if (field) m->add_face_diffusion(D, xl, ya); // symmetric: the forward's faces
+        if (fuse) {
+          PetscReal *z = m->scratch_.data();
+          for (PetscInt d = 0; d < nd; ++d) {
+            m->sweep(xl, m->vel_taps_t_[d], z);
+            m->fused_.local[d] = m->dGdv_scale_[d] * dot4(z, u, n);
+          }
+          if (m->diffusion_) { // a scalar D (a field D is never lazy)
+            m->sweep(xl, m->lap_taps_, z);
+            m->fused_.local[nd] = dot4(z, u, n);
+          }
+        }
+      }
+      if (fuse) PetscCall(VecRestoreArrayRead(U, &u));
     }
     if (field) PetscCall(VecRestoreArrayRead(m->D_local_, &D));
     PetscCall(VecRestoreArrayRead(m->X_local_, &xl));
+    if (fuse) PetscCall(m->fused_.store(x, m->stage_.serial()));
     PetscFunctionReturn(0);
   }
 
@@ -850,6 +990,18 @@ private:
     PetscFunctionReturn(0);
   }
 
+  // The columns at the recorded stage, unless they are already formed (lazy schemes only).
+  PetscErrorCode recorded_columns() {
+    Vec U = nullptr;
+    PetscFunctionBeginUser;
+    if (!(lazy_ || shared_dx_) || columns_serial_ == stage_.serial()) PetscFunctionReturn(0);
+    PetscCall(stage_.get(&U));
+    if (lazy_) PetscCall(fd_columns(U));
+    else PetscCall(spectral_columns(U));
+    columns_serial_ = stage_.serial();
+    PetscFunctionReturn(0);
+  }
+
   PetscErrorCode fd_columns(Vec U) {
     const PetscScalar *u;
     PetscFunctionBeginUser;
@@ -894,10 +1046,7 @@ private:
     AdvectionModel *m;
     PetscFunctionBeginUser;
     PetscCall(MatShellGetContext(Jp, &m));
-    if (m->shared_dx_ && !m->columns_ready_) { // the recorded stage's column, on demand
-      PetscCall(m->spectral_columns(m->u_stage_));
-      m->columns_ready_ = true;
-    }
+    PetscCall(m->recorded_columns());
     const Grid &g = *m->grid_;
     PetscReal dv[2] = {0, 0}, dD = 0;
     for (PetscInt d = 0; d < m->dim_; ++d) PetscCall(m->params_->scalar(x, m->vel_index_[d], &dv[d]));
@@ -948,13 +1097,19 @@ private:
     const PetscInt n = g.local_points(), nd = m->dim_;
     const bool field = m->diffusion_ && m->D_field_, scalar_D = m->diffusion_ && !field;
     PetscReal local[3] = {0, 0, 0}, total[3] = {0, 0, 0};
-    if (m->shared_dx_) { // <u, D_x x>, D_x x usually left by the transpose of J just before
+    bool hit = false;
+    if (m->lazy_) PetscCall(m->fused_.matches(x, m->stage_.serial(), &hit));
+    if (hit) std::copy(m->fused_.local, m->fused_.local + 3, local); // from the sweep of J^T x
+    else if (m->shared_dx_) { // <u, D_x x>, D_x x usually left by the transpose of J just before
+      Vec U = nullptr;
+      PetscCall(m->stage_.get(&U));
       PetscCall(m->derivative_of(x));
-      ConstArray u(m->u_stage_), w(m->dx_);
+      ConstArray u(U), w(m->dx_);
       PetscCall(u.error());
       PetscCall(w.error());
       local[0] = dot4(u.data(), w.data(), n);
     } else {
+      PetscCall(m->recorded_columns());
       ConstArray X(x);
       PetscCall(X.error());
       const PetscScalar *xa = X.data();
@@ -1027,17 +1182,26 @@ private:
   OwnedVec D_, D_local_, dD_, dD_local_, U_local_, X_local_;
   SpectralDifferentiator spectral_;
   OwnedVec t1_, t2_, t3_, w_[2]; // spectral work vectors; w_[d] = E_d u for a field D
-  // Spectral 1D without diffusion: the stage u recorded by rhs_jacobian_p, and D_x of the Vec
-  // (id, state) last differentiated (spectral_mult_transpose).
-  bool shared_dx_ = false, columns_ready_ = false;
-  OwnedVec u_stage_, dx_;
+  // Spectral 1D without diffusion: D_x of the Vec (id, state) last differentiated
+  // (spectral_mult_transpose).
+  bool shared_dx_ = false;
+  OwnedVec dx_;
+  // The stage recorded by rhs_jacobian_p (spectral 1D without diffusion, and lazy_: finite
+  // differences without a field D); the record whose columns dGdv_, dGdD_ hold; J^T's fused dG/dp
+  // products (-advection_fused_adjoint) and its work array.
+  bool lazy_ = false;
+  PetscBool fuse_adjoint_ = PETSC_TRUE;
+  RecordedStage stage_;
+  unsigned long columns_serial_ = 0;
+  FusedProducts fused_;
+  std::vector<PetscReal> scratch_;
   PetscObjectId dx_id_ = -1;
   PetscObjectState dx_state_ = -1;
   // dG/dv_d = dGdv_scale_[d] * dGdv_[d] (the scale kept apart: no division per point).
   std::vector<PetscReal> dGdv_[2], dGdD_, gD_; // gD_: a field D's gradient (jp_mult_transpose)
   // Finite differences: sweep taps (set_taps), ghost fill (fill_ghosted), and the last assembly of
   // the dG/dp shell (rhs_jacobian_p).
-  std::array<PetscReal, 7> vel_taps_[2][2] = {}, lap_taps_[2] = {}, at_taps_[2] = {};
+  std::array<PetscReal, 7> vel_taps_[2][2] = {}, vel_taps_t_[2][2] = {}, lap_taps_[2] = {}, at_taps_[2] = {};
   PetscReal dGdv_scale_[2] = {-1, -1};
   PetscInt radius_ = 1;
   bool wrap_ = false;
