@@ -5,14 +5,22 @@
 //     transposes: lambda_q += w (J^T [0; lambda_p])_q and mu += w (dG/dc)^T [0; lambda_p];
 //   * a whole leapfrog gradient with the fused kick equals the one through the Jacobians
 //     (-leapfrog_fused_adjoint 0), for a scalar speed (whose gradient is a sum over ranks) and a field,
-//     and full storage of positions only (the default) the same as of whole states (-checkpoint_positions_only 0);
+//     and full storage of positions only (the default; the kick reads them in place, and given u alone it
+//     gives the same numbers as given the whole state) the same as of whole states (-checkpoint_positions_only 0);
 //   * the matrix-free dG/dU (create_jacobian_matrix_free) applies J and J^T like the assembled one,
 //     and an RK4 gradient through it equals one through the assembled J (-sim_matrix_free_jacobian 0).
+//   * the 1D wave's matrix-free J^T also forms the dG/dc transpose of the same vector at the recorded
+//     stage (-wave_fused_adjoint; the RK adjoint applies J^T and then (dG/dc)^T to one unchanged Vec):
+//     equal to the one from the columns, used only for that Vec in that state at that stage, <J x, y> =
+//     <x, J^T y> for both; an RK4 gradient with it equals one without; dG/dc applied after its state
+//     changed is an error.
 // Cases: 1D fd2/fd4, Dirichlet/periodic; 2D Dirichlet/periodic, with a sponge (rhs only).
 #include "flexipde/scene.hpp"
 #include "test_support.hpp"
+#include <string>
 
 using namespace flexipde;
+using flexipde_test::dot;
 using flexipde_test::fill_random;
 using flexipde_test::norm;
 using flexipde_test::rel_diff;
@@ -116,8 +124,21 @@ TEST_P(MatrixFree, FusedAdjointKickEqualsAssembledTransposes) {
   OwnedVec mu0;
   PETSC_ASSERT_OK(VecDuplicate(mu, mu0.out()));
   PETSC_ASSERT_OK(VecCopy(mu, mu0));
+  OwnedVec lam_q, mu_q; // copies for the kick given the positions alone, below
+  PETSC_ASSERT_OK(VecDuplicate(lam, lam_q.out()));
+  PETSC_ASSERT_OK(VecCopy(lam, lam_q));
+  PETSC_ASSERT_OK(VecDuplicate(mu, mu_q.out()));
+  PETSC_ASSERT_OK(VecCopy(mu, mu_q));
   PETSC_ASSERT_OK(scene.model->second_order_adjoint(0.0, U, lam, w, mu));
   EXPECT_LT(rel_diff(lam, expect), 1e-13);
+  // given u alone (the stored positions, laid out like the grid's one-component Vecs), the same numbers
+  ASSERT_TRUE(scene.model->second_order_adjoint_takes_positions());
+  OwnedVec q;
+  PETSC_ASSERT_OK(DMCreateGlobalVector(scene.grid.dm(), q.out()));
+  PETSC_ASSERT_OK(VecStrideGather(U, 0, q, INSERT_VALUES));
+  PETSC_ASSERT_OK(scene.model->second_order_adjoint(0.0, q, lam_q, w, mu_q));
+  EXPECT_LT(rel_diff(lam_q, lam), 1e-15);
+  EXPECT_LT(rel_diff(mu_q, mu), 1e-15);
   PETSC_ASSERT_OK(VecAXPY(mu, -1.0, mu0));
   EXPECT_LT(rel_diff(mu, mu_ref), 1e-12);
   EXPECT_GT(norm(mu_ref), 0.0);
@@ -151,6 +172,89 @@ TEST_P(MatrixFree, MatrixFreeJacobianEqualsAssembled) {
 
 TEST_P(MatrixFree, RkGradientMatrixFreeEqualsAssembled) {
   expect_same_gradient(scene, p, {{"-ts_type", "rk"}, {"-ts_rk_type", "4"}}, {{"-sim_matrix_free_jacobian", "0"}}, 1e-12);
+}
+
+TEST_P(MatrixFree, WaveFusedParameterTransposeEqualsColumns) {
+  if (std::string(GetParam().name).rfind("wave_", 0) != 0) return; // the 1D wave only
+  OwnedMat Jmf;
+  OwnedVec x, y, z, w, U2, g_cols, g_fused, Jx;
+  PETSC_ASSERT_OK(scene.model->create_jacobian_matrix_free(Jmf.out()));
+  for (auto *v : {&y, &z, &w, &U2, &Jx}) PETSC_ASSERT_OK(VecDuplicate(U, v->out()));
+  for (auto *v : {&x, &g_cols, &g_fused}) PETSC_ASSERT_OK(VecDuplicate(p, v->out()));
+  PETSC_ASSERT_OK(fill_random(x, -1.0, 1.0, 29));
+  PETSC_ASSERT_OK(fill_random(y, -1.0, 1.0, 30));
+  PETSC_ASSERT_OK(fill_random(w, -1.0, 1.0, 32));
+  PETSC_ASSERT_OK(fill_random(U2, -1.0, 1.0, 31));
+  PETSC_ASSERT_OK(scene.model->rhs_jacobian_p(0.0, U, Jp));
+  PETSC_ASSERT_OK(MatMultTranspose(Jp, y, g_cols)); // before any J^T: from the columns
+  PETSC_ASSERT_OK(MatMultTranspose(Jmf, y, z));     // forms (dG/dc)^T y too
+  PETSC_ASSERT_OK(MatMultTranspose(Jp, y, g_fused)); // takes it
+  EXPECT_GT(norm(g_cols), 0.0);
+  EXPECT_LT(rel_diff(g_fused, g_cols), 1e-13);
+  PETSC_ASSERT_OK(MatMult(Jp, x, Jx)); // dot-product identities with the fused transposes
+  EXPECT_LT(rel_diff(dot(Jx, y), dot(x, g_fused)), 1e-12);
+  PETSC_ASSERT_OK(MatMult(Jmf, w, Jx));
+  EXPECT_LT(rel_diff(dot(Jx, y), dot(w, z)), 1e-12);
+  // y changed since J^T: differentiated again
+  PETSC_ASSERT_OK(MatMultTranspose(Jmf, y, z));
+  PETSC_ASSERT_OK(VecScale(y, 3.0));
+  PETSC_ASSERT_OK(MatMultTranspose(Jp, y, g_fused));
+  PETSC_ASSERT_OK(VecScale(g_cols, 3.0));
+  EXPECT_LT(rel_diff(g_fused, g_cols), 1e-13);
+  // a new stage after J^T: the product of the old one is not taken
+  PETSC_ASSERT_OK(MatMultTranspose(Jmf, y, z));
+  PETSC_ASSERT_OK(scene.model->rhs_jacobian_p(0.0, U2, Jp));
+  PETSC_ASSERT_OK(MatMultTranspose(Jp, y, g_fused));
+  PETSC_ASSERT_OK(MatMultTranspose(Jmf, y, z));
+  PETSC_ASSERT_OK(MatMultTranspose(Jp, y, g_cols));
+  EXPECT_LT(rel_diff(g_fused, g_cols), 1e-13);
+  {
+    OwnedVec g_ref;
+    PETSC_ASSERT_OK(VecDuplicate(p, g_ref.out()));
+    PETSC_ASSERT_OK(scene.model->rhs_jacobian_p(0.0, U, Jp));
+    PETSC_ASSERT_OK(MatMultTranspose(Jp, y, g_ref));
+    EXPECT_GT(rel_diff(g_fused, g_ref), 1e-3); // U2's, not U's
+  }
+  // new parameters after J^T: not taken either
+  PETSC_ASSERT_OK(MatMultTranspose(Jmf, y, z));
+  PETSC_ASSERT_OK(scene.model->set_parameters(p));
+  PETSC_ASSERT_OK(scene.model->rhs_jacobian_p(0.0, U, Jp));
+  PETSC_ASSERT_OK(MatMultTranspose(Jp, y, g_fused));
+  PETSC_ASSERT_OK(MatMultTranspose(Jmf, y, z));
+  PETSC_ASSERT_OK(MatMultTranspose(Jp, y, g_cols));
+  EXPECT_LT(rel_diff(g_fused, g_cols), 1e-13);
+  // the recorded state changed before dG/dc was formed there: applying it is an error
+  PETSC_ASSERT_OK(scene.model->rhs_jacobian_p(0.0, U, Jp));
+  PETSC_ASSERT_OK(VecScale(U, 2.0));
+  flexipde_test::QuietErrors quiet;
+  EXPECT_EQ(MatMultTranspose(Jp, y, g_fused), PETSC_ERR_ARG_WRONGSTATE);
+}
+
+TEST_P(MatrixFree, WaveRkGradientFusedEqualsUnfused) {
+  if (std::string(GetParam().name).rfind("wave_", 0) != 0) return;
+  ScopedOptions rk;
+  rk.set("-ts_type", "rk");
+  rk.set("-ts_rk_type", "4");
+  OwnedVec p_true, g0, g1;
+  PetscReal J0, J1;
+  PETSC_ASSERT_OK(scene.params.create_vec(p_true.out()));
+  PETSC_ASSERT_OK(VecCopy(p, p_true));
+  PETSC_ASSERT_OK(VecScale(p_true, 1.05));
+  PETSC_ASSERT_OK(scene.make_synthetic_data(p_true));
+  PETSC_ASSERT_OK(scene.params.create_vec(g1.out()));
+  PETSC_ASSERT_OK(scene.gradient(p, &J1, g1));
+  Scene unfused; // the same scene without the fused product
+  {
+    ScopedOptions off;
+    off.set("-wave_fused_adjoint", "0");
+    PETSC_ASSERT_OK(unfused.setup(PETSC_COMM_WORLD));
+  }
+  PETSC_ASSERT_OK(unfused.make_synthetic_data(p_true));
+  PETSC_ASSERT_OK(unfused.params.create_vec(g0.out()));
+  PETSC_ASSERT_OK(unfused.gradient(p, &J0, g0));
+  EXPECT_EQ(J1, J0);
+  EXPECT_GT(norm(g0), 0.0);
+  EXPECT_LT(rel_diff(g1, g0), 1e-12);
 }
 
 INSTANTIATE_TEST_SUITE_P(Waves, MatrixFree, ::testing::ValuesIn(cases()), mf_name);
