@@ -45,6 +45,11 @@ PetscInt leapfrog_pairs(TS ts); // m, or 0 for another TS type
 //   lambda_q += w (da/dq)^T lambda_p,  mu += w (da/dtheta)^T lambda_p  (mu null: no parameters).
 // When set, the adjoint calls it instead of computing and applying the RHS Jacobians.
 using LeapfrogAdjointKick = PetscErrorCode (*)(void *ctx, PetscReal t, Vec U, Vec lambda, PetscReal w, Vec mu);
-PetscErrorCode leapfrog_set_adjoint_kick(TS ts, LeapfrogAdjointKick kick, void *ctx);
+// takes_positions: the kick also accepts the positions alone as U (Model::second_order_adjoint_takes_positions).
+PetscErrorCode leapfrog_set_adjoint_kick(TS ts, LeapfrogAdjointKick kick, void *ctx, bool takes_positions = false);
+// For a trajectory that stores the positions alone (m of every 2m components, contiguous): the next
+// adjoint step's level k-1 reads them from q in place when the kick takes positions (*placed), else
+// the trajectory must fill the stage with U_{k-1} itself. q must stay valid until that step is done.
+PetscErrorCode leapfrog_place_positions(TS ts, const PetscScalar *q, bool *placed);
 
 } // namespace flexipde

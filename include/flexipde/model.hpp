@@ -75,6 +75,10 @@ public:
   // (lambda_p read, lambda_q updated in place). Without it the integrator uses rhs_jacobian and
   // rhs_jacobian_p with their transposes: the same numbers in more passes.
   virtual bool has_second_order_adjoint() const { return false; }
+  // True when second_order_adjoint also accepts, as U, the positions q alone (m contiguous components
+  // per grid point, laid out like the grid's own one-component Vecs for m = 1): a full-storage
+  // trajectory then hands the kick the stored positions in place instead of copying them into a state.
+  virtual bool second_order_adjoint_takes_positions() const { return false; }
   virtual PetscErrorCode second_order_adjoint(PetscReal t, Vec U, Vec lambda, PetscReal w, Vec mu) {
     (void)t, (void)lambda, (void)w, (void)mu;
     SETERRQ(PetscObjectComm((PetscObject)U), PETSC_ERR_SUP, "Model %s has no fused second-order adjoint", name());

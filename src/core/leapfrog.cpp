@@ -24,6 +24,12 @@ struct Leapfrog {
   // the model's fused adjoint kick, when it has one
   LeapfrogAdjointKick adjoint_kick = nullptr;
   void *adjoint_kick_ctx = nullptr;
+  // ... and whether it reads the positions alone: a full-storage trajectory then points Q (a Vec of
+  // the positions, no array of its own) at the stored ones of level k-1 before the adjoint of step
+  // k-1 -> k, which reads them there instead of from Y0 (leapfrog_place_positions).
+  bool kick_takes_positions = false;
+  Vec Q = nullptr;
+  bool Q_placed = false;
   // Whether this solve's steps must leave U_k in Y0: for a trajectory that stores stages or re-runs
   // steps (PETSc's, binomial checkpointing). Plain forward solves and the "store" trajectory (which
   // hands the adjoint U_{k-1} itself) skip the copy, a third of a step's memory traffic.
@@ -183,6 +189,9 @@ PetscErrorCode TSReset_Leapfrog(TS ts) {
   PetscCall(VecDestroy(&lf->W));
   PetscCall(VecDestroy(&lf->dmu));
   PetscCall(VecDestroy(&lf->r_end));
+  if (lf->Q_placed) PetscCall(VecResetArray(lf->Q));
+  lf->Q_placed = false;
+  PetscCall(VecDestroy(&lf->Q));
   lf->F_valid = false;
   lf->r_end_step = -1;
   PetscFunctionReturn(0);
@@ -308,7 +317,12 @@ PetscErrorCode TSAdjointStep_Leapfrog(TS ts) {
   if (ts->adjoint_steps == 0) PetscCall(adjoint_level(ts, tk, ts->vec_sol, 0, 0.5 * dt, 0.5 * dt));
   for (PetscInt k = 0; k < ts->numcost; ++k) PetscCall(drift_transpose(*lf, ts->vecs_sensi[k], dt));
   // level k-1: the right half-kick of this step, then (except at t_0) the left one of the step before
-  PetscCall(adjoint_level(ts, tk - dt, lf->Y0, 0.5 * dt, ts->steps == 0 ? 0.5 * dt : dt, ts->steps == 0 ? 0 : 0.5 * dt));
+  PetscCall(adjoint_level(ts, tk - dt, lf->Q_placed ? lf->Q : lf->Y0, 0.5 * dt, ts->steps == 0 ? 0.5 * dt : dt,
+                          ts->steps == 0 ? 0 : 0.5 * dt));
+  if (lf->Q_placed) {
+    PetscCall(VecResetArray(lf->Q));
+    lf->Q_placed = false;
+  }
   PetscFunctionReturn(0);
 }
 
@@ -336,10 +350,11 @@ PetscErrorCode set_pairs(TS ts, PetscInt m) {
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode set_adjoint_kick(TS ts, LeapfrogAdjointKick kick, void *ctx) {
+PetscErrorCode set_adjoint_kick(TS ts, LeapfrogAdjointKick kick, void *ctx, PetscBool takes_positions) {
   PetscFunctionBegin;
   data(ts)->adjoint_kick = kick;
   data(ts)->adjoint_kick_ctx = ctx;
+  data(ts)->kick_takes_positions = kick && takes_positions;
   PetscFunctionReturn(0);
 }
 
@@ -379,9 +394,28 @@ PetscErrorCode leapfrog_set_pairs(TS ts, PetscInt m) {
 
 PetscInt leapfrog_pairs(TS ts) { return is_leapfrog(ts) ? data(ts)->pairs : 0; }
 
-PetscErrorCode leapfrog_set_adjoint_kick(TS ts, LeapfrogAdjointKick kick, void *ctx) {
+PetscErrorCode leapfrog_set_adjoint_kick(TS ts, LeapfrogAdjointKick kick, void *ctx, bool takes_positions) {
   PetscFunctionBegin;
-  PetscTryMethod(ts, "FlexipdeLeapfrogSetAdjointKick_C", (TS, LeapfrogAdjointKick, void *), (ts, kick, ctx));
+  PetscTryMethod(ts, "FlexipdeLeapfrogSetAdjointKick_C", (TS, LeapfrogAdjointKick, void *, PetscBool),
+                 (ts, kick, ctx, takes_positions ? PETSC_TRUE : PETSC_FALSE));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode leapfrog_place_positions(TS ts, const PetscScalar *q, bool *placed) {
+  PetscFunctionBegin;
+  *placed = false;
+  if (!is_leapfrog(ts)) PetscFunctionReturn(0);
+  Leapfrog *lf = data(ts);
+  if (!lf->kick_takes_positions || ts->quadraturets) PetscFunctionReturn(0);
+  if (!lf->Q) {
+    PetscInt n;
+    PetscCall(VecGetLocalSize(ts->vec_sol, &n));
+    PetscCall(VecCreateMPIWithArray(PetscObjectComm((PetscObject)ts), lf->pairs, n / 2, PETSC_DECIDE, nullptr, &lf->Q));
+  }
+  if (lf->Q_placed) PetscCall(VecResetArray(lf->Q));
+  PetscCall(VecPlaceArray(lf->Q, q));
+  lf->Q_placed = true;
+  *placed = true;
   PetscFunctionReturn(0);
 }
 

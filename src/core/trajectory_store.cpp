@@ -206,8 +206,10 @@ PetscErrorCode store_get(TSTrajectory tj, TS ts, PetscInt k, PetscReal *t) {
   if (is_leapfrog(ts)) { // its one stage is U_{k-1}, also for the last step (whose forward step did not keep it)
     Vec *Y;
     PetscCall(TSGetStages(ts, nullptr, &Y));
-    if (st->pairs) {
-      PetscCall(copy_out(*st, k - 1, 0, Y[0]));
+    if (st->pairs) { // the model's kick reads the stored positions in place when it can
+      bool placed;
+      PetscCall(leapfrog_place_positions(ts, at(*st, k - 1, 0), &placed));
+      if (!placed) PetscCall(copy_out(*st, k - 1, 0, Y[0]));
       if (st->prefetch) prefetch_slot(*st, k - 2);
     } else { // the whole state is stored: the stage Vec reads it in place
       if (st->lf_placed) PetscCall(VecResetArray(Y[0]));

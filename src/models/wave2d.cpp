@@ -90,6 +90,7 @@ public:
     PetscCall(halo_u_.setup(grid, dm_, 0, 1));
     PetscCall(halo_v_.setup(grid, dm_, 1, 1));
     PetscCall(halo_c_.setup(grid, grid.dm(), 0, 1));
+    PetscCall(halo_q_.setup(grid, grid.dm(), 0, 1));
     PetscCall(create_operator(dm_));
     const PetscInt n = grid.local_points();
     lap_.assign(n, 0.0);
@@ -186,15 +187,29 @@ public:
   }
 
   bool has_second_order_adjoint() const override { return sponge_width_ <= 0; }
+  bool second_order_adjoint_takes_positions() const override { return true; }
   // lambda_u += w L (c^2 lambda_v) at every point (edge columns included, as in A^T), and
-  // mu += w 2 c (L u) lambda_v off the edges, in one sweep.
+  // mu += w 2 c (L u) lambda_v off the edges, in one sweep. U is a whole state or u alone.
   PetscErrorCode second_order_adjoint(PetscReal, Vec U, Vec lambda, PetscReal w, Vec mu) override {
     const ParamInfo &pi = params_->info(c_index_);
-    const PetscInt xm = grid_->xm(), ym = grid_->ym();
     PetscReal local[4] = {0, 0, 0, 0}; // four partial sums: no single dependency chain through the sweep
+    PetscInt nu;
     PetscFunctionBeginUser;
     PetscCheck(sponge_width_ <= 0, grid_->comm(), PETSC_ERR_SUP, "wave2d: no fused leapfrog adjoint with a sponge");
-    PetscCall(halo_u_.begin(U));
+    PetscCall(VecGetLocalSize(U, &nu));
+    if (nu == grid_->local_points()) PetscCall(kick<1>(U, lambda, w, mu, pi, local));
+    else PetscCall(kick<2>(U, lambda, w, mu, pi, local));
+    if (mu && !c_field_) PetscCall(params_->add_local_sum(mu, c_index_, w * (local[0] + local[1] + local[2] + local[3])));
+    PetscFunctionReturn(0);
+  }
+
+  // The sweep of second_order_adjoint with u read at stride SU in U (2: a whole state, 1: u alone).
+  template <int SU>
+  PetscErrorCode kick(Vec U, Vec lambda, PetscReal w, Vec mu, const ParamInfo &pi, PetscReal local[4]) {
+    const PetscInt xm = grid_->xm(), ym = grid_->ym();
+    Halo &halo_u = SU == 1 ? halo_q_ : halo_u_;
+    PetscFunctionBeginUser;
+    PetscCall(halo_u.begin(U));
     PetscCall(halo_v_.begin(lambda));
     {
       ConstArray u(U);
@@ -215,17 +230,17 @@ public:
       };
       for (PetscInt jl = 1; jl < ym - 1; ++jl)
         for (PetscInt k = jl * xm + 1; k < jl * xm + xm - 1; ++k) {
-          const PetscReal lu = ax * PetscRealPart(u[2 * (k - 1)] + ua[2 * (k + 1)]) +
-                               ay * PetscRealPart(ua[2 * (k - xm)] + ua[2 * (k + xm)]) + a0 * PetscRealPart(ua[2 * k]);
+          const PetscReal lu = ax * PetscRealPart(ua[SU * (k - 1)] + ua[SU * (k + 1)]) +
+                               ay * PetscRealPart(ua[SU * (k - xm)] + ua[SU * (k + xm)]) + a0 * PetscRealPart(ua[SU * k]);
           const PetscReal lz = ax * (c2[k - 1] * PetscRealPart(L[2 * (k - 1) + 1]) + c2[k + 1] * PetscRealPart(L[2 * (k + 1) + 1])) +
                                ay * (c2[k - xm] * PetscRealPart(L[2 * (k - xm) + 1]) + c2[k + xm] * PetscRealPart(L[2 * (k + xm) + 1])) +
                                a0 * c2[k] * PetscRealPart(L[2 * k + 1]);
           body(k, lu, lz);
         }
-      PetscCall(halo_u_.end(U));
+      PetscCall(halo_u.end(U));
       PetscCall(halo_v_.end(lambda));
       auto uat = [&](PetscInt il, PetscInt jl) {
-        return PetscRealPart(inside(il, jl) ? ua[2 * (jl * xm + il)] : halo_u_(il, jl));
+        return PetscRealPart(inside(il, jl) ? ua[SU * (jl * xm + il)] : halo_u(il, jl));
       };
       auto zat = [&](PetscInt il, PetscInt jl) {
         if (inside(il, jl)) return c2[jl * xm + il] * PetscRealPart(L[2 * (jl * xm + il) + 1]);
@@ -242,7 +257,6 @@ public:
       }));
       if (g) PetscCall(VecRestoreArray(mu, &g));
     }
-    if (mu && !c_field_) PetscCall(params_->add_local_sum(mu, c_index_, w * (local[0] + local[1] + local[2] + local[3])));
     PetscFunctionReturn(0);
   }
 
@@ -448,6 +462,7 @@ private:
   std::vector<PetscReal> lap_, gbuf_, sigma_, c2m_, two_c_; // L u; work; sponge; c^2 and 2c, 0 on the edges
   std::vector<char> edge_;                                  // owned point on the outer edge
   Halo halo_u_, halo_v_, halo_c_;                           // ghosts of u, of lambda_v (adjoint) and of c
+  Halo halo_q_;                                             // ghosts of u given alone (stored positions)
   PetscReal ihx2_ = 0, ihy2_ = 0;
 };
 
