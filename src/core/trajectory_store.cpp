@@ -16,7 +16,9 @@
 #include "flexipde/checkpoint.hpp"
 #include "flexipde/leapfrog.hpp"
 #include <algorithm>
+#include <cstdint>
 #include <cstring>
+#include <emmintrin.h>
 #include <petsc/private/tsimpl.h>
 #include <vector>
 
@@ -48,6 +50,8 @@ struct StoreTrajectory {
   bool lf_placed = false; // the leapfrog's stage Vec points into the buffer
   PetscBool positions_only = PETSC_TRUE; // -checkpoint_positions_only
   PetscBool prefetch = PETSC_TRUE;       // -checkpoint_prefetch
+  PetscBool stream = PETSC_TRUE;         // -checkpoint_stream_stores
+  bool use_stream = false;               // ... for this solve: the leapfrog's states (RK gained nothing)
 };
 
 StoreTrajectory *context(TSTrajectory tj) { return static_cast<StoreTrajectory *>(tj->data); }
@@ -77,6 +81,18 @@ PetscErrorCode copy_out(const StoreTrajectory &st, PetscInt k, PetscInt part, Ve
   PetscFunctionReturn(0);
 }
 
+// b[0..n) = x[0..n) with non-temporal stores: the buffer is written once and read back only by the
+// adjoint, so the stores bypass the caches instead of first reading every line in (half the memory
+// traffic of a plain copy).
+void stream_copy(PetscScalar *b, const PetscScalar *x, PetscInt n) {
+  static_assert(sizeof(PetscScalar) == sizeof(double), "non-temporal copies written for real double PetscScalar");
+  PetscInt i = 0;
+  if (reinterpret_cast<uintptr_t>(b) % 16) b[0] = x[0], i = 1;
+  for (; i + 1 < n; i += 2) _mm_stream_pd(b + i, _mm_loadu_pd(x + i));
+  for (; i < n; ++i) b[i] = x[i];
+  _mm_sfence();
+}
+
 PetscErrorCode copy_in(const StoreTrajectory &st, PetscInt k, PetscInt part, Vec X) {
   const PetscScalar *x;
   PetscFunctionBegin;
@@ -84,12 +100,18 @@ PetscErrorCode copy_in(const StoreTrajectory &st, PetscInt k, PetscInt part, Vec
   if (st.pairs) {
     PetscScalar *b = at(st, k, part);
     const PetscInt m = st.pairs, d = st.dof, npt = st.nlocal / d;
-    if (m == 1)
+    if (m == 1 && st.use_stream && reinterpret_cast<uintptr_t>(b) % 16 == 0) {
+      PetscInt i = 0;
+      for (; i + 1 < npt; i += 2) _mm_stream_pd(b + i, _mm_set_pd(x[(i + 1) * d], x[i * d]));
+      for (; i < npt; ++i) b[i] = x[i * d];
+      _mm_sfence();
+    } else if (m == 1)
       for (PetscInt i = 0; i < npt; ++i) b[i] = x[i * d];
     else
       for (PetscInt i = 0; i < npt; ++i)
         for (PetscInt c = 0; c < m; ++c) b[i * m + c] = x[i * d + c];
-  } else std::memcpy(at(st, k, part), x, sizeof(PetscScalar) * st.nlocal);
+  } else if (st.use_stream) stream_copy(at(st, k, part), x, st.nlocal);
+  else std::memcpy(at(st, k, part), x, sizeof(PetscScalar) * st.nlocal);
   PetscCall(VecRestoreArrayRead(X, &x));
   PetscFunctionReturn(0);
 }
@@ -151,6 +173,7 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
   st->placed = -1;
   st->place_stages = false;
   st->lf_placed = false;
+  st->use_stream = st->stream && is_leapfrog(ts);
   if (st->keep_stages) { // explicit RK only, and only when no stage is the solution itself
     PetscBool rk;
     Vec *Y;
@@ -266,6 +289,8 @@ PetscErrorCode store_setfromoptions(TSTrajectory tj, PetscOptionItems *PetscOpti
                              "store", st->positions_only, &st->positions_only, nullptr));
   PetscCall(PetscOptionsBool("-checkpoint_prefetch", "Full storage prefetches the state the next adjoint step reads",
                              "store", st->prefetch, &st->prefetch, nullptr));
+  PetscCall(PetscOptionsBool("-checkpoint_stream_stores", "Full storage writes the states with non-temporal stores (past the caches: the adjoint reads them much later)",
+                             "store", st->stream, &st->stream, nullptr));
   PetscCall(PetscOptionsReal("-checkpoint_keep_stages_max_mb", "Largest stage-keeping buffer per rank chosen by default (MB)",
                              "store", st->keep_stages_max_mb, &st->keep_stages_max_mb, nullptr));
   PetscOptionsHeadEnd();
