@@ -34,12 +34,128 @@
 #include "flexipde/halo.hpp"
 #include "flexipde/model.hpp"
 #include "flexipde/survey.hpp"
+#include <petsc/private/petscimpl.h> // PetscObjectStateGet
 #include <algorithm>
 #include <cmath>
 #include <vector>
 
 namespace flexipde {
 namespace {
+
+// The state U that rhs_jacobian_p was last given, kept by reference instead of copied: dG/dp is
+// evaluated at it only when applied (or fused into the transpose of dG/dU, see FusedProducts). Every
+// use checks that U is the same Vec in the same state as when recorded, so data changed since can
+// never be used: that is an error instead. serial() changes with every record and with every
+// invalidate() (new parameters), so a product computed at one record is never taken for another.
+class RecordedStage {
+public:
+  RecordedStage() = default;
+  RecordedStage(const RecordedStage &) = delete;
+  RecordedStage &operator=(const RecordedStage &) = delete;
+  ~RecordedStage() { (void)VecDestroy(&U_); }
+  // Keeps U and starts loading its values into the cache: the integrator does its own vector work
+  // before the products read them (the stored stages are cold: each is read once per adjoint).
+  PetscErrorCode record(Vec U) {
+    PetscFunctionBeginUser;
+    PetscCall(PetscObjectReference((PetscObject)U));
+    PetscCall(VecDestroy(&U_));
+    U_ = U;
+    PetscCall(PetscObjectGetId((PetscObject)U, &id_));
+    PetscCall(PetscObjectStateGet((PetscObject)U, &state_));
+    ++serial_;
+    const PetscScalar *u;
+    PetscInt n;
+    PetscCall(VecGetLocalSize(U, &n));
+    PetscCall(VecGetArrayRead(U, &u));
+    // A hint only (a prefetch never faults, whatever the address): U, and the block of the same
+    // size just below it, which is where a full-storage trajectory keeps the stage (or state) the
+    // adjoint reads next (descending through the buffer). Capped: large arrays stream anyway.
+    const size_t bytes = std::min<size_t>((size_t)n * sizeof(PetscScalar), 256 * 1024);
+    const char *b = reinterpret_cast<const char *>(u);
+    for (size_t c = 0; c < bytes; c += 64) __builtin_prefetch(b + c, 0, 3);
+    for (size_t c = 0; c < bytes; c += 64) __builtin_prefetch(b - (size_t)n * sizeof(PetscScalar) + c, 0, 2);
+    PetscCall(VecRestoreArrayRead(U, &u));
+    PetscFunctionReturn(0);
+  }
+  void invalidate() { ++serial_; }
+  unsigned long serial() const { return serial_; }
+  bool recorded() const { return U_ != nullptr; }
+  // True when U is unchanged since record().
+  PetscErrorCode unchanged(bool *same) const {
+    PetscObjectState state;
+    PetscFunctionBeginUser;
+    *same = false;
+    if (!U_) PetscFunctionReturn(0);
+    PetscCall(PetscObjectStateGet((PetscObject)U_, &state));
+    *same = state == state_;
+    PetscFunctionReturn(0);
+  }
+  // U for the products; an error when none was recorded or U changed since.
+  PetscErrorCode get(Vec *U) const {
+    bool same = false;
+    PetscFunctionBeginUser;
+    PetscCall(unchanged(&same));
+    PetscCheck(same, PETSC_COMM_SELF, PETSC_ERR_ARG_WRONGSTATE,
+               "dG/dp applied %s: call rhs_jacobian_p at the state first", U_ ? "after its state U was changed" : "before any rhs_jacobian_p");
+    *U = U_;
+    PetscFunctionReturn(0);
+  }
+
+private:
+  Vec U_ = nullptr;
+  PetscObjectId id_ = -1;
+  PetscObjectState state_ = -1;
+  unsigned long serial_ = 0;
+};
+
+// The gradient field (dG/dc)^T x = 2 c (D2 u) x_v computed by the transpose of dG/dU from the same x in
+// its sweep, for the dG/dc transpose that an explicit RK adjoint stage applies next to that unchanged
+// Vec. Valid only for that Vec (id) in that state, at the same recorded stage (serial).
+struct FusedGradient {
+  bool valid = false;
+  PetscObjectId x_id = -1;
+  PetscObjectState x_state = -1;
+  unsigned long serial = 0;
+  std::vector<PetscReal> g;
+  PetscErrorCode store(Vec x, unsigned long stage_serial) {
+    PetscFunctionBeginUser;
+    PetscCall(PetscObjectGetId((PetscObject)x, &x_id));
+    PetscCall(PetscObjectStateGet((PetscObject)x, &x_state));
+    serial = stage_serial;
+    valid = true;
+    PetscFunctionReturn(0);
+  }
+  PetscErrorCode matches(Vec x, unsigned long stage_serial, bool *hit) const {
+    PetscObjectId id;
+    PetscObjectState state;
+    PetscFunctionBeginUser;
+    *hit = false;
+    if (!valid || serial != stage_serial) PetscFunctionReturn(0);
+    PetscCall(PetscObjectGetId((PetscObject)x, &id));
+    PetscCall(PetscObjectStateGet((PetscObject)x, &state));
+    *hit = id == x_id && state == x_state;
+    PetscFunctionReturn(0);
+  }
+};
+
+// J^T x = [D2 (c^2 x_v) ; x_u] and g = 2 c (D2 u) x_v on the plain interior points [lo, hi), in one
+// sweep over x and the stage u (interleaved (u, v) arrays).
+template <int HW>
+void fused_transpose_interior(PetscInt lo, PetscInt hi, const PetscReal *__restrict wt, const PetscScalar *__restrict x,
+                              const PetscScalar *__restrict u, const PetscReal *__restrict c2,
+                              const PetscReal *__restrict dg, PetscScalar *__restrict y, PetscReal *__restrict g) {
+  for (PetscInt i = lo; i < hi; ++i) {
+    PetscReal du = 0, dz = 0;
+#pragma GCC unroll 8
+    for (int k = -HW; k <= HW; ++k) {
+      du += wt[k + HW] * PetscRealPart(u[2 * (i + k)]);
+      dz += wt[k + HW] * c2[i + k] * PetscRealPart(x[2 * (i + k) + 1]);
+    }
+    y[2 * i] = dz;
+    y[2 * i + 1] = x[2 * i];
+    g[i] = dg[i] * du * PetscRealPart(x[2 * i + 1]);
+  }
+}
 
 // The fused leapfrog kick on the plain interior points [lo, hi) (all neighbours owned, no wall):
 //   lambda_u[i] += w sum_k W_k c2[i+k] lambda_v[i+k]     and   out[i] (+)= s dg[i] (sum_k W_k u[i+k]) lambda_v[i]
@@ -92,6 +208,10 @@ public:
                                nullptr));
     PetscCall(PetscOptionsReal("-wave_ic_width", "Width w of the pulse exp(-((x-x_c)/w)^2)", "Wave", width_, &width_,
                                nullptr));
+    PetscCall(PetscOptionsBool("-wave_fused_adjoint",
+                               "The matrix-free transpose of dG/dU also forms the dG/dc transpose of the same vector at the "
+                               "recorded stage (RK adjoint stages apply both), else each is applied alone",
+                               "Wave", fuse_adjoint_, &fuse_adjoint_, nullptr));
     PetscCall(PetscOptionsReal("-wave_c_min", "Smallest admissible speed: optimisers never go below it", "Wave", c_min_,
                                &c_min_, nullptr));
     PetscOptionsEnd();
@@ -104,6 +224,7 @@ public:
     dgdc_.assign(grid.xm(), 0.0);
     c2_.assign(grid.xm(), 0.0);
     gbuf_.assign(grid.xm(), 0.0);
+    fused_.g.assign(grid.xm(), 0.0);
     hw_ = d2_.half_width();
     PetscCall(halo_u_.setup(grid, dm_, 0, hw_));
     PetscCall(halo_q_.setup(grid, grid.dm(), 0, hw_));
@@ -222,14 +343,17 @@ public:
       }
     }
     PetscCall(halo_c_.update(c_));
+    stage_.invalidate(); // dG/dc and any fused product are taken at the new speed
     mark_operator_stale(); // assembled when an integrator asks for dG/dU
     PetscFunctionReturn(0);
   }
 
-  // Records dG_v/dc_i = 2 c_i (D2 u)_i at this state (0 at the walls); the shell applies dG/dc with it.
+  // Records the state U (RecordedStage: no copy, no sweep yet). dG_v/dc_i = 2 c_i (D2 u)_i (0 at the
+  // walls) is formed when the shell is applied, or, for its transpose, by the transpose of dG/dU in
+  // its own sweep over the same vector (-wave_fused_adjoint; an RK adjoint stage applies both).
   PetscErrorCode rhs_jacobian_p(PetscReal, Vec U, Mat Jp) override {
     PetscFunctionBeginUser;
-    PetscCall(sweep_d2u(U, [&](PetscInt il, PetscReal du, const PetscScalar *) { dgdc_[il] = two_c_[il] * du; }));
+    PetscCall(stage_.record(U));
     PetscCall(MatAssemblyBegin(Jp, MAT_FINAL_ASSEMBLY)); // resets any scaling TS applied last time
     PetscCall(MatAssemblyEnd(Jp, MAT_FINAL_ASSEMBLY));
     PetscFunctionReturn(0);
@@ -398,8 +522,15 @@ private:
     PetscFunctionReturn(0);
   }
   // y = J x, or J^T x = [D2 (c^2 x_v) ; x_u] off the walls (D2 symmetric on the interior points).
+  // J^T with a recorded stage u (-wave_fused_adjoint) also forms (dG/dc)^T x = 2 c (D2 u) x_v.
   PetscErrorCode apply_jacobian(Vec x, Vec y, bool transpose) {
+    bool fuse = false;
     PetscFunctionBeginUser;
+    if (transpose && fuse_adjoint_) PetscCall(stage_.unchanged(&fuse));
+    if (fuse) {
+      PetscCall(fused_transpose(x, y));
+      PetscFunctionReturn(0);
+    }
     Array ya(y);
     PetscCall(ya.error());
     PetscScalar *Y = ya.data();
@@ -416,6 +547,55 @@ private:
         Y[2 * il] = X[2 * il + 1];
         Y[2 * il + 1] = c2_[il] * du;
       }));
+    PetscFunctionReturn(0);
+  }
+
+  PetscErrorCode fused_transpose(Vec x, Vec y) {
+    Vec U = nullptr;
+    PetscFunctionBeginUser;
+    PetscCall(stage_.get(&U));
+    PetscCall(halo_u_.begin(U));
+    PetscCall(halo_v_.begin(x));
+    {
+      ConstArray xa(x), ua(U);
+      Array ya(y);
+      PetscCall(xa.error());
+      PetscCall(ua.error());
+      PetscCall(ya.error());
+      const PetscScalar *X = xa.data(), *u = ua.data();
+      PetscScalar *Y = ya.data();
+      PetscReal *g = fused_.g.data();
+      const PetscInt xm = grid_->xm();
+      for (PetscInt il : {(PetscInt)0, xm - 1}) // the walls
+        if (xm > 0 && grid_->is_boundary(grid_->xs() + il)) Y[2 * il] = Y[2 * il + 1] = 0, g[il] = 0;
+      if (hw_ == 1) fused_transpose_interior<1>(lo_, hi_, wt_, X, u, c2_.data(), two_c_.data(), Y, g);
+      else fused_transpose_interior<2>(lo_, hi_, wt_, X, u, c2_.data(), two_c_.data(), Y, g);
+      PetscCall(halo_u_.end(U));
+      PetscCall(halo_v_.end(x));
+      for_edge_points([&](PetscInt il, const std::array<StencilEntry, 5> &st, PetscInt m) {
+        PetscReal du = 0, dz = 0;
+        for (PetscInt q = 0; q < m; ++q) {
+          const PetscInt jl = local_offset(st[q].j);
+          du += st[q].weight * value(u, halo_u_, 0, jl);
+          dz += st[q].weight * c2_at(jl) * value(X, halo_v_, 1, jl);
+        }
+        Y[2 * il] = dz;
+        Y[2 * il + 1] = X[2 * il];
+        g[il] = two_c_[il] * du * PetscRealPart(X[2 * il + 1]);
+      });
+    }
+    PetscCall(fused_.store(x, stage_.serial()));
+    PetscFunctionReturn(0);
+  }
+
+  // dgdc_ = 2 c D2 u at the recorded stage, unless it already holds it.
+  PetscErrorCode recorded_columns() {
+    Vec U = nullptr;
+    PetscFunctionBeginUser;
+    if (columns_serial_ == stage_.serial()) PetscFunctionReturn(0);
+    PetscCall(stage_.get(&U));
+    PetscCall(sweep_d2u(U, [&](PetscInt il, PetscReal du, const PetscScalar *) { dgdc_[il] = two_c_[il] * du; }));
+    columns_serial_ = stage_.serial();
     PetscFunctionReturn(0);
   }
 
@@ -456,6 +636,7 @@ private:
     WaveModel *m;
     PetscFunctionBeginUser;
     PetscCall(MatShellGetContext(Jp, &m));
+    PetscCall(m->recorded_columns());
     const ParamInfo &pi = m->params_->info(m->c_index_);
     PetscReal dc_scalar = 0;
     if (!m->c_field_) PetscCall(m->params_->scalar(x, m->c_index_, &dc_scalar));
@@ -471,25 +652,26 @@ private:
     PetscFunctionReturn(0);
   }
 
-  // y = (dG/dc)^T x   (x in state space, y in parameter space)
+  // y = (dG/dc)^T x   (x in state space, y in parameter space): the field J^T formed from this x at
+  // this stage, else 2 c (D2 u) x_v from the columns.
   static PetscErrorCode jp_mult_transpose(Mat Jp, Vec x, Vec y) {
     WaveModel *m;
+    bool hit = false;
     PetscFunctionBeginUser;
     PetscCall(MatShellGetContext(Jp, &m));
-    if (m->c_field_ && m->params_->count() == 1) {
-      // c is the only parameter: write the field straight into y
-      ConstArray X(x);
-      Array Y(y);
-      PetscCall(X.error());
-      PetscCall(Y.error());
-      for (PetscInt il = 0; il < m->grid_->xm(); ++il) Y[il] = m->dgdc_[il] * PetscRealPart(X[2 * il + 1]);
-      PetscFunctionReturn(0);
-    }
-    std::vector<PetscReal> &g = m->gbuf_;
-    {
+    PetscCall(m->fused_.matches(x, m->stage_.serial(), &hit));
+    std::vector<PetscReal> &g = hit ? m->fused_.g : m->gbuf_;
+    if (!hit) {
+      PetscCall(m->recorded_columns());
       ConstArray X(x);
       PetscCall(X.error());
       for (PetscInt il = 0; il < m->grid_->xm(); ++il) g[il] = m->dgdc_[il] * PetscRealPart(X[2 * il + 1]);
+    }
+    if (m->c_field_ && m->params_->count() == 1) { // c is the only parameter: the field is y
+      Array Y(y);
+      PetscCall(Y.error());
+      std::copy(g.begin(), g.end(), Y.data());
+      PetscFunctionReturn(0);
     }
     PetscCall(VecSet(y, 0.0));
     PetscCall(m->params_->add_pointwise(y, m->c_index_, g));
@@ -510,6 +692,12 @@ private:
   Halo halo_q_;                   // ghosts of u given alone (the stored positions, in the leapfrog's adjoint)
   PetscInt hw_ = 1, lo_ = 0, hi_ = 0; // stencil half-width; owned points [lo_, hi_) take the plain sweep
   PetscReal wt_[5] = {0, 0, 0, 0, 0}; // the centred weights / h^2
+  // The state recorded by rhs_jacobian_p, the record dgdc_ was formed at, and J^T's fused dG/dc
+  // transpose (-wave_fused_adjoint).
+  RecordedStage stage_;
+  unsigned long columns_serial_ = 0;
+  FusedGradient fused_;
+  PetscBool fuse_adjoint_ = PETSC_TRUE;
 };
 
 } // namespace
