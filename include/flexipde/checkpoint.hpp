@@ -29,6 +29,8 @@
 #include "flexipde/petsc.hpp"
 #include <petscts.h>
 #include <algorithm>
+#include <cstdlib>
+#include <new>
 #include <memory>
 #include <vector>
 
@@ -97,17 +99,27 @@ PetscErrorCode binomial_trajectory_set_budget(TSTrajectory tj, PetscInt budget);
 #define FLEXIPDE_TSTRAJECTORY_STORE "store"
 // Uninitialised storage that only grows: zero-filling gigabytes of states that are overwritten
 // anyway cost more than the forward sweep of a large grid.
+// Large buffers are aligned to 2 MB and offered to the kernel for transparent huge pages
+// (madvise): the adjoint reads the buffer backwards, slot by slot, and with 4 KB pages every slot
+// costs TLB misses that also stall the prefetches of the next one.
 struct StateBuffer {
-  std::unique_ptr<PetscScalar[]> data;
+  struct Free {
+    void operator()(PetscScalar *p) const { std::free(p); }
+  };
+  std::unique_ptr<PetscScalar[], Free> data;
   size_t size = 0;
   // At least n entries; keep = copy the current contents when it moves.
   void grow(size_t n, bool keep) {
     if (n <= size) return;
-    std::unique_ptr<PetscScalar[]> fresh(new PetscScalar[n]);
+    std::unique_ptr<PetscScalar[], Free> fresh(allocate(n));
+    if (!fresh) throw std::bad_alloc();
     if (keep && size) std::copy(data.get(), data.get() + size, fresh.get());
     data = std::move(fresh);
     size = n;
   }
+
+private:
+  static PetscScalar *allocate(size_t n);
 };
 PetscErrorCode register_store_trajectory();
 PetscErrorCode store_trajectory_use_buffer(TSTrajectory tj, StateBuffer *buffer);

@@ -19,6 +19,7 @@
 #include <cstdint>
 #include <cstring>
 #include <emmintrin.h>
+#include <sys/mman.h>
 #include <petsc/private/tsimpl.h>
 #include <vector>
 
@@ -318,6 +319,16 @@ PetscErrorCode store_create(TSTrajectory tj, TS) {
 }
 
 } // namespace
+
+PetscScalar *StateBuffer::allocate(size_t n) {
+  const size_t huge = (size_t)2 << 20, bytes = n * sizeof(PetscScalar);
+  if (bytes < huge) return static_cast<PetscScalar *>(std::malloc(bytes));
+  void *p = std::aligned_alloc(huge, (bytes + huge - 1) / huge * huge);
+#ifdef MADV_HUGEPAGE
+  if (p) (void)madvise(p, (bytes + huge - 1) / huge * huge, MADV_HUGEPAGE); // advice only: ignored where unsupported
+#endif
+  return static_cast<PetscScalar *>(p);
+}
 
 PetscErrorCode register_store_trajectory() {
   PetscFunctionBegin;
