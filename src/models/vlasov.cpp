@@ -212,6 +212,7 @@ public:
     PetscCall(DMCreateLocalVector(dm_, U_local_.out()));
     PetscCall(DMCreateLocalVector(dm_, X_local_.out()));
     PetscCall(halo_.setup(grid, dm_, 0, 2));
+    PetscCallMPI(MPI_Comm_size(grid.comm(), &nranks_));
     ghost_rows_.assign(5 * grid.xm() + 4, 0.0);
     PetscCall(VecSet(U_local_, 0.0));
     PetscCall(VecSet(X_local_, 0.0));
@@ -665,15 +666,13 @@ private:
     const Grid &g = *m->grid_;
     const Halo &h = m->halo_;
     const PetscInt xm = g.xm(), ys = g.ys(), ym = g.ym(), nv = m->nv_;
-    PetscCall(m->halo_.begin(x));
+    // x whole on this rank (1 rank, or a split in v only): each row's x ghosts are its own periodic
+    // ends, and the rows away from the ends of the owned block are swept while the ghost rows arrive.
+    // On one rank with x whole there is nothing to exchange (the rows beyond the bounds are zero).
+    const bool x_whole = xm == m->nx_, exchange = !x_whole || m->nranks_ > 1;
+    if (exchange) PetscCall(m->halo_.begin(x));
     PetscCall(VecGetArrayRead(x, &xo));
-    PetscCall(m->halo_.end(x));
     PetscScalar *below = m->ghost_rows_.data(), *above = below + 2 * xm, *pad = above + 2 * xm;
-    for (PetscInt k = 0; k < 2; ++k)
-      for (PetscInt il = 0; il < xm; ++il) {
-        below[k * xm + il] = h(il, k - 2);
-        above[k * xm + il] = h(il, ym + k);
-      }
     auto row = [&](PetscInt jl) { return jl < 0 ? below + (jl + 2) * xm : jl >= ym ? above + (jl - ym) * xm : xo + jl * xm; };
     PetscCall(VecGetArrayRead(m->f_lin_, &fl));
     PetscCall(VecGetArray(y, &yo));
@@ -681,13 +680,14 @@ private:
     PetscReal *w = m->w_.data() + g.xs();
     const PetscReal *E = m->Elin_.data();
     const PetscReal cv = -1.0 / (12 * m->hv_);
-    for (PetscInt jl = 0; jl < ym; ++jl) {
+    auto sweep_row = [&](PetscInt jl) {
       const PetscInt j = ys + jl;
-      pad[0] = h(-2, jl);
-      pad[1] = h(-1, jl);
-      std::memcpy(pad + 2, xo + jl * xm, sizeof(PetscScalar) * xm);
-      pad[xm + 2] = h(xm, jl);
-      pad[xm + 3] = h(xm + 1, jl);
+      const PetscScalar *xr = xo + jl * xm;
+      pad[0] = x_whole ? xr[xm - 2] : h(-2, jl);
+      pad[1] = x_whole ? xr[xm - 1] : h(-1, jl);
+      std::memcpy(pad + 2, xr, sizeof(PetscScalar) * xm);
+      pad[xm + 2] = x_whole ? xr[0] : h(xm, jl);
+      pad[xm + 3] = x_whole ? xr[1] : h(xm + 1, jl);
       const PetscScalar *rows[5] = {row(jl - 2), row(jl - 1), pad + 2, row(jl + 1), row(jl + 2)};
       const PetscScalar *fr = fl + jl * xm;
       PetscScalar *yr = yo + jl * xm;
@@ -700,7 +700,20 @@ private:
         transpose_row_bound(xm, cx, c, rows[2], rows[0], rows[1], rows[3], rows[4], E, fr, yr, w);
       }
       if (m->c_diss_ > 0) m->dissipation_in_rows(rows, j, yr); // symmetric
-    }
+    };
+    const PetscInt early_end = exchange && x_whole ? std::max<PetscInt>(2, ym - 2) : 2;
+    for (PetscInt jl = 2; jl < early_end; ++jl) sweep_row(jl); // the rows that need no ghost row
+    if (exchange) PetscCall(m->halo_.end(x));
+    for (PetscInt k = 0; k < 2; ++k) // zero beyond the velocity bounds
+      for (PetscInt il = 0; il < xm; ++il) {
+        below[k * xm + il] = h(il, k - 2);
+        above[k * xm + il] = h(il, ym + k);
+      }
+    if (early_end > 2) { // the rows next to the ends of the owned block
+      for (PetscInt jl = 0; jl < std::min<PetscInt>(2, ym); ++jl) sweep_row(jl);
+      for (PetscInt jl = early_end; jl < ym; ++jl) sweep_row(jl);
+    } else
+      for (PetscInt jl = 0; jl < ym; ++jl) sweep_row(jl); // in order
     PetscCall(VecRestoreArrayRead(m->f_lin_, &fl));
     PetscCall(VecRestoreArrayRead(x, &xo));
     PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, m->w_.data(), (PetscMPIInt)m->nx_, MPIU_REAL, MPI_SUM, g.comm()));
@@ -770,6 +783,7 @@ private:
   bool dvf_valid_ = false;               // dvf_ belongs to the current linearisation state
   OwnedVec U_local_, X_local_;
   Halo halo_;                          // ghosts of x for the transpose (j_mult_transpose)
+  PetscMPIInt nranks_ = 1;
   std::vector<PetscScalar> ghost_rows_; // the transpose's x rows beyond the owned block (2 + 2) and its padded row
   OwnedVec f_lin_; // the linearisation state f (owned points), copied by rhs_jacobian
 };
