@@ -51,5 +51,10 @@ PetscErrorCode leapfrog_set_adjoint_kick(TS ts, LeapfrogAdjointKick kick, void *
 // adjoint step's level k-1 reads them from q in place when the kick takes positions (*placed), else
 // the trajectory must fill the stage with U_{k-1} itself. q must stay valid until that step is done.
 PetscErrorCode leapfrog_place_positions(TS ts, const PetscScalar *q, bool *placed);
+// For a trajectory that stores the positions alone: the next step also writes the positions it
+// produces to q (one pass with the drift, non-temporal stores), when it can (m = 1, q 16-byte
+// aligned, no stage copy); leapfrog_sunk_positions then returns q, else null.
+PetscErrorCode leapfrog_sink_positions(TS ts, PetscScalar *q);
+const PetscScalar *leapfrog_sunk_positions(TS ts);
 
 } // namespace flexipde

@@ -3,6 +3,10 @@
 #include "flexipde/checkpoint.hpp" // FLEXIPDE_TSTRAJECTORY_STORE
 #include <petsc/private/petscimpl.h> // PetscObjectStateGet
 #include <petsc/private/tsimpl.h>
+#include <cstdint>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 namespace flexipde {
 namespace {
@@ -30,6 +34,11 @@ struct Leapfrog {
   bool kick_takes_positions = false;
   Vec Q = nullptr;
   bool Q_placed = false;
+  // Where the next step also writes the positions it produces (a full-storage trajectory's next slot,
+  // leapfrog_sink_positions), with non-temporal stores; consumed by that one step. `sunk` = where the
+  // last step wrote them (null: nowhere).
+  PetscScalar *sink = nullptr;
+  const PetscScalar *sunk = nullptr;
   // Whether this solve's steps must leave U_k in Y0: for a trajectory that stores stages or re-runs
   // steps (PETSc's, binomial checkpointing). Plain forward solves and the "store" trajectory (which
   // hands the adjoint U_{k-1} itself) skip the copy, a third of a step's memory traffic.
@@ -101,6 +110,32 @@ PetscErrorCode add_q_rows(const Leapfrog &lf, Vec lambda, Vec W, PetscReal s) {
   PetscFunctionReturn(0);
 }
 
+#if defined(__SSE2__) && !defined(PETSC_USE_COMPLEX) && defined(PETSC_USE_REAL_DOUBLE)
+// start_kick_drift_loop<1> that also writes the new positions to q (16-byte aligned), two points per
+// non-temporal store: the state and the stored copy in one pass.
+void start_kick_drift_sink(PetscScalar *__restrict u, const PetscScalar *__restrict f, PetscScalar *__restrict q,
+                           PetscInt n, PetscReal dt) {
+  const PetscInt npt = n / 2;
+  PetscInt k = 0;
+  for (; k + 1 < npt; k += 2) {
+    PetscScalar *a = u + 2 * k;
+    const PetscScalar *g = f + 2 * k;
+    const PetscScalar ph0 = a[1] + 0.5 * dt * g[1], ph1 = a[3] + 0.5 * dt * g[3];
+    const PetscScalar q0 = a[0] + dt * ph0, q1 = a[2] + dt * ph1;
+    a[0] = q0, a[1] = ph0, a[2] = q1, a[3] = ph1;
+    _mm_stream_pd(q + k, _mm_set_pd(q1, q0));
+  }
+  for (; k < npt; ++k) {
+    const PetscScalar ph = u[2 * k + 1] + 0.5 * dt * f[2 * k + 1];
+    u[2 * k + 1] = ph;
+    u[2 * k] += dt * ph;
+    q[k] = u[2 * k];
+  }
+  _mm_sfence();
+}
+#define FLEXIPDE_LEAPFROG_SINK 1
+#endif
+
 template <int M>
 void start_kick_drift_loop(PetscScalar *__restrict u, const PetscScalar *__restrict f, PetscScalar *__restrict y,
                            PetscInt n, PetscInt m_rt, PetscReal dt) {
@@ -115,8 +150,9 @@ void start_kick_drift_loop(PetscScalar *__restrict u, const PetscScalar *__restr
     }
 }
 
-// Y0 = U (when asked for), then the first kick and the drift.
-PetscErrorCode start_kick_drift(const Leapfrog &lf, Vec U, Vec F, Vec Y0, PetscReal dt) {
+// Y0 = U (when asked for), then the first kick and the drift; the new positions also go to lf.sink
+// when there is one (and no Y0), recorded in lf.sunk.
+PetscErrorCode start_kick_drift(Leapfrog &lf, Vec U, Vec F, Vec Y0, PetscReal dt) {
   PetscScalar *u, *y = nullptr;
   const PetscScalar *f;
   PetscInt n;
@@ -125,6 +161,13 @@ PetscErrorCode start_kick_drift(const Leapfrog &lf, Vec U, Vec F, Vec Y0, PetscR
   PetscCall(VecGetArray(U, &u));
   if (Y0) PetscCall(VecGetArrayWrite(Y0, &y));
   PetscCall(VecGetArrayRead(F, &f));
+  lf.sunk = nullptr;
+#if defined(FLEXIPDE_LEAPFROG_SINK)
+  if (lf.pairs == 1 && lf.sink && !y && reinterpret_cast<uintptr_t>(lf.sink) % 16 == 0) {
+    start_kick_drift_sink(u, f, lf.sink, n, dt);
+    lf.sunk = lf.sink;
+  } else
+#endif
   if (lf.pairs == 1) start_kick_drift_loop<1>(u, f, y, n, 1, dt);
   else start_kick_drift_loop<0>(u, f, y, n, lf.pairs, dt);
   PetscCall(VecRestoreArrayRead(F, &f));
@@ -149,6 +192,7 @@ PetscErrorCode TSStep_Leapfrog(TS ts) {
   // the forward cost integral reads r(t_k, U_k) from Y0 when it does not have it from the last step
   const bool need_stage = lf->copy_stage || (ts->quadraturets && ts->costintegralfwd && lf->r_end_step != ts->steps);
   PetscCall(start_kick_drift(*lf, U, lf->F, need_stage ? lf->Y0 : nullptr, dt));
+  lf->sink = nullptr; // one step only
   // G_p does not depend on p, so G at (q_{k+1}, p_h) already gives a(t_{k+1}, q_{k+1})
   PetscCall(TSComputeRHSFunction(ts, t + dt, U, lf->F));
   PetscCall(kick(*lf, U, lf->F, 0.5 * dt));
@@ -400,6 +444,14 @@ PetscErrorCode leapfrog_set_adjoint_kick(TS ts, LeapfrogAdjointKick kick, void *
                  (ts, kick, ctx, takes_positions ? PETSC_TRUE : PETSC_FALSE));
   PetscFunctionReturn(0);
 }
+
+PetscErrorCode leapfrog_sink_positions(TS ts, PetscScalar *q) {
+  PetscFunctionBegin;
+  if (is_leapfrog(ts)) data(ts)->sink = q;
+  PetscFunctionReturn(0);
+}
+
+const PetscScalar *leapfrog_sunk_positions(TS ts) { return is_leapfrog(ts) ? data(ts)->sunk : nullptr; }
 
 PetscErrorCode leapfrog_place_positions(TS ts, const PetscScalar *q, bool *placed) {
   PetscFunctionBegin;

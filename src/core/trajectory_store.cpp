@@ -201,7 +201,9 @@ PetscErrorCode store_set(TSTrajectory tj, TS ts, PetscInt stepnum, PetscReal tim
     PetscCall(place_stages(*st, ts, -1)); // the buffer moves
     st->buffer->grow(std::max(need, 2 * st->buffer->size), true);
   }
-  PetscCall(copy_in(*st, stepnum, 0, X));
+  if (!st->pairs || leapfrog_sunk_positions(ts) != at(*st, stepnum, 0)) PetscCall(copy_in(*st, stepnum, 0, X));
+  if (st->pairs && st->use_stream && (size_t)(stepnum + 2) * st->slot <= st->buffer->size)
+    PetscCall(leapfrog_sink_positions(ts, at(*st, stepnum + 1, 0))); // the next step writes its positions there itself
   if (st->keep_stages && stepnum > 0 && st->placed != stepnum) { // placed: the step wrote them here
     Vec *Y;
     PetscCall(TSGetStages(ts, nullptr, &Y));
