@@ -7,8 +7,11 @@
 //
 // Get(k) leaves the TS ready for the adjoint of step k-1 -> k (see checkpoint.cpp for what that
 // means): the leapfrog's one stage is the step's start U_{k-1}. By default only its positions q are
-// stored (its adjoint reads nothing else: G_p depends on q alone), half the memory, and copied into
-// the stage per step; with -checkpoint_positions_only 0, or a cost integrand (which may read p), whole
+// stored (its adjoint reads nothing else: G_p depends on q alone), half the memory: the step writes
+// them into the next slot itself (leapfrog_sink_positions, streaming stores), and the model's fused
+// kick reads them there (leapfrog_place_positions; without one they are copied into the stage). The
+// slot the next adjoint step reads is prefetched, and buffers of 2 MB and more sit on huge pages
+// (StateBuffer). With -checkpoint_positions_only 0, or a cost integrand (which may read p), whole
 // states are stored and the stage Vec is pointed at them (VecPlaceArray), nothing copied; any other
 // integrator re-runs the step from U_{k-1} (TSStep) to rebuild its stages, like PETSc's memory
 // trajectory in solution-only mode. Fixed steps only (the Simulation uses PETSc's memory trajectory
@@ -286,13 +289,15 @@ PetscErrorCode store_setfromoptions(TSTrajectory tj, PetscOptionItems *PetscOpti
                              "when the buffer fits -checkpoint_keep_stages_max_mb)",
                              "store", st->keep_stages_option, &st->keep_stages_option, &st->keep_stages_set));
   PetscCall(PetscOptionsBool("-checkpoint_positions_only",
-                             "Leapfrog full storage keeps only the positions q of each state: half the memory, one "
-                             "strided copy into the stage per adjoint step (0: whole states, read in place; whole "
-                             "states always with a time-integrated objective)",
+                             "Leapfrog full storage keeps only the positions q of each state: half the memory; the "
+                             "model's fused kick reads them in place (else one strided copy into the stage per adjoint "
+                             "step) (0: whole states, read in place; whole states always with a time-integrated "
+                             "objective)",
                              "store", st->positions_only, &st->positions_only, nullptr));
   PetscCall(PetscOptionsBool("-checkpoint_prefetch", "Full storage prefetches the state the next adjoint step reads",
                              "store", st->prefetch, &st->prefetch, nullptr));
-  PetscCall(PetscOptionsBool("-checkpoint_stream_stores", "Full storage writes the states with non-temporal stores (past the caches: the adjoint reads them much later)",
+  PetscCall(PetscOptionsBool("-checkpoint_stream_stores", "Leapfrog full storage writes the states with non-temporal stores (past the caches: the adjoint "
+                             "reads them much later)",
                              "store", st->stream, &st->stream, nullptr));
   PetscCall(PetscOptionsReal("-checkpoint_keep_stages_max_mb", "Largest stage-keeping buffer per rank chosen by default (MB)",
                              "store", st->keep_stages_max_mb, &st->keep_stages_max_mb, nullptr));
