@@ -65,6 +65,21 @@ if torch_line:
 else:
     print("- PyTorch: skipped (python3-torch is not installed: `apt-get install python3-torch`).")
 
+print()
+print("Seed scene with the leapfrog on 1 and 2 ranks, one scalar speed or the 1000-entry field:")
+print()
+print("| ranks | parameters | forward (s) | value + gradient (s) | gradient / forward |")
+print("|---|---|---|---|---|")
+seed = {}
+for np_ in (1, 2):
+    for cf, params in ((0, 1), (1, 1000)):
+        fwd, _, grad, _ = timing(read("seed_np%d_field%d.log" % (np_, cf)))
+        seed[(np_, params)] = grad
+        print("| %d | %d | %.4f | %.4f | %.2f |" % (np_, params, fwd, grad, grad / fwd))
+print()
+print("- Gradient time with 1000 parameters / with 1: %.2f (1 rank), %.2f (2 ranks)."
+      % (seed[(1, 1000)] / seed[(1, 1)], seed[(2, 1000)] / seed[(2, 1)]))
+
 if scale:
     print()
     print("## Scale: 1D wave, 10^6 points, 200 leapfrog steps")

@@ -2,7 +2,8 @@
 # Gradient speed against peers (issue 8): the seed FWI problem (wave, n = 1000 on [0,1], 5000 leapfrog
 # steps of dt = 5e-4, a 1000-entry speed field c, J = 0.5 ||u(T) - d||^2 with d from c = 1) timed
 # in one run, on one core, as the median of REPS value+gradient evaluations each:
-#   flexipde   -ts_type leapfrog (and rk4 for reference), -timing_repeats: in-process medians
+#   flexipde   -ts_type leapfrog (and rk4 for reference), -timing_repeats: in-process medians;
+#              the leapfrog also on 2 ranks and with one scalar speed (1 versus 1000 parameters)
 #   reference  run/reference_leapfrog.c: a plain C leapfrog with its hand-written adjoint
 #   torch      run/peer_torch.py: the same scheme in PyTorch autograd (python3-torch; skipped if absent)
 # The gradients are compared entry by entry (flexipde vs reference must agree to <= 1e-8).
@@ -37,6 +38,12 @@ echo "Measured $(date -u +%Y-%m-%dT%H:%MZ) on $(nproc) cores, load average $(cut
 echo
 $MPIEXEC -n 1 "$FLEXIPDE" -task gradient $seed -timing_repeats "$REPS" -output "$OUT/flexipde_gradient.h5" > "$OUT/flexipde_leapfrog.log"
 $MPIEXEC -n 1 "$FLEXIPDE" -task gradient -ts_type rk -ts_rk_type 4 -wave_c_field 1 -wave_c 0.9 -timing_repeats "$REPS" > "$OUT/flexipde_rk4.log"
+# the seed scene on 1 and 2 ranks, with one scalar speed and with the 1000-entry field (issue 3)
+for np in 1 2; do
+  for cf in 0 1; do
+    $MPIEXEC -n $np "$FLEXIPDE" -task gradient -ts_type leapfrog -wave_c_field $cf -wave_c 0.9 -timing_repeats "$REPS" > "$OUT/seed_np${np}_field$cf.log"
+  done
+done
 "$OUT/reference_leapfrog" 1000 5000 5e-4 0.9 "$REPS" "$OUT/reference_gradient.txt" > "$OUT/reference.log"
 torch_status=0
 "$PYTHON" "$here/peer_torch.py" 1000 5000 5e-4 0.9 "$(( REPS < 5 ? REPS : 5 ))" "$OUT/torch_gradient.txt" > "$OUT/torch.log" || torch_status=$?
