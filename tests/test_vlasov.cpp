@@ -110,10 +110,14 @@ TEST_P(VlasovJacobian, TransposeAndCentralDifference) {
 
 INSTANTIATE_TEST_SUITE_P(Vlasov, VlasovJacobian, ::testing::Values("landau", "two_stream", "two_stream_dissipation"));
 
-// The linearisation is a snapshot: rhs_jacobian copies f and E(f); the transpose reads that copy
+// The linearisation is a snapshot: rhs_jacobian copies f and sums its density; E(f) follows at once
+// on one rank, and on more than one with the first product (the transpose reduces the density with
+// its own sum w and then takes a second pass; MatMult reduces it alone). The transpose reads the copy
 // (w = S (f o D_v^T y)), and MatMult makes D_v f from it on first use. Relinearising at a second
-// state, in either order of MatMult and MatMultTranspose, must give what a fresh Jacobian gives,
-// and the dot product must hold on a grid that 2 ranks split in x (40 x 20) as well as in v.
+// state, in either order of MatMult and MatMultTranspose, must give what a fresh Jacobian gives
+// (exactly: both orders of the products, so both transpose paths on 2 ranks), and the dot product
+// must hold on a grid that 2 ranks split in x (40 x 20) as well as in v (20 x 40, where the
+// transpose exchanges ghost rows while it sweeps the inner rows).
 class VlasovRelinearise : public ::testing::TestWithParam<std::array<const char *, 2>> {};
 
 TEST_P(VlasovRelinearise, SnapshotAndDotProduct) {
