@@ -51,6 +51,12 @@ public:
   // entry, a scalar takes its sum over all points.
   PetscErrorCode add_local_sum(Vec grad, PetscInt k, PetscReal local) const;
   PetscErrorCode add_pointwise(Vec grad, PetscInt k, const std::vector<PetscReal> &g) const;
+  // Deferred sums: after defer_sums(grad), add_local_sum(grad, ...) only adds to a per-rank partial
+  // sum (no communication, grad untouched) until flush_sums() reduces them all at once (collective)
+  // and adds them to grad. For an adjoint that adds to a scalar's gradient at every time level: one
+  // reduction per gradient instead of one per level. Sums for any other Vec are not deferred.
+  void defer_sums(Vec grad) const;
+  PetscErrorCode flush_sums() const;
 
   const Grid *grid() const { return grid_; }
 
@@ -59,6 +65,8 @@ private:
   const Grid *grid_ = nullptr;
   PetscInt nlocal_ = 0, nglobal_ = 0, rstart_ = 0;
   bool finalized_ = false;
+  mutable Vec deferred_ = nullptr;          // the Vec whose scalar sums are deferred (not owned)
+  mutable std::vector<PetscReal> pending_; // per scalar: this rank's deferred partial sum
 };
 
 // A profile fills a parameter (scalar or field) from options with a given prefix, e.g. for

@@ -80,6 +80,10 @@ PetscErrorCode Parameters::add_local_sum(Vec grad, PetscInt k, PetscReal local) 
   PetscFunctionBeginUser;
   PetscCheck(info_[k].kind == ParamKind::Scalar, PETSC_COMM_SELF, PETSC_ERR_ARG_WRONG, "%s is not a scalar",
              info_[k].name.c_str());
+  if (grad == deferred_) {
+    pending_[k] += local;
+    PetscFunctionReturn(0);
+  }
   PetscCallMPI(MPI_Reduce(&local, &total, 1, MPIU_REAL, MPI_SUM, 0, grid_->comm()));
   // The array is taken on every rank, not only where the scalar lives: getting it marks grad as
   // changed, and a rank that skipped it would reuse a cached norm and skip the collective of the
@@ -87,6 +91,26 @@ PetscErrorCode Parameters::add_local_sum(Vec grad, PetscInt k, PetscReal local) 
   Array G(grad);
   PetscCall(G.error());
   if (info_[k].local_size) G[info_[k].local_offset] += total;
+  PetscFunctionReturn(0);
+}
+
+void Parameters::defer_sums(Vec grad) const {
+  deferred_ = grad;
+  pending_.assign(info_.size(), 0.0);
+}
+
+PetscErrorCode Parameters::flush_sums() const {
+  PetscFunctionBeginUser;
+  if (!deferred_) PetscFunctionReturn(0);
+  Vec grad = deferred_;
+  deferred_ = nullptr;
+  std::vector<PetscReal> total(pending_.size(), 0.0);
+  if (!pending_.empty())
+    PetscCallMPI(MPI_Reduce(pending_.data(), total.data(), (int)pending_.size(), MPIU_REAL, MPI_SUM, 0, grid_->comm()));
+  Array G(grad); // on every rank (see add_local_sum)
+  PetscCall(G.error());
+  for (size_t k = 0; k < info_.size(); ++k)
+    if (info_[k].kind == ParamKind::Scalar && info_[k].local_size) G[info_[k].local_offset] += total[k];
   PetscFunctionReturn(0);
 }
 
