@@ -36,10 +36,20 @@
 #include "flexipde/model.hpp"
 #include "flexipde/survey.hpp"
 #include <cmath>
+#include <type_traits>
 #include <vector>
 
 namespace flexipde {
 namespace {
+
+// s[0..3] += the sum of a[lo, hi) in four interleaved partial sums held in registers.
+inline void sum4(const PetscReal *__restrict a, PetscInt lo, PetscInt hi, PetscReal s[4]) {
+  PetscReal s0 = 0, s1 = 0, s2 = 0, s3 = 0;
+  PetscInt i = lo;
+  for (; i + 3 < hi; i += 4) s0 += a[i], s1 += a[i + 1], s2 += a[i + 2], s3 += a[i + 3];
+  for (; i < hi; ++i) s0 += a[i];
+  s[0] += s0, s[1] += s1, s[2] += s2, s[3] += s3;
+}
 
 class Wave2DModel final : public LinearModel {
 public:
@@ -228,15 +238,29 @@ public:
         if (g) g[pi.local_offset + k] += w * gk;
         else local[k & 3] += gk;
       };
-      for (PetscInt jl = 1; jl < ym - 1; ++jl)
-        for (PetscInt k = jl * xm + 1; k < jl * xm + xm - 1; ++k) {
-          const PetscReal lu = ax * PetscRealPart(ua[SU * (k - 1)] + ua[SU * (k + 1)]) +
-                               ay * PetscRealPart(ua[SU * (k - xm)] + ua[SU * (k + xm)]) + a0 * PetscRealPart(ua[SU * k]);
-          const PetscReal lz = ax * (c2[k - 1] * PetscRealPart(L[2 * (k - 1) + 1]) + c2[k + 1] * PetscRealPart(L[2 * (k + 1) + 1])) +
-                               ay * (c2[k - xm] * PetscRealPart(L[2 * (k - xm) + 1]) + c2[k + xm] * PetscRealPart(L[2 * (k + xm) + 1])) +
-                               a0 * c2[k] * PetscRealPart(L[2 * k + 1]);
-          body(k, lu, lz);
-        }
+      // the interior: a field's gradient in place, a scalar's per-point terms into gbuf_, summed per row
+      // (no reduction inside the loop, which keeps it vectorised)
+      PetscReal *out = g ? g + pi.local_offset : gbuf_.data();
+      auto interior = [&](auto add) {
+        constexpr bool ADD = decltype(add)::value;
+        for (PetscInt jl = 1; jl < ym - 1; ++jl)
+          for (PetscInt k = jl * xm + 1; k < jl * xm + xm - 1; ++k) {
+            const PetscReal lu = ax * PetscRealPart(ua[SU * (k - 1)] + ua[SU * (k + 1)]) +
+                                 ay * PetscRealPart(ua[SU * (k - xm)] + ua[SU * (k + xm)]) + a0 * PetscRealPart(ua[SU * k]);
+            const PetscReal lz = ax * (c2[k - 1] * PetscRealPart(L[2 * (k - 1) + 1]) + c2[k + 1] * PetscRealPart(L[2 * (k + 1) + 1])) +
+                                 ay * (c2[k - xm] * PetscRealPart(L[2 * (k - xm) + 1]) + c2[k + xm] * PetscRealPart(L[2 * (k + xm) + 1])) +
+                                 a0 * c2[k] * PetscRealPart(L[2 * k + 1]);
+            L[2 * k] += w * lz;
+            const PetscReal gk = tc[k] * lu * PetscRealPart(L[2 * k + 1]);
+            if (ADD) out[k] += w * gk;
+            else out[k] = gk;
+          }
+      };
+      if (g) interior(std::true_type{});
+      else {
+        interior(std::false_type{});
+        for (PetscInt jl = 1; jl < ym - 1; ++jl) sum4(out, jl * xm + 1, jl * xm + xm - 1, local);
+      }
       PetscCall(halo_u.end(U));
       PetscCall(halo_v_.end(lambda));
       auto uat = [&](PetscInt il, PetscInt jl) {
