@@ -1,0 +1,79 @@
+// The explicit RK adjoint step of rk_adjoint.hpp against PETSc's own TSAdjointStep_RK
+// (-rk_fused_adjoint 0), on 1 and 2 ranks: the same gradient to 1e-12 (the two differ only in the
+// rounding of b_i W_i), for every model that runs with TSRK, scalar and field parameters, tableaux of
+// 2 to 4 stages (non-FSAL: rk_adjoint.hpp's path) and an FSAL one (3bs: handed back to PETSc's, so the
+// two must agree exactly). Each case's gradient is also nonzero, so the comparison means something.
+#include "flexipde/scene.hpp"
+#include "test_support.hpp"
+
+using namespace flexipde;
+using flexipde_test::expect_same_gradient;
+using flexipde_test::ScopedOptions;
+
+namespace {
+
+struct RkCase {
+  const char *name;
+  std::vector<std::pair<const char *, const char *>> opts;
+  PetscReal tol;
+};
+
+std::vector<RkCase> rk_cases() {
+  return {
+      {"wave_rk4_field", {{"-da_grid_x", "61"}, {"-wave_c_field", "1"}, {"-ts_rk_type", "4"}}, 1e-12},
+      {"wave_rk3_scalar_fd4_periodic",
+       {{"-da_grid_x", "61"}, {"-fd_order", "4"}, {"-grid_periodic", "1"}, {"-wave_ic", "rest"}, {"-ts_rk_type", "3"}},
+       1e-12},
+      {"advection_upwind_diffusion_rk2a",
+       {{"-model", "advection"}, {"-grid_periodic", "1"}, {"-da_grid_x", "64"}, {"-advection_scheme", "upwind"},
+        {"-advection_D", "0.01"}, {"-ts_rk_type", "2a"}, {"-ts_dt", "2e-3"}},
+       1e-12},
+      {"wave_rk3bs_field_petsc", {{"-da_grid_x", "61"}, {"-wave_c_field", "1"}, {"-ts_rk_type", "3bs"}}, 1e-300},
+      {"wave2d_sponge_rk4_field",
+       {{"-model", "wave2d"}, {"-da_grid_x", "23"}, {"-da_grid_y", "19"}, {"-wave2d_c_field", "1"},
+        {"-wave2d_sponge_width", "0.2"}, {"-wave2d_ic", "pulse"}, {"-wave2d_ic_width", "0.2"}, {"-ts_rk_type", "4"}},
+       1e-12},
+      {"advection_upwind_rk1fe",
+       {{"-model", "advection"}, {"-grid_periodic", "1"}, {"-da_grid_x", "64"}, {"-advection_scheme", "upwind"},
+        {"-ts_rk_type", "1fe"}, {"-ts_dt", "2e-3"}},
+       1e-12},
+      {"advection_fd2_diffusion_field_rk4",
+       {{"-model", "advection"}, {"-grid_periodic", "1"}, {"-da_grid_x", "64"}, {"-advection_scheme", "fd2"},
+        {"-advection_D", "0.01"}, {"-advection_D_field", "1"}, {"-advection_ic_amplitude_param", "1"}, {"-ts_rk_type", "4"}},
+       1e-12},
+      {"advection_spectral_rk4",
+       {{"-model", "advection"}, {"-grid_periodic", "1"}, {"-da_grid_x", "64"}, {"-advection_scheme", "spectral"},
+        {"-ts_rk_type", "4"}},
+       1e-12},
+      {"vlasov_landau_rk4",
+       {{"-model", "vlasov"}, {"-vlasov_ic", "landau"}, {"-da_grid_x", "16"}, {"-da_grid_y", "32"},
+        {"-objective_type", "functional"}, {"-ts_rk_type", "4"}, {"-ts_dt", "0.05"}, {"-ts_max_time", "1"}},
+       1e-12},
+  };
+}
+
+class RkAdjoint : public ::testing::TestWithParam<RkCase> {
+protected:
+  void SetUp() override {
+    opts_.set("-ts_max_time", "0.1");
+    opts_.set("-ts_dt", "2e-3");
+    opts_.set("-ts_type", "rk");
+    for (auto &o : GetParam().opts) opts_.set(o.first, o.second);
+    PETSC_ASSERT_OK(scene.setup(PETSC_COMM_WORLD));
+    PETSC_ASSERT_OK(scene.params.create_vec(p.out()));
+    PETSC_ASSERT_OK(scene.parameters_from_options("", p));
+  }
+  ScopedOptions opts_;
+  Scene scene;
+  OwnedVec p;
+};
+
+std::string rk_name(const ::testing::TestParamInfo<RkCase> &i) { return i.param.name; }
+
+} // namespace
+
+TEST_P(RkAdjoint, SameGradientAsPetscRk) {
+  expect_same_gradient(scene, p, {{"-rk_fused_adjoint", "1"}}, {{"-rk_fused_adjoint", "0"}}, GetParam().tol);
+}
+
+INSTANTIATE_TEST_SUITE_P(Models, RkAdjoint, ::testing::ValuesIn(rk_cases()), rk_name);
