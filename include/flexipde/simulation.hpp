@@ -49,6 +49,9 @@ public:
   const SimulationStats &stats() const { return stats_; }
   // Stored states and recomputed steps of the last gradient's adjoint (-checkpoint_budget).
   const CheckpointStats &checkpoint_stats() const { return checkpoint_stats_; }
+  // Times the shifted matrix of an implicit theta method was assembled for factoring since setup
+  // (-sim_theta_reuse; 0 on the other paths).
+  PetscInt shifted_operator_builds() const { return pc_builds_; }
   // Creates (and discards) the integrator as a gradient would: lists its options under -help and
   // reports a bad integrator choice before any work is done.
   PetscErrorCode check_options();
@@ -76,6 +79,32 @@ private:
   PetscBool matrix_free_jacobian_ = PETSC_TRUE; // -sim_matrix_free_jacobian // -leapfrog_fused_adjoint: the model's fused kick when it has one
   PetscErrorCode finish_solve(TS ts);
   bool adaptive_ = false;
+
+  // Implicit theta methods (theta, cn, beuler) on a linear model with constant dG/dU = A(p)
+  // (-sim_theta_reuse, default on; one rank for now, see create_ts). TS gets F = U_t - G(U) and the
+  // IJacobian shift*I - A as two
+  // matrices: a MatShell that applies shift*I - A exactly for the shift of the last IJacobian call
+  // (J_ holds A, refreshed when the parameters change), and shifted_pc_, the assembled matrix the
+  // PC factors. The IJacobian callback only records the shift; a KSP pre-solve hook makes
+  // shifted_pc_ equal to shift*I - A before every solve, rebuilding it only when the shift, A or
+  // shifted_pc_ itself changed since it was built. So the factorisation is redone once per
+  // (dt, p) instead of at every step (forward) and twice per step (the CN adjoint, which also
+  // forms (theta-1)-shifted matrices it only multiplies with).
+  PetscErrorCode use_shifted_operator(TS ts);
+  static PetscErrorCode ifunction_cb(TS, PetscReal, Vec, Vec, Vec, void *);
+  static PetscErrorCode ijacobian_cb(TS, PetscReal, Vec, Vec, PetscReal, Mat, Mat, void *);
+  static PetscErrorCode shifted_mult(Mat, Vec, Vec);
+  static PetscErrorCode shifted_mult_transpose(Mat, Vec, Vec);
+  static PetscErrorCode shifted_presolve(KSP, Vec, Vec, void *);
+  PetscErrorCode check_operator_current() const;
+  PetscErrorCode assemble_shifted(Mat P);
+  PetscBool theta_reuse_ = PETSC_TRUE; // -sim_theta_reuse
+  OwnedMat shifted_, shifted_pc_;
+  PetscReal shift_ = 0;     // shift of the last IJacobian call (what shifted_ applies)
+  PetscReal pc_shift_ = 0;  // shift shifted_pc_ was built with
+  PetscObjectState pc_from_state_ = -1, pc_state_ = -1; // J_'s state it was built from, and its own
+  PetscInt pc_param_version_ = -1;
+  PetscInt pc_builds_ = 0; // how often shifted_pc_ was (re)built, for tests
 
   Model *model_ = nullptr;
   const Grid *grid_ = nullptr;
