@@ -51,10 +51,15 @@ struct StoreTrajectory {
   // and the buffer (kept by the Simulation) outlives the TS.
   bool place_stages = false;
   PetscInt placed = -1;
+  // With placed stages the slot of step k holds the stages of step k -> k+1 and nothing else: an
+  // explicit RK's first stage is a copy of U_k, so U_k is stored by the step's own stage copy, not by
+  // Set (one copy and one vector of memory per step fewer). Slot k = [Y_0 = U_k, Y_1, ..., Y_{s-1}].
+  bool compact = false;
   bool lf_placed = false; // the leapfrog's stage Vec points into the buffer
   PetscBool positions_only = PETSC_TRUE; // -checkpoint_positions_only
   PetscBool prefetch = PETSC_TRUE;       // -checkpoint_prefetch
   PetscBool stream = PETSC_TRUE;         // -checkpoint_stream_stores
+  PetscBool compact_option = PETSC_TRUE; // -checkpoint_rk_compact
   bool use_stream = false;               // ... for this solve: the leapfrog's states (RK gained nothing)
 };
 
@@ -139,7 +144,7 @@ PetscErrorCode place_stages(StoreTrajectory &st, TS ts, PetscInt k) {
     for (PetscInt i = 0; i < st.nstages; ++i) PetscCall(VecResetArray(Y[i]));
   st.placed = -1;
   if (k >= 0 && (size_t)(k + 1) * st.slot <= st.buffer->size) {
-    for (PetscInt i = 0; i < st.nstages; ++i) PetscCall(VecPlaceArray(Y[i], at(st, k, 1 + i)));
+    for (PetscInt i = 0; i < st.nstages; ++i) PetscCall(VecPlaceArray(Y[i], at(st, k, st.compact ? i : 1 + i)));
     st.placed = k;
   }
   PetscFunctionReturn(0);
@@ -176,6 +181,7 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
   st->recomputed = 0;
   st->placed = -1;
   st->place_stages = false;
+  st->compact = false;
   st->lf_placed = false;
   st->use_stream = st->stream && is_leapfrog(ts);
   if (st->keep_stages) { // explicit RK only, and only when no stage is the solution itself
@@ -186,6 +192,17 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
     st->place_stages = rk && ts->max_steps < PETSC_MAX_INT;
     for (PetscInt i = 0; st->place_stages && i < st->nstages; ++i)
       if (Y[i] == ts->vec_sol) st->place_stages = false;
+    if (st->place_stages && st->compact_option) { // Y_0 = U_k exactly: c_0 = 0 and A's first row zero
+      PetscInt s;
+      const PetscReal *A, *c;
+      PetscCall(TSRKGetTableau(ts, &s, &A, nullptr, &c, nullptr, nullptr, nullptr, nullptr));
+      st->compact = c[0] == 0;
+      for (PetscInt j = 0; j < s; ++j) st->compact = st->compact && A[j] == 0;
+      if (st->compact) {
+        st->slot = st->nstages * st->nlocal;
+        st->buffer->grow((size_t)(ts->max_steps + 1) * st->slot, false);
+      }
+    }
   }
   PetscFunctionReturn(0);
 }
@@ -203,6 +220,10 @@ PetscErrorCode store_set(TSTrajectory tj, TS ts, PetscInt stepnum, PetscReal tim
   if (st->buffer->size < need) {
     PetscCall(place_stages(*st, ts, -1)); // the buffer moves
     st->buffer->grow(std::max(need, 2 * st->buffer->size), true);
+  }
+  if (st->compact) { // U_stepnum goes to this slot as the next step's first stage
+    PetscCall(place_stages(*st, ts, stepnum));
+    PetscFunctionReturn(0);
   }
   if (!st->pairs || leapfrog_sunk_positions(ts) != at(*st, stepnum, 0)) PetscCall(copy_in(*st, stepnum, 0, X));
   if (st->pairs && st->use_stream && (size_t)(stepnum + 2) * st->slot <= st->buffer->size)
@@ -246,7 +267,12 @@ PetscErrorCode store_get(TSTrajectory tj, TS ts, PetscInt k, PetscReal *t) {
       st->lf_placed = true;
     }
   }
-  if (k < st->last) { // the last step's stages are still in the TS
+  if (st->compact) { // the stages of step k-1 -> k, in place; U_k only for adjoint monitors
+    PetscCall(place_stages(*st, ts, k - 1));
+    if (k < st->last && ts->numberadjointmonitors) PetscCall(copy_out(*st, k, 0, ts->vec_sol));
+    ts->ptime = st->times[k];
+    ts->ptime_prev = st->times[k - 1];
+  } else if (k < st->last) { // the last step's stages are still in the TS
     if (is_leapfrog(ts) || st->keep_stages) {
       Vec *Y;
       PetscCall(TSGetStages(ts, nullptr, &Y));
@@ -299,6 +325,9 @@ PetscErrorCode store_setfromoptions(TSTrajectory tj, PetscOptionItems *PetscOpti
   PetscCall(PetscOptionsBool("-checkpoint_stream_stores", "Leapfrog full storage writes the states with non-temporal stores (past the caches: the adjoint "
                              "reads them much later)",
                              "store", st->stream, &st->stream, nullptr));
+  PetscCall(PetscOptionsBool("-checkpoint_rk_compact", "Full storage of an explicit RK keeps U_k only as its step's "
+                             "first stage (one vector per step fewer, no copy)", "store", st->compact_option,
+                             &st->compact_option, nullptr));
   PetscCall(PetscOptionsReal("-checkpoint_keep_stages_max_mb", "Largest stage-keeping buffer per rank chosen by default (MB)",
                              "store", st->keep_stages_max_mb, &st->keep_stages_max_mb, nullptr));
   PetscOptionsHeadEnd();
