@@ -33,6 +33,7 @@
 //           -survey_receivers_spread 0.2,0.8,7 -survey_receivers_y 0.7 -ts_max_time 0.6 -ts_dt 2e-3
 //   (one command line)
 #include "flexipde/halo.hpp"
+#include "flexipde/sweep_support.hpp"
 #include "flexipde/model.hpp"
 #include "flexipde/survey.hpp"
 #include <cmath>
@@ -41,15 +42,6 @@
 
 namespace flexipde {
 namespace {
-
-// s[0..3] += the sum of a[lo, hi) in four interleaved partial sums held in registers.
-inline void sum4(const PetscReal *__restrict a, PetscInt lo, PetscInt hi, PetscReal s[4]) {
-  PetscReal s0 = 0, s1 = 0, s2 = 0, s3 = 0;
-  PetscInt i = lo;
-  for (; i + 3 < hi; i += 4) s0 += a[i], s1 += a[i + 1], s2 += a[i + 2], s3 += a[i + 3];
-  for (; i < hi; ++i) s0 += a[i];
-  s[0] += s0, s[1] += s1, s[2] += s2, s[3] += s3;
-}
 
 class Wave2DModel final : public LinearModel {
 public:
