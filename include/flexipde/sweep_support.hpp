@@ -1,5 +1,6 @@
 // Pieces the models' matrix-free sweeps share: the recorded RK stage that dG/dp is applied at
-// (kept by reference, checked before every use), and a four-accumulator sum for a scalar
+// (kept by reference, checked before every use), the tag of a product computed ahead for it, and a
+// four-accumulator sum for a scalar
 // parameter's gradient from its per-point terms.
 #pragma once
 #include "flexipde/petsc.hpp"
@@ -72,6 +73,34 @@ private:
   PetscObjectId id_ = -1;
   PetscObjectState state_ = -1;
   unsigned long serial_ = 0;
+};
+
+// Tags a product computed ahead (by a fused sweep) with the Vec x it was computed from (id and state)
+// and the recorded stage (RecordedStage::serial()): a later product may take it only on an exact match.
+struct ProductTag {
+  bool valid = false;
+  PetscObjectId x_id = -1;
+  PetscObjectState x_state = -1;
+  unsigned long serial = 0;
+  PetscErrorCode store(Vec x, unsigned long stage_serial) {
+    PetscFunctionBeginUser;
+    PetscCall(PetscObjectGetId((PetscObject)x, &x_id));
+    PetscCall(PetscObjectStateGet((PetscObject)x, &x_state));
+    serial = stage_serial;
+    valid = true;
+    PetscFunctionReturn(0);
+  }
+  PetscErrorCode matches(Vec x, unsigned long stage_serial, bool *hit) const {
+    PetscObjectId id;
+    PetscObjectState state;
+    PetscFunctionBeginUser;
+    *hit = false;
+    if (!valid || serial != stage_serial) PetscFunctionReturn(0);
+    PetscCall(PetscObjectGetId((PetscObject)x, &id));
+    PetscCall(PetscObjectStateGet((PetscObject)x, &state));
+    *hit = id == x_id && state == x_state;
+    PetscFunctionReturn(0);
+  }
 };
 
 // s[0..3] += the sum of a[lo, hi) in four interleaved partial sums held in registers (indexing s by

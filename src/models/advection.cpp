@@ -97,31 +97,8 @@ using cplx = std::complex<PetscReal>;
 // (dG/dp)^T x computed by the transpose of dG/dU (which reads the same x in the same sweep) for the
 // dG/dp transpose that follows: an explicit RK adjoint stage applies J^T and then (dG/dp)^T to one
 // unchanged Vec. Valid only for that Vec (id) in that state, at the same recorded stage (serial).
-struct FusedProducts {
-  bool valid = false;
-  PetscObjectId x_id = -1;
-  PetscObjectState x_state = -1;
-  unsigned long serial = 0;
+struct FusedProducts : ProductTag {
   PetscReal local[3] = {0, 0, 0}; // this rank's partial dot products (velocities, then a scalar D)
-  PetscErrorCode store(Vec x, unsigned long stage_serial) {
-    PetscFunctionBeginUser;
-    PetscCall(PetscObjectGetId((PetscObject)x, &x_id));
-    PetscCall(PetscObjectStateGet((PetscObject)x, &x_state));
-    serial = stage_serial;
-    valid = true;
-    PetscFunctionReturn(0);
-  }
-  PetscErrorCode matches(Vec x, unsigned long stage_serial, bool *hit) const {
-    PetscObjectId id;
-    PetscObjectState state;
-    PetscFunctionBeginUser;
-    *hit = false;
-    if (!valid || serial != stage_serial) PetscFunctionReturn(0);
-    PetscCall(PetscObjectGetId((PetscObject)x, &id));
-    PetscCall(PetscObjectStateGet((PetscObject)x, &state));
-    *hit = id == x_id && state == x_state;
-    PetscFunctionReturn(0);
-  }
 };
 
 // The choices that fix the grid and the stencils. Read before the grid exists (its dimension and

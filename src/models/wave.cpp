@@ -46,31 +46,8 @@ namespace {
 // The gradient field (dG/dc)^T x = 2 c (D2 u) x_v computed by the transpose of dG/dU from the same x in
 // its sweep, for the dG/dc transpose that an explicit RK adjoint stage applies next to that unchanged
 // Vec. Valid only for that Vec (id) in that state, at the same recorded stage (serial).
-struct FusedGradient {
-  bool valid = false;
-  PetscObjectId x_id = -1;
-  PetscObjectState x_state = -1;
-  unsigned long serial = 0;
+struct FusedGradient : ProductTag {
   std::vector<PetscReal> g;
-  PetscErrorCode store(Vec x, unsigned long stage_serial) {
-    PetscFunctionBeginUser;
-    PetscCall(PetscObjectGetId((PetscObject)x, &x_id));
-    PetscCall(PetscObjectStateGet((PetscObject)x, &x_state));
-    serial = stage_serial;
-    valid = true;
-    PetscFunctionReturn(0);
-  }
-  PetscErrorCode matches(Vec x, unsigned long stage_serial, bool *hit) const {
-    PetscObjectId id;
-    PetscObjectState state;
-    PetscFunctionBeginUser;
-    *hit = false;
-    if (!valid || serial != stage_serial) PetscFunctionReturn(0);
-    PetscCall(PetscObjectGetId((PetscObject)x, &id));
-    PetscCall(PetscObjectStateGet((PetscObject)x, &state));
-    *hit = id == x_id && state == x_state;
-    PetscFunctionReturn(0);
-  }
 };
 
 // J^T x = [D2 (c^2 x_v) ; x_u] and g = 2 c (D2 u) x_v on the plain interior points [lo, hi), in one
