@@ -193,29 +193,8 @@ TEST_P(MatrixFree, WaveFusedParameterTransposeEqualsColumns) {
 
 TEST_P(MatrixFree, WaveRkGradientFusedEqualsUnfused) {
   if (std::string(GetParam().name).rfind("wave_", 0) != 0) return;
-  ScopedOptions rk;
-  rk.set("-ts_type", "rk");
-  rk.set("-ts_rk_type", "4");
-  OwnedVec p_true, g0, g1;
-  PetscReal J0, J1;
-  PETSC_ASSERT_OK(scene.params.create_vec(p_true.out()));
-  PETSC_ASSERT_OK(VecCopy(p, p_true));
-  PETSC_ASSERT_OK(VecScale(p_true, 1.05));
-  PETSC_ASSERT_OK(scene.make_synthetic_data(p_true));
-  PETSC_ASSERT_OK(scene.params.create_vec(g1.out()));
-  PETSC_ASSERT_OK(scene.gradient(p, &J1, g1));
-  Scene unfused; // the same scene without the fused product
-  {
-    ScopedOptions off;
-    off.set("-wave_fused_adjoint", "0");
-    PETSC_ASSERT_OK(unfused.setup(PETSC_COMM_WORLD));
-  }
-  PETSC_ASSERT_OK(unfused.make_synthetic_data(p_true));
-  PETSC_ASSERT_OK(unfused.params.create_vec(g0.out()));
-  PETSC_ASSERT_OK(unfused.gradient(p, &J0, g0));
-  EXPECT_EQ(J1, J0);
-  EXPECT_GT(norm(g0), 0.0);
-  EXPECT_LT(rel_diff(g1, g0), 1e-12);
+  flexipde_test::expect_same_gradient_other_setup(scene, p, {{"-ts_type", "rk"}, {"-ts_rk_type", "4"}},
+                                                  {{"-wave_fused_adjoint", "0"}}, 1e-12);
 }
 
 INSTANTIATE_TEST_SUITE_P(Waves, MatrixFree, ::testing::ValuesIn(cases()), mf_name);

@@ -208,6 +208,34 @@ inline void expect_same_gradient(flexipde::Scene &scene, Vec p, const OptionList
 }
 
 
+// Like expect_same_gradient, for a model option read only at set-up: the alternative gradient comes
+// from a second Scene set up with `setup_alt` (and the same synthetic data, from p scaled by 1.05).
+inline void expect_same_gradient_other_setup(flexipde::Scene &scene, Vec p, const OptionList &on,
+                                             const OptionList &setup_alt, PetscReal tol) {
+  ScopedOptions base;
+  for (auto &o : on) base.set(o.first, o.second);
+  flexipde::OwnedVec p_true, g1, g0;
+  PETSC_ASSERT_OK(scene.params.create_vec(p_true.out()));
+  PETSC_ASSERT_OK(VecCopy(p, p_true));
+  PETSC_ASSERT_OK(VecScale(p_true, 1.05));
+  PETSC_ASSERT_OK(scene.make_synthetic_data(p_true));
+  PETSC_ASSERT_OK(scene.params.create_vec(g1.out()));
+  PetscReal J1, J0;
+  PETSC_ASSERT_OK(scene.gradient(p, &J1, g1));
+  flexipde::Scene other;
+  {
+    ScopedOptions alt;
+    for (auto &o : setup_alt) alt.set(o.first, o.second);
+    PETSC_ASSERT_OK(other.setup(PETSC_COMM_WORLD));
+  }
+  PETSC_ASSERT_OK(other.make_synthetic_data(p_true));
+  PETSC_ASSERT_OK(other.params.create_vec(g0.out()));
+  PETSC_ASSERT_OK(other.gradient(p, &J0, g0));
+  EXPECT_EQ(J1, J0);
+  EXPECT_GT(norm(g0), 0.0);
+  EXPECT_LT(rel_diff(g1, g0), tol);
+}
+
 // The RK fused (dG/dp)^T of a model's matrix-free J^T (sweep_support.hpp's ProductTag): with Jp the
 // model's dG/dp at U, the product J^T y forms in passing is taken by Jp^T y only for the same y,
 // unchanged, at the same recorded stage and parameters; otherwise Jp^T y is formed afresh, and it
