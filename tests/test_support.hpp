@@ -181,6 +181,23 @@ inline void expect_matches_serial(const std::string &label, PetscReal Jpar, Pets
 
 using OptionList = std::vector<std::pair<const char *, const char *>>;
 
+// Data from p_true = 1.05 p, then the scene's value *J and gradient g at p.
+inline void data_and_gradient(flexipde::Scene &scene, Vec p, flexipde::OwnedVec &p_true, flexipde::OwnedVec &g,
+                              PetscReal *J) {
+  PETSC_ASSERT_OK(scene.params.create_vec(p_true.out()));
+  PETSC_ASSERT_OK(VecCopy(p, p_true));
+  PETSC_ASSERT_OK(VecScale(p_true, 1.05));
+  PETSC_ASSERT_OK(scene.make_synthetic_data(p_true));
+  PETSC_ASSERT_OK(scene.params.create_vec(g.out()));
+  PETSC_ASSERT_OK(scene.gradient(p, J, g));
+}
+
+inline void expect_gradients_match(PetscReal J1, PetscReal J0, Vec g1, Vec g0, PetscReal tol) {
+  EXPECT_EQ(J1, J0);
+  EXPECT_GT(norm(g0), 0.0);
+  EXPECT_LT(rel_diff(g1, g0), tol);
+}
+
 // Two gradients of the scene at p, with data from 1.05 p: one with the options `on`, one with `on`
 // and `alt` (e.g. a matrix-free path against the assembled one): the same J, gradients within tol
 // (relative, max norm) of each other, and not zero.
@@ -189,24 +206,16 @@ inline void expect_same_gradient(flexipde::Scene &scene, Vec p, const OptionList
   ScopedOptions base;
   for (auto &o : on) base.set(o.first, o.second);
   flexipde::OwnedVec p_true, g1, g0;
-  PETSC_ASSERT_OK(scene.params.create_vec(p_true.out()));
-  PETSC_ASSERT_OK(VecCopy(p, p_true));
-  PETSC_ASSERT_OK(VecScale(p_true, 1.05));
-  PETSC_ASSERT_OK(scene.make_synthetic_data(p_true));
-  PETSC_ASSERT_OK(scene.params.create_vec(g1.out()));
-  PETSC_ASSERT_OK(scene.params.create_vec(g0.out()));
   PetscReal J1, J0;
-  PETSC_ASSERT_OK(scene.gradient(p, &J1, g1));
+  data_and_gradient(scene, p, p_true, g1, &J1);
+  PETSC_ASSERT_OK(scene.params.create_vec(g0.out()));
   {
     ScopedOptions other;
     for (auto &o : alt) other.set(o.first, o.second);
     PETSC_ASSERT_OK(scene.gradient(p, &J0, g0));
   }
-  EXPECT_EQ(J1, J0);
-  EXPECT_GT(norm(g0), 0.0);
-  EXPECT_LT(rel_diff(g1, g0), tol);
+  expect_gradients_match(J1, J0, g1, g0, tol);
 }
-
 
 // Like expect_same_gradient, for a model option read only at set-up: the alternative gradient comes
 // from a second Scene set up with `setup_alt` (and the same synthetic data, from p scaled by 1.05).
@@ -215,13 +224,8 @@ inline void expect_same_gradient_other_setup(flexipde::Scene &scene, Vec p, cons
   ScopedOptions base;
   for (auto &o : on) base.set(o.first, o.second);
   flexipde::OwnedVec p_true, g1, g0;
-  PETSC_ASSERT_OK(scene.params.create_vec(p_true.out()));
-  PETSC_ASSERT_OK(VecCopy(p, p_true));
-  PETSC_ASSERT_OK(VecScale(p_true, 1.05));
-  PETSC_ASSERT_OK(scene.make_synthetic_data(p_true));
-  PETSC_ASSERT_OK(scene.params.create_vec(g1.out()));
   PetscReal J1, J0;
-  PETSC_ASSERT_OK(scene.gradient(p, &J1, g1));
+  data_and_gradient(scene, p, p_true, g1, &J1);
   flexipde::Scene other;
   {
     ScopedOptions alt;
@@ -231,9 +235,7 @@ inline void expect_same_gradient_other_setup(flexipde::Scene &scene, Vec p, cons
   PETSC_ASSERT_OK(other.make_synthetic_data(p_true));
   PETSC_ASSERT_OK(other.params.create_vec(g0.out()));
   PETSC_ASSERT_OK(other.gradient(p, &J0, g0));
-  EXPECT_EQ(J1, J0);
-  EXPECT_GT(norm(g0), 0.0);
-  EXPECT_LT(rel_diff(g1, g0), tol);
+  expect_gradients_match(J1, J0, g1, g0, tol);
 }
 
 // The RK fused (dG/dp)^T of a model's matrix-free J^T (sweep_support.hpp's ProductTag): with Jp the
