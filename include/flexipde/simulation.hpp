@@ -93,8 +93,8 @@ private:
   PetscErrorCode use_shifted_operator(TS ts);
   static PetscErrorCode ifunction_cb(TS, PetscReal, Vec, Vec, Vec, void *);
   static PetscErrorCode ijacobian_cb(TS, PetscReal, Vec, Vec, PetscReal, Mat, Mat, void *);
-  static PetscErrorCode shifted_mult(Mat, Vec, Vec);
-  static PetscErrorCode shifted_mult_transpose(Mat, Vec, Vec);
+  template <bool Transpose>
+  static PetscErrorCode shifted_apply(Mat, Vec, Vec);
   static PetscErrorCode shifted_presolve(KSP, Vec, Vec, void *);
   PetscErrorCode check_operator_current() const;
   PetscErrorCode assemble_shifted(Mat P);

@@ -127,25 +127,17 @@ PetscErrorCode Simulation::assemble_shifted(Mat P) {
   PetscFunctionReturn(0);
 }
 
-// y = shift*x - A x (and its transpose) for the shift of the last IJacobian call.
-PetscErrorCode Simulation::shifted_mult(Mat M, Vec x, Vec y) {
+// y = shift*x - A x (and its transpose) for the shift of the last IJacobian call. The transpose uses
+// the model's matrix-free dG/dU (at its current parameters) when it has one: one sweep, where AIJ's
+// transpose scatters row by row.
+template <bool Transpose>
+PetscErrorCode Simulation::shifted_apply(Mat M, Vec x, Vec y) {
   Simulation *sim;
   PetscFunctionBeginUser;
   PetscCall(MatShellGetContext(M, &sim));
   PetscCall(sim->check_operator_current());
-  PetscCall(MatMult(sim->J_, x, y));
-  PetscCall(VecAXPBY(y, sim->shift_, -1.0, x));
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode Simulation::shifted_mult_transpose(Mat M, Vec x, Vec y) {
-  Simulation *sim;
-  PetscFunctionBeginUser;
-  PetscCall(MatShellGetContext(M, &sim));
-  PetscCall(sim->check_operator_current());
-  // The model's matrix-free dG/dU (at its current parameters) when it has one: its transpose is one
-  // sweep, where AIJ's scatters row by row.
-  PetscCall(MatMultTranspose(sim->Jmf_ && sim->matrix_free_jacobian_ ? (Mat)sim->Jmf_ : (Mat)sim->J_, x, y));
+  if (Transpose) PetscCall(MatMultTranspose(sim->Jmf_ && sim->matrix_free_jacobian_ ? (Mat)sim->Jmf_ : (Mat)sim->J_, x, y));
+  else PetscCall(MatMult(sim->J_, x, y));
   PetscCall(VecAXPBY(y, sim->shift_, -1.0, x));
   PetscFunctionReturn(0);
 }
@@ -197,8 +189,8 @@ PetscErrorCode Simulation::use_shifted_operator(TS ts) {
     PetscCall(MatGetLocalSize(J_, &m, &n));
     PetscCall(MatGetSize(J_, &M, &N));
     PetscCall(MatCreateShell(grid_->comm(), m, n, M, N, this, shifted_.out()));
-    PetscCall(MatShellSetOperation(shifted_, MATOP_MULT, (void (*)(void))shifted_mult));
-    PetscCall(MatShellSetOperation(shifted_, MATOP_MULT_TRANSPOSE, (void (*)(void))shifted_mult_transpose));
+    PetscCall(MatShellSetOperation(shifted_, MATOP_MULT, (void (*)(void))shifted_apply<false>));
+    PetscCall(MatShellSetOperation(shifted_, MATOP_MULT_TRANSPOSE, (void (*)(void))shifted_apply<true>));
   }
   // A new P for every TS (built on its first solve): nothing of an earlier TS's solver (e.g. a
   // MUMPS factorisation on 2 ranks) stays attached to it.
