@@ -12,6 +12,7 @@ struct RkAdjoint {
   PetscErrorCode (*petsc_step)(TS) = nullptr; // TSRK's own adjoint step, for what this one does not do
   std::vector<Vec> dlam;                      // dLambda_i of every cost: s per cost
   Vec W = nullptr, dmu = nullptr;             // h W_i; (dG/dp)^T h W_i
+  std::vector<PetscScalar> coef, ones;        // -h a_ji of one stage; s ones
   PetscInt s = 0, ncost = 0;
   ~RkAdjoint() { release(); }
   void release() {
@@ -91,6 +92,8 @@ PetscErrorCode adjoint_step(TS ts) {
     PetscCall(VecDuplicate(ts->vecs_sensi[0], &ctx->W));
     ctx->s = s;
     ctx->ncost = ts->numcost;
+    ctx->coef.assign(s, 0.0);
+    ctx->ones.assign(s, 1.0);
   }
   if (ts->vecs_sensip && !ctx->dmu) PetscCall(VecDuplicate(ts->vecs_sensip[0], &ctx->dmu));
 
@@ -99,7 +102,7 @@ PetscErrorCode adjoint_step(TS ts) {
   PetscCall(TSGetRHSJacobian(ts, &J, &Jpre, nullptr, nullptr));
   PetscCall(TSGetStages(ts, nullptr, &Y));
   const PetscReal t = ts->ptime, h = ts->time_step; // h < 0: the adjoint runs backwards
-  std::vector<PetscScalar> coef(s);
+  std::vector<PetscScalar> &coef = ctx->coef;
   for (PetscInt i = s - 1; i >= 0; --i) {
     const PetscReal stage_time = t + h * (1.0 - c[i]);
     PetscCall(TSComputeRHSJacobian(ts, stage_time, Y[i], J, Jpre));
@@ -116,8 +119,7 @@ PetscErrorCode adjoint_step(TS ts) {
       }
     }
   }
-  std::vector<PetscScalar> ones(s, 1.0);
-  for (PetscInt k = 0; k < ts->numcost; ++k) PetscCall(VecMAXPY(ts->vecs_sensi[k], s, ones.data(), &ctx->dlam[(size_t)k * s]));
+  for (PetscInt k = 0; k < ts->numcost; ++k) PetscCall(VecMAXPY(ts->vecs_sensi[k], s, ctx->ones.data(), &ctx->dlam[(size_t)k * s]));
   PetscFunctionReturn(0);
 }
 
