@@ -154,13 +154,7 @@ protected:
     PETSC_ASSERT_OK(scene.setup(PETSC_COMM_WORLD));
     PETSC_ASSERT_OK(scene.params.create_vec(p.out()));
     PETSC_ASSERT_OK(scene.parameters_from_options("", p));
-    const PetscInt kD = scene.params.find("advection_D");
-    if (kD >= 0 && scene.params.info(kD).kind == ParamKind::Field) { // a rough field: every entry matters
-      OwnedVec f;
-      PETSC_ASSERT_OK(DMCreateGlobalVector(scene.grid.dm(), f.out()));
-      PETSC_ASSERT_OK(fill_random(f, 0.08, 0.12, 21));
-      PETSC_ASSERT_OK(scene.params.set_field(p, kD, f));
-    }
+    flexipde_test::rough_diffusion_field(scene, p, 0.08, 0.12); // every entry of a field D matters
     PETSC_ASSERT_OK(scene.params.set_scalar(p, scene.params.find("advection_a"), c.a));
     PETSC_ASSERT_OK(scene.sim.create_state(U.out()));
     PETSC_ASSERT_OK(fill_random(U, -1.0, 1.0, 22));

@@ -179,6 +179,17 @@ inline void expect_matches_serial(const std::string &label, PetscReal Jpar, Pets
   EXPECT_LE(worst[1], 1e-10);
 }
 
+// With a diffusivity field D among the scene's parameters: p's D becomes random in [lo, hi], so every
+// entry of it matters in a derivative check. Nothing otherwise.
+inline void rough_diffusion_field(flexipde::Scene &scene, Vec p, PetscReal lo, PetscReal hi) {
+  const PetscInt kD = scene.params.find("advection_D");
+  if (kD < 0 || scene.params.info(kD).kind != flexipde::ParamKind::Field) return;
+  flexipde::OwnedVec f;
+  PETSC_ASSERT_OK(DMCreateGlobalVector(scene.grid.dm(), f.out()));
+  PETSC_ASSERT_OK(fill_random(f, lo, hi, 21));
+  PETSC_ASSERT_OK(scene.params.set_field(p, kD, f));
+}
+
 using OptionList = std::vector<std::pair<const char *, const char *>>;
 
 // Data from p_true = 1.05 p, then the scene's value *J and gradient g at p.
