@@ -30,7 +30,7 @@ for n in $SIZES; do
   for np in $NPROCS; do
     load=$(cut -d' ' -f1 /proc/loadavg)
     line=$($MPIEXEC -n "$np" "$FLEXIPDE" -model vlasov -task gradient -objective_type functional -da_grid_x "$n" \
-             -da_grid_y "$n" -ts_dt "$dt" -ts_max_time "$T" -timing_repeats "$REPS" | grep '^timing:')
+             -da_grid_y "$n" -ts_dt "$dt" -ts_max_time "$T" -timing_repeats "$REPS" | grep '^timing: .*gradient/forward')
     f=$(sed -E 's/.*forward median ([0-9.]+).*/\1/' <<<"$line")
     g=$(sed -E 's/.*gradient median ([0-9.]+).*/\1/' <<<"$line")
     [ -z "$f1" ] && f1=$f && g1=$g

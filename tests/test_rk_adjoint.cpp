@@ -77,3 +77,42 @@ TEST_P(RkAdjoint, SameGradientAsPetscRk) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Models, RkAdjoint, ::testing::ValuesIn(rk_cases()), rk_name);
+
+// A second-order model's stages enter its adjoint through their positions alone
+// (Model::stage_adjoint_takes_positions): full storage then keeps only those, half the memory of whole
+// stages, with the same gradient bitwise; and the fused stage products give the gradient of the
+// model's two Jacobian transposes (-wave_fused_adjoint 0) to round-off. Field and scalar speeds (the
+// scalar's sums deferred to one reduction), 2nd- and 4th-order stencils, walls and periodic.
+namespace {
+
+std::vector<RkCase> positions_cases() {
+  const auto all = rk_cases();
+  return {all[0], all[1]}; // wave_rk4_field, wave_rk3_scalar_fd4_periodic
+}
+
+class RkPositions : public RkAdjoint {};
+
+} // namespace
+
+TEST_P(RkPositions, HalfTheMemorySameGradient) {
+  OwnedVec p_true, g1, g0;
+  PetscReal J1, J0;
+  flexipde_test::data_and_gradient(scene, p, p_true, g1, &J1);
+  const PetscReal mb_positions = scene.sim.checkpoint_stats().stored_mb;
+  PETSC_ASSERT_OK(scene.params.create_vec(g0.out()));
+  {
+    ScopedOptions whole;
+    whole.set("-checkpoint_positions_only", "0");
+    PETSC_ASSERT_OK(scene.gradient(p, &J0, g0));
+  }
+  const PetscReal mb_whole = scene.sim.checkpoint_stats().stored_mb;
+  flexipde_test::expect_gradients_match(J1, J0, g1, g0, 1e-300); // bitwise
+  EXPECT_GT(mb_whole, 0.0);
+  EXPECT_DOUBLE_EQ(mb_positions / mb_whole, 0.5);
+}
+
+TEST_P(RkPositions, SameGradientAsJacobianTransposes) {
+  flexipde_test::expect_same_gradient_other_setup(scene, p, {}, {{"-wave_fused_adjoint", "0"}}, 1e-12);
+}
+
+INSTANTIATE_TEST_SUITE_P(Wave, RkPositions, ::testing::ValuesIn(positions_cases()), rk_name);

@@ -86,6 +86,7 @@ struct CheckpointStats {
   PetscInt64 stores = 0;                 // checkpoint writes (forward sweep and adjoint)
   PetscInt64 recomputed_steps = 0;       // forward steps run again during TSAdjointSolve
   PetscInt64 optimal_recomputations = 0; // the binomial optimum t(n, s) (full storage: n - 1)
+  PetscReal stored_mb = 0;               // full storage: the trajectory's memory on this rank (MB)
 };
 
 // The TSTrajectory type "binomial" (registered on first use).
@@ -126,10 +127,14 @@ PetscErrorCode store_trajectory_use_buffer(TSTrajectory tj, StateBuffer *buffer)
 PetscInt64 store_trajectory_recomputed(TSTrajectory tj);
 PetscInt store_trajectory_states(TSTrajectory tj);
 bool store_trajectory_keeps_stages(TSTrajectory tj); // each step's stages stored too: nothing re-run
+PetscReal store_trajectory_mb(TSTrajectory tj);      // memory of the states stored so far on this rank (MB)
 
 // Called on a TS before TSSetFromOptions: saves the trajectory for TSAdjointSolve as full storage
 // (PETSc's memory trajectory) or, with -checkpoint_budget, as a binomial checkpointing
 // trajectory, and fills *stats during TSAdjointSolve. stats must outlive the TS.
 PetscErrorCode setup_adjoint_trajectory(TS ts, CheckpointStats *stats);
+// True when an adjoint monitor other than the statistics one above is set (one that may read the
+// state U_k the adjoint passes it, which full storage then has to provide).
+bool adjoint_monitors_read_state(TS ts);
 
 } // namespace flexipde

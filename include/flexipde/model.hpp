@@ -83,6 +83,18 @@ public:
     (void)t, (void)lambda, (void)w, (void)mu;
     SETERRQ(PetscObjectComm((PetscObject)U), PETSC_ERR_SUP, "Model %s has no fused second-order adjoint", name());
   }
+  // Optional: the products of one explicit-RK adjoint stage fused into one sweep without any matrix:
+  // at state U,
+  //   y = (dG/dU)^T x   and, unless mu is null,   mu += (dG/dtheta)^T x.
+  // Without it the RK adjoint applies rhs_jacobian's and rhs_jacobian_p's transposes: the same numbers.
+  virtual bool has_stage_adjoint() const { return false; }
+  // True when stage_adjoint also accepts, as U, a second-order model's positions alone (as for
+  // second_order_adjoint_takes_positions): full storage then keeps only the stages' positions.
+  virtual bool stage_adjoint_takes_positions() const { return false; }
+  virtual PetscErrorCode stage_adjoint(PetscReal t, Vec U, Vec x, Vec y, Vec mu) {
+    (void)t, (void)x, (void)y, (void)mu;
+    SETERRQ(PetscObjectComm((PetscObject)U), PETSC_ERR_SUP, "Model %s has no fused RK adjoint stage", name());
+  }
   // Point sources (survey.hpp): a model that takes them adds the source's forcing density to G (the
   // wave: to v_t) from then on; null removes it. The forcing depends on t only, never on U or p.
   virtual bool accepts_point_source() const { return false; }

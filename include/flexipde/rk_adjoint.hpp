@@ -9,7 +9,9 @@
 // stage. Here h W_i is formed in one pass over the state and handed to the transposes unscaled, so a
 // stage costs one pass plus the model's products: the same Jacobian transposes in the same order
 // (J^T, then (dG/dp)^T of the same unchanged vector, so a model may fuse the two). Stages with b_i = 0
-// are handled by the same formula (PETSc's skips their dG/dp).
+// are handled by the same formula (PETSc's skips their dG/dp). Zero a_ji are skipped. A model that fuses
+// the two products (Model::stage_adjoint) is called once per stage instead of evaluating and applying
+// both Jacobians (no Jacobian callbacks, no copy of the parameter product).
 //
 // Used for first-order adjoints of non-FSAL tableaux without a cost integrand; anything else goes to
 // TSRK's own adjoint step. -rk_fused_adjoint 0 (read by the Simulation) keeps TSRK's throughout.
@@ -19,7 +21,22 @@
 
 namespace flexipde {
 
+// A stage's products in one call, at stage state U: y = (dG/dU)^T x and, unless mu is null,
+// mu += (dG/dp)^T x (Model::stage_adjoint).
+typedef PetscErrorCode (*RkStageAdjoint)(void *ctx, PetscReal t, Vec U, Vec x, Vec y, Vec mu);
+
 // After the TS's type is final: if it is TSRK, its adjoint step becomes the one above (idempotent).
-PetscErrorCode rk_adjoint_install(TS ts);
+// With a stage hook, each stage calls it instead of evaluating and applying the two Jacobians.
+// position_pairs > 0: the hook also accepts, as U, a stage's positions alone (a second-order model,
+// Model::second_order_pairs, whose dG/dU and dG/dp depend on the positions only), so that full storage
+// may keep only those (trajectory_store.cpp).
+PetscErrorCode rk_adjoint_install(TS ts, RkStageAdjoint stage = nullptr, void *stage_ctx = nullptr,
+                                  PetscInt position_pairs = 0);
+// The positions per point that the installed adjoint can work from (0: whole stages needed): for
+// a non-FSAL tableau without a cost integrand and a hook that takes positions.
+PetscErrorCode rk_adjoint_positions(TS ts, PetscInt *pairs);
+// The next adjoint step reads stage i's positions from q + i * stride (local entries), in place;
+// q = null: back to whole stages.
+PetscErrorCode rk_adjoint_place_positions(TS ts, const PetscScalar *q, PetscInt stride);
 
 } // namespace flexipde

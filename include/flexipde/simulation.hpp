@@ -28,6 +28,9 @@ struct SimulationStats {
   PetscInt steps = 0;
   PetscReal dt = 0, final_time = 0;
   char ts_type[64] = "";
+  // Wall time (this rank) of the last gradient's two parts: the forward solve that stores the
+  // trajectory, and the adjoint solve.
+  double solve_seconds = 0, adjoint_seconds = 0;
 };
 
 class Simulation {
@@ -71,11 +74,13 @@ private:
   static PetscErrorCode rhs_jacobian_cb(TS, PetscReal, Vec, Mat, Mat, void *);
   static PetscErrorCode rhs_jacobian_p_cb(TS, PetscReal, Vec, Mat, void *);
   static PetscErrorCode adjoint_kick_cb(void *, PetscReal, Vec, Vec, PetscReal, Vec);
+  static PetscErrorCode stage_adjoint_cb(void *, PetscReal, Vec, Vec, Vec, Vec);
   PetscErrorCode check_finite(Vec U, const char *what);
   static PetscErrorCode blowup_monitor(TS, PetscInt, PetscReal, Vec, void *);
   PetscInt blowup_every_ = 100;
   OwnedMat Jmf_; // the model's matrix-free dG/dU, for explicit integrators (null if none)
   PetscBool fused_adjoint_ = PETSC_TRUE;
+  bool rk_stage_fused_ = false; // the last adjoint TS's RK stages call Model::stage_adjoint
   PetscBool matrix_free_jacobian_ = PETSC_TRUE; // -sim_matrix_free_jacobian // -leapfrog_fused_adjoint: the model's fused kick when it has one
   PetscErrorCode finish_solve(TS ts);
   bool adaptive_ = false;

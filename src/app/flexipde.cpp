@@ -69,7 +69,7 @@ static PetscErrorCode set_component_names(H5Writer &w, const Scene &scene) {
 // process after a first gradient warmed everything up: no start-up, set-up or data generation.
 static PetscErrorCode time_repeats(MPI_Comm comm, Scene &scene, Vec p, PetscInt repeats) {
   OwnedVec U, g;
-  std::vector<double> tf, tg;
+  std::vector<double> tf, tg, ts, ta;
   PetscFunctionBeginUser;
   PetscCall(scene.sim.create_state(U.out()));
   PetscCall(VecDuplicate(p, g.out()));
@@ -84,6 +84,8 @@ static PetscErrorCode time_repeats(MPI_Comm comm, Scene &scene, Vec p, PetscInt 
     PetscCallMPI(MPI_Barrier(comm));
     tf.push_back(t1 - t0);
     tg.push_back(MPI_Wtime() - t1);
+    ts.push_back(scene.sim.stats().solve_seconds);
+    ta.push_back(scene.sim.stats().adjoint_seconds);
   }
   auto median = [](std::vector<double> v) {
     std::sort(v.begin(), v.end());
@@ -93,6 +95,8 @@ static PetscErrorCode time_repeats(MPI_Comm comm, Scene &scene, Vec p, PetscInt 
   const double mf = median(tf), mg = median(tg);
   PetscCall(PetscPrintf(comm, "timing: %" PetscInt_FMT " repeats, forward median %.6f s (min %.6f), gradient median %.6f s (min %.6f), gradient/forward %.3f\n",
                         repeats, mf, *std::min_element(tf.begin(), tf.end()), mg, *std::min_element(tg.begin(), tg.end()), mg / mf));
+  PetscCall(PetscPrintf(comm, "timing: gradient parts (rank 0), medians: forward solve storing the trajectory %.6f s, adjoint solve %.6f s\n",
+                        median(ts), median(ta)));
   PetscFunctionReturn(0);
 }
 
@@ -170,6 +174,8 @@ static PetscErrorCode run(MPI_Comm comm) {
                           "checkpointing: budget %" PetscInt_FMT " (0: full storage), %" PetscInt_FMT
                           " states stored at most, %" PetscInt64_FMT " steps recomputed, binomial optimum %" PetscInt64_FMT "\n",
                           cs.budget, cs.stored_peak, cs.recomputed_steps, cs.optimal_recomputations));
+    if (cs.stored_mb > 0)
+      PetscCall(PetscPrintf(comm, "checkpointing: full storage held %.1f MB on rank 0\n", (double)cs.stored_mb));
     if (output[0]) {
       H5Writer w;
       PetscCall(w.open(comm, output));

@@ -412,6 +412,7 @@ PetscErrorCode checkpoint_statistics(TS ts, PetscInt step, PetscReal, Vec, Petsc
     stats->stored_peak = store_trajectory_states(tj);
     stats->stores = stats->stored_peak;
     stats->recomputed_steps = store_trajectory_recomputed(tj);
+    stats->stored_mb = store_trajectory_mb(tj);
     stats->optimal_recomputations = is_leapfrog(ts) || store_trajectory_keeps_stages(tj) ? 0 : stats->steps - 1;
   } else if (binomial) {
     const BinomialTrajectory *bt = context(tj);
@@ -451,6 +452,12 @@ PetscErrorCode binomial_trajectory_set_budget(TSTrajectory tj, PetscInt budget) 
              budget);
   context(tj)->budget = budget;
   PetscFunctionReturn(0);
+}
+
+bool adjoint_monitors_read_state(TS ts) {
+  for (PetscInt i = 0; i < ts->numberadjointmonitors; ++i)
+    if (ts->adjointmonitor[i] != checkpoint_statistics) return true;
+  return false;
 }
 
 PetscErrorCode setup_adjoint_trajectory(TS ts, CheckpointStats *stats) {

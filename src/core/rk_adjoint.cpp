@@ -12,9 +12,21 @@ struct RkAdjoint {
   PetscErrorCode (*petsc_step)(TS) = nullptr; // TSRK's own adjoint step, for what this one does not do
   std::vector<Vec> dlam;                      // dLambda_i of every cost: s per cost
   Vec W = nullptr, dmu = nullptr;             // h W_i; (dG/dp)^T h W_i
-  std::vector<PetscScalar> coef, ones;        // -h a_ji of one stage; s ones
+  std::vector<PetscScalar> coef, ones;        // -h a_ji != 0 of one stage; s ones
+  std::vector<Vec> terms;                     // ... and their dLambda_j
+  RkStageAdjoint stage = nullptr;             // the model's fused stage products, if any
+  void *stage_ctx = nullptr;
+  // A second-order model's stages depend on their positions alone (Model::second_order_pairs): with a
+  // hook that takes them (`pairs` per point), a full-storage trajectory keeps only those and places
+  // them here, stage i in Q[i] (rk_adjoint_place_positions), for the hook to read in place.
+  PetscInt pairs = 0;
+  std::vector<Vec> Q;
+  bool q_placed = false;
   PetscInt s = 0, ncost = 0;
-  ~RkAdjoint() { release(); }
+  ~RkAdjoint() {
+    release();
+    for (Vec &v : Q) (void)VecDestroy(&v);
+  }
   void release() {
     for (Vec &v : dlam) (void)VecDestroy(&v);
     dlam.clear();
@@ -82,6 +94,9 @@ PetscErrorCode adjoint_step(TS ts) {
   PetscCall(TSRKGetTableau(ts, &s, &A, &b, &c, &bembed, &pinterp, &binterp, &fsal));
   (void)bembed, (void)pinterp, (void)binterp;
   if (fsal || ts->quadraturets || ts->vecs_sensi2 || ts->numcost < 1) {
+    PetscCheck(!ctx->q_placed, PetscObjectComm((PetscObject)ts), PETSC_ERR_SUP,
+               "rk_adjoint: only the stages' positions were stored, which this adjoint (FSAL tableau, cost "
+               "integrand or second-order sensitivities) cannot use: run with -checkpoint_positions_only 0");
     PetscCall(ctx->petsc_step(ts));
     PetscFunctionReturn(0);
   }
@@ -93,25 +108,35 @@ PetscErrorCode adjoint_step(TS ts) {
     ctx->s = s;
     ctx->ncost = ts->numcost;
     ctx->coef.assign(s, 0.0);
+    ctx->terms.assign(s, nullptr);
     ctx->ones.assign(s, 1.0);
   }
-  if (ts->vecs_sensip && !ctx->dmu) PetscCall(VecDuplicate(ts->vecs_sensip[0], &ctx->dmu));
+  if (ts->vecs_sensip && !ctx->dmu && !ctx->stage) PetscCall(VecDuplicate(ts->vecs_sensip[0], &ctx->dmu));
 
-  Mat J, Jpre;
+  Mat J = nullptr, Jpre = nullptr;
   Vec *Y;
-  PetscCall(TSGetRHSJacobian(ts, &J, &Jpre, nullptr, nullptr));
+  if (!ctx->stage) PetscCall(TSGetRHSJacobian(ts, &J, &Jpre, nullptr, nullptr));
   PetscCall(TSGetStages(ts, nullptr, &Y));
   const PetscReal t = ts->ptime, h = ts->time_step; // h < 0: the adjoint runs backwards
   std::vector<PetscScalar> &coef = ctx->coef;
+  std::vector<Vec> &terms = ctx->terms;
   for (PetscInt i = s - 1; i >= 0; --i) {
     const PetscReal stage_time = t + h * (1.0 - c[i]);
-    PetscCall(TSComputeRHSJacobian(ts, stage_time, Y[i], J, Jpre));
-    if (ts->vecs_sensip) PetscCall(TSComputeRHSJacobianP(ts, stage_time, Y[i], ts->Jacprhs));
-    const PetscInt m = s - 1 - i;
-    for (PetscInt j = i + 1; j < s; ++j) coef[j - i - 1] = -h * A[j * s + i];
+    if (!ctx->stage) {
+      PetscCall(TSComputeRHSJacobian(ts, stage_time, Y[i], J, Jpre));
+      if (ts->vecs_sensip) PetscCall(TSComputeRHSJacobianP(ts, stage_time, Y[i], ts->Jacprhs));
+    }
     for (PetscInt k = 0; k < ts->numcost; ++k) {
       Vec *dl = &ctx->dlam[(size_t)k * s];
-      PetscCall(combine(ctx->W, -h * b[i], ts->vecs_sensi[k], m, coef.data(), dl + i + 1)); // dt W_i
+      PetscInt m = 0;
+      for (PetscInt j = i + 1; j < s; ++j)
+        if (A[j * s + i] != 0) coef[m] = -h * A[j * s + i], terms[m++] = dl[j];
+      PetscCall(combine(ctx->W, -h * b[i], ts->vecs_sensi[k], m, coef.data(), terms.data())); // dt W_i
+      if (ctx->stage) {
+        PetscCall(ctx->stage(ctx->stage_ctx, stage_time, ctx->q_placed ? ctx->Q[i] : Y[i], ctx->W, dl[i],
+                             ts->vecs_sensip ? ts->vecs_sensip[k] : nullptr));
+        continue;
+      }
       PetscCall(MatMultTranspose(J, ctx->W, dl[i]));
       if (ts->vecs_sensip) {
         PetscCall(MatMultTranspose(ts->Jacprhs, ctx->W, ctx->dmu));
@@ -123,22 +148,75 @@ PetscErrorCode adjoint_step(TS ts) {
   PetscFunctionReturn(0);
 }
 
+// The context of an installed adjoint step, else null.
+PetscErrorCode installed(TS ts, RkAdjoint **ctx) {
+  PetscContainer container = nullptr;
+  PetscFunctionBegin;
+  *ctx = nullptr;
+  if (ts->ops->adjointstep != adjoint_step) PetscFunctionReturn(0);
+  PetscCall(PetscObjectQuery((PetscObject)ts, kName, (PetscObject *)&container));
+  if (container) PetscCall(PetscContainerGetPointer(container, (void **)ctx));
+  PetscFunctionReturn(0);
+}
+
 } // namespace
 
-PetscErrorCode rk_adjoint_install(TS ts) {
+PetscErrorCode rk_adjoint_install(TS ts, RkStageAdjoint stage, void *stage_ctx, PetscInt position_pairs) {
   PetscBool rk;
   PetscContainer container;
+  RkAdjoint *ctx;
   PetscFunctionBegin;
   PetscCall(PetscObjectTypeCompare((PetscObject)ts, TSRK, &rk));
-  if (!rk || ts->ops->adjointstep == adjoint_step) PetscFunctionReturn(0);
-  auto *ctx = new RkAdjoint();
-  ctx->petsc_step = ts->ops->adjointstep;
-  PetscCall(PetscContainerCreate(PetscObjectComm((PetscObject)ts), &container));
-  PetscCall(PetscContainerSetPointer(container, ctx));
-  PetscCall(PetscContainerSetUserDestroy(container, destroy_context));
-  PetscCall(PetscObjectCompose((PetscObject)ts, kName, (PetscObject)container));
-  PetscCall(PetscContainerDestroy(&container));
-  ts->ops->adjointstep = adjoint_step;
+  if (!rk) PetscFunctionReturn(0);
+  PetscCall(installed(ts, &ctx));
+  if (!ctx) {
+    ctx = new RkAdjoint();
+    ctx->petsc_step = ts->ops->adjointstep;
+    PetscCall(PetscContainerCreate(PetscObjectComm((PetscObject)ts), &container));
+    PetscCall(PetscContainerSetPointer(container, ctx));
+    PetscCall(PetscContainerSetUserDestroy(container, destroy_context));
+    PetscCall(PetscObjectCompose((PetscObject)ts, kName, (PetscObject)container));
+    PetscCall(PetscContainerDestroy(&container));
+    ts->ops->adjointstep = adjoint_step;
+  }
+  ctx->stage = stage;
+  ctx->stage_ctx = stage_ctx;
+  ctx->pairs = stage ? position_pairs : 0;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode rk_adjoint_positions(TS ts, PetscInt *pairs) {
+  RkAdjoint *ctx;
+  PetscInt s;
+  const PetscReal *A, *b, *c;
+  PetscBool fsal = PETSC_FALSE;
+  PetscFunctionBegin;
+  *pairs = 0;
+  PetscCall(installed(ts, &ctx));
+  if (!ctx || !ctx->pairs || ts->quadraturets) PetscFunctionReturn(0);
+  PetscCall(TSRKGetTableau(ts, &s, &A, &b, &c, nullptr, nullptr, nullptr, &fsal));
+  if (!fsal) *pairs = ctx->pairs;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode rk_adjoint_place_positions(TS ts, const PetscScalar *q, PetscInt stride) {
+  RkAdjoint *ctx;
+  PetscFunctionBegin;
+  PetscCall(installed(ts, &ctx));
+  PetscCheck(ctx && ctx->pairs, PetscObjectComm((PetscObject)ts), PETSC_ERR_ORDER, "rk_adjoint: no positions to place");
+  if (ctx->q_placed)
+    for (Vec &v : ctx->Q) PetscCall(VecResetArray(v));
+  ctx->q_placed = false;
+  if (!q) PetscFunctionReturn(0);
+  PetscInt s;
+  PetscCall(TSGetStages(ts, &s, nullptr));
+  while ((PetscInt)ctx->Q.size() < s) {
+    Vec v;
+    PetscCall(VecCreateMPIWithArray(PetscObjectComm((PetscObject)ts), ctx->pairs, stride, PETSC_DECIDE, nullptr, &v));
+    ctx->Q.push_back(v);
+  }
+  for (PetscInt i = 0; i < s; ++i) PetscCall(VecPlaceArray(ctx->Q[i], q + (size_t)i * stride));
+  ctx->q_placed = true;
   PetscFunctionReturn(0);
 }
 

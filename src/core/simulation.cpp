@@ -219,6 +219,13 @@ PetscErrorCode Simulation::adjoint_kick_cb(void *ctx, PetscReal t, Vec U, Vec la
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode Simulation::stage_adjoint_cb(void *ctx, PetscReal t, Vec U, Vec x, Vec y, Vec mu) {
+  auto *sim = static_cast<Simulation *>(ctx);
+  PetscFunctionBeginUser;
+  PetscCall(sim->model_->stage_adjoint(t, U, x, y, mu));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode Simulation::quad_rhs_cb(TS, PetscReal t, Vec U, Vec F, void *ctx) {
   auto *sim = static_cast<Simulation *>(ctx);
   PetscReal r;
@@ -419,7 +426,10 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
     PetscCall(SNESSetLagJacobian(snes, -2));
     PetscCall(SNESSetLagJacobianPersists(snes, PETSC_TRUE));
   }
-  if (with_adjoint && rk_fused && !std::strcmp(type, TSRK)) PetscCall(rk_adjoint_install(ts));
+  rk_stage_fused_ = with_adjoint && rk_fused && !std::strcmp(type, TSRK) && model_->has_stage_adjoint();
+  if (with_adjoint && rk_fused && !std::strcmp(type, TSRK))
+    PetscCall(rk_adjoint_install(ts, rk_stage_fused_ ? stage_adjoint_cb : nullptr, this,
+                                 model_->stage_adjoint_takes_positions() ? model_->second_order_pairs() : 0));
   if (with_adjoint && Jp_ && !std::strcmp(type, TSRK)) {
     // PETSc 3.18's TSAdjointStep_RK skips dG/dp for a stage whose weight b_i is zero (it rescales
     // a stale vector instead), so parameter gradients of such tableaux are wrong. The FSAL last
@@ -677,7 +687,9 @@ PetscErrorCode Simulation::gradient(Vec p, PetscReal *J, Vec grad_p, Vec grad_u0
   PetscCall(DMCreateGlobalVector(dm_, U.out()));
   PetscCall(model_->initial_condition(p, U));
   PetscCall(create_ts(true, ts));
+  double t0 = MPI_Wtime();
   PetscCall(TSSolve(ts, U));
+  stats_.solve_seconds = MPI_Wtime() - t0;
   PetscCall(finish_solve(ts));
   PetscCall(check_finite(U, "forward solve"));
   PetscCall(objective_->terminal(U, J, lambda_));
@@ -693,13 +705,16 @@ PetscErrorCode Simulation::gradient(Vec p, PetscReal *J, Vec grad_p, Vec grad_u0
     // The leapfrog's fused kick adds to a scalar's gradient at every time level: those sums are
     // reduced once, after the adjoint, instead of once per level (a collective per step on 2 ranks).
     // An -ts_adjoint_monitor sees a scalar's entry of mu without them until the end.
-    const bool defer = mu && is_leapfrog(ts) && model_->has_second_order_adjoint() && fused_adjoint_;
+    // So does an explicit RK adjoint through Model::stage_adjoint, once per stage.
+    const bool defer = mu && ((is_leapfrog(ts) && model_->has_second_order_adjoint() && fused_adjoint_) || rk_stage_fused_);
     struct Cancel { // an adjoint that fails leaves no deferral behind
       const Parameters *p;
       ~Cancel() { if (p) p->defer_sums(nullptr); }
     } cancel{defer ? params_ : nullptr};
     if (defer) params_->defer_sums(mu);
+    t0 = MPI_Wtime();
     PetscCall(TSAdjointSolve(ts));
+    stats_.adjoint_seconds = MPI_Wtime() - t0;
     if (defer) PetscCall(params_->flush_sums());
   }
   PetscCall(check_finite(lambda_, "adjoint solve"));

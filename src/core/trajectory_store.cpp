@@ -18,6 +18,7 @@
 // for adaptive runs).
 #include "flexipde/checkpoint.hpp"
 #include "flexipde/leapfrog.hpp"
+#include "flexipde/rk_adjoint.hpp"
 #include <algorithm>
 #include <cstdint>
 #include <cstring>
@@ -56,6 +57,11 @@ struct StoreTrajectory {
   // Set (one copy and one vector of memory per step fewer). Slot k = [Y_0 = U_k, Y_1, ..., Y_{s-1}].
   bool compact = false;
   bool lf_placed = false; // the leapfrog's stage Vec points into the buffer
+  // Explicit RK on a second-order model whose adjoint stage reads positions alone
+  // (rk_adjoint_positions): slot k = the positions of the stages of step k -> k+1, rk_pairs per point
+  // (rk_n entries per stage), copied from the TS's stages after the step with streaming stores and
+  // placed for the adjoint in place; nothing else is stored (U_k is never read).
+  PetscInt rk_pairs = 0, rk_n = 0;
   PetscBool positions_only = PETSC_TRUE; // -checkpoint_positions_only
   PetscBool prefetch = PETSC_TRUE;       // -checkpoint_prefetch
   PetscBool stream = PETSC_TRUE;         // -checkpoint_stream_stores
@@ -102,24 +108,26 @@ void stream_copy(PetscScalar *b, const PetscScalar *x, PetscInt n) {
   _mm_sfence();
 }
 
+// b = the first m of every d components of x (npt points); streaming stores when asked.
+void copy_positions(PetscScalar *b, const PetscScalar *x, PetscInt m, PetscInt d, PetscInt npt, bool stream) {
+  if (m == 1 && stream && reinterpret_cast<uintptr_t>(b) % 16 == 0) {
+    PetscInt i = 0;
+    for (; i + 1 < npt; i += 2) _mm_stream_pd(b + i, _mm_set_pd(x[(i + 1) * d], x[i * d]));
+    for (; i < npt; ++i) b[i] = x[i * d];
+    _mm_sfence();
+  } else if (m == 1)
+    for (PetscInt i = 0; i < npt; ++i) b[i] = x[i * d];
+  else
+    for (PetscInt i = 0; i < npt; ++i)
+      for (PetscInt c = 0; c < m; ++c) b[i * m + c] = x[i * d + c];
+}
+
 PetscErrorCode copy_in(const StoreTrajectory &st, PetscInt k, PetscInt part, Vec X) {
   const PetscScalar *x;
   PetscFunctionBegin;
   PetscCall(VecGetArrayRead(X, &x));
-  if (st.pairs) {
-    PetscScalar *b = at(st, k, part);
-    const PetscInt m = st.pairs, d = st.dof, npt = st.nlocal / d;
-    if (m == 1 && st.use_stream && reinterpret_cast<uintptr_t>(b) % 16 == 0) {
-      PetscInt i = 0;
-      for (; i + 1 < npt; i += 2) _mm_stream_pd(b + i, _mm_set_pd(x[(i + 1) * d], x[i * d]));
-      for (; i < npt; ++i) b[i] = x[i * d];
-      _mm_sfence();
-    } else if (m == 1)
-      for (PetscInt i = 0; i < npt; ++i) b[i] = x[i * d];
-    else
-      for (PetscInt i = 0; i < npt; ++i)
-        for (PetscInt c = 0; c < m; ++c) b[i * m + c] = x[i * d + c];
-  } else if (st.use_stream) stream_copy(at(st, k, part), x, st.nlocal);
+  if (st.pairs) copy_positions(at(st, k, part), x, st.pairs, st.dof, st.nlocal / st.dof, st.use_stream);
+  else if (st.use_stream) stream_copy(at(st, k, part), x, st.nlocal);
   else std::memcpy(at(st, k, part), x, sizeof(PetscScalar) * st.nlocal);
   PetscCall(VecRestoreArrayRead(X, &x));
   PetscFunctionReturn(0);
@@ -172,10 +180,6 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
     st->pairs = leapfrog_pairs(ts);
   }
   st->slot = st->pairs ? st->nlocal / st->dof * st->pairs : (st->keep_stages ? 1 + st->nstages : 1) * st->nlocal;
-  if (ts->max_steps < PETSC_MAX_INT) { // reserve the planned trajectory once
-    st->buffer->grow((size_t)(ts->max_steps + 1) * st->slot, false);
-    st->times.reserve(ts->max_steps + 1);
-  }
   st->times.clear();
   st->last = -1;
   st->recomputed = 0;
@@ -184,7 +188,20 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
   st->compact = false;
   st->lf_placed = false;
   st->use_stream = st->stream && is_leapfrog(ts);
-  if (st->keep_stages) { // explicit RK only, and only when no stage is the solution itself
+  st->rk_pairs = st->rk_n = 0;
+  if (st->keep_stages && st->positions_only && !adjoint_monitors_read_state(ts) && ts->max_steps < PETSC_MAX_INT) {
+    Vec *Y;
+    PetscCall(rk_adjoint_positions(ts, &st->rk_pairs));
+    PetscCall(TSGetStages(ts, nullptr, &Y));
+    for (PetscInt i = 0; st->rk_pairs && i < st->nstages; ++i)
+      if (Y[i] == ts->vec_sol) st->rk_pairs = 0;
+    if (st->rk_pairs) {
+      PetscCall(VecGetBlockSize(ts->vec_sol, &st->dof));
+      st->rk_n = st->nlocal / st->dof * st->rk_pairs;
+      st->slot = st->nstages * st->rk_n;
+    }
+  }
+  if (st->keep_stages && !st->rk_pairs) { // explicit RK only, and only when no stage is the solution itself
     PetscBool rk;
     Vec *Y;
     PetscCall(PetscObjectTypeCompare((PetscObject)ts, TSRK, &rk));
@@ -200,9 +217,12 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
       for (PetscInt j = 0; j < s; ++j) st->compact = st->compact && A[j] == 0;
       if (st->compact) {
         st->slot = st->nstages * st->nlocal;
-        st->buffer->grow((size_t)(ts->max_steps + 1) * st->slot, false);
       }
     }
+  }
+  if (ts->max_steps < PETSC_MAX_INT) { // reserve the planned trajectory once
+    st->buffer->grow((size_t)(ts->max_steps + 1) * st->slot, false);
+    st->times.reserve(ts->max_steps + 1);
   }
   PetscFunctionReturn(0);
 }
@@ -215,6 +235,20 @@ PetscErrorCode store_set(TSTrajectory tj, TS ts, PetscInt stepnum, PetscReal tim
              "TSTrajectory store: step %" PetscInt_FMT " stored out of order", stepnum);
   st->times.push_back(time);
   st->last = stepnum;
+  if (st->rk_pairs) { // the positions of the stages of step stepnum-1 -> stepnum, still in the TS
+    if (stepnum == 0) PetscFunctionReturn(0);
+    const size_t need = (size_t)stepnum * st->slot;
+    if (st->buffer->size < need) st->buffer->grow(std::max(need, 2 * st->buffer->size), true);
+    Vec *Y;
+    const PetscScalar *y;
+    PetscCall(TSGetStages(ts, nullptr, &Y));
+    for (PetscInt i = 0; i < st->nstages; ++i) {
+      PetscCall(VecGetArrayRead(Y[i], &y));
+      copy_positions(at(*st, stepnum - 1, 0) + (size_t)i * st->rk_n, y, st->rk_pairs, st->dof, st->nlocal / st->dof, st->stream);
+      PetscCall(VecRestoreArrayRead(Y[i], &y));
+    }
+    PetscFunctionReturn(0);
+  }
   if (ts->reason) PetscFunctionReturn(0); // the final state stays in the TS for the first adjoint step
   const size_t need = (size_t)(stepnum + 1) * st->slot;
   if (st->buffer->size < need) {
@@ -242,6 +276,7 @@ PetscErrorCode store_get(TSTrajectory tj, TS ts, PetscInt k, PetscReal *t) {
   PetscFunctionBegin;
   if (k == 0) { // the adjoint has finished
     PetscCall(place_stages(*st, ts, -1));
+    if (st->rk_pairs) PetscCall(rk_adjoint_place_positions(ts, nullptr, 0));
     if (st->lf_placed) {
       Vec *Y;
       PetscCall(TSGetStages(ts, nullptr, &Y));
@@ -267,9 +302,15 @@ PetscErrorCode store_get(TSTrajectory tj, TS ts, PetscInt k, PetscReal *t) {
       st->lf_placed = true;
     }
   }
-  if (st->compact) { // the stages of step k-1 -> k, in place; U_k only for adjoint monitors
+  if (st->rk_pairs) { // the positions of the stages of step k-1 -> k, read in place
+    PetscCall(rk_adjoint_place_positions(ts, at(*st, k - 1, 0), st->rk_n));
+    if (st->prefetch) prefetch_slot(*st, k - 2);
+    ts->ptime = st->times[k];
+    ts->ptime_prev = st->times[k - 1];
+  } else if (st->compact) { // the stages of step k-1 -> k, in place; U_k only for adjoint monitors
     PetscCall(place_stages(*st, ts, k - 1));
-    if (k < st->last && ts->numberadjointmonitors) PetscCall(copy_out(*st, k, 0, ts->vec_sol));
+    if (st->prefetch) prefetch_slot(*st, k - 2);
+    if (k < st->last && adjoint_monitors_read_state(ts)) PetscCall(copy_out(*st, k, 0, ts->vec_sol));
     ts->ptime = st->times[k];
     ts->ptime_prev = st->times[k - 1];
   } else if (k < st->last) { // the last step's stages are still in the TS
@@ -383,5 +424,9 @@ PetscErrorCode store_trajectory_use_buffer(TSTrajectory tj, StateBuffer *buffer)
 PetscInt64 store_trajectory_recomputed(TSTrajectory tj) { return context(tj)->recomputed; }
 PetscInt store_trajectory_states(TSTrajectory tj) { return context(tj)->last; } // U_0 .. U_{n-1}
 bool store_trajectory_keeps_stages(TSTrajectory tj) { return context(tj)->keep_stages; }
+PetscReal store_trajectory_mb(TSTrajectory tj) {
+  const StoreTrajectory *st = context(tj);
+  return (PetscReal)(st->last + 1) * st->slot * sizeof(PetscScalar) / 1048576.0;
+}
 
 } // namespace flexipde

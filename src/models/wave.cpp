@@ -51,8 +51,9 @@ struct FusedGradient : ProductTag {
 };
 
 // J^T x = [D2 (c^2 x_v) ; x_u] and g = 2 c (D2 u) x_v on the plain interior points [lo, hi), in one
-// sweep over x and the stage u (interleaved (u, v) arrays).
-template <int HW>
+// sweep over x and the stage u (interleaved (u, v) arrays); ADD: g is added to (a field's gradient).
+// u is read with stride SU: 2 in a whole (u, v) state, 1 in stored positions alone.
+template <int HW, bool ADD = false, int SU = 2>
 void fused_transpose_interior(PetscInt lo, PetscInt hi, const PetscReal *__restrict wt, const PetscScalar *__restrict x,
                               const PetscScalar *__restrict u, const PetscReal *__restrict c2,
                               const PetscReal *__restrict dg, PetscScalar *__restrict y, PetscReal *__restrict g) {
@@ -60,12 +61,13 @@ void fused_transpose_interior(PetscInt lo, PetscInt hi, const PetscReal *__restr
     PetscReal du = 0, dz = 0;
 #pragma GCC unroll 8
     for (int k = -HW; k <= HW; ++k) {
-      du += wt[k + HW] * PetscRealPart(u[2 * (i + k)]);
+      du += wt[k + HW] * PetscRealPart(u[SU * (i + k)]);
       dz += wt[k + HW] * c2[i + k] * PetscRealPart(x[2 * (i + k) + 1]);
     }
     y[2 * i] = dz;
     y[2 * i + 1] = x[2 * i];
-    g[i] = dg[i] * du * PetscRealPart(x[2 * i + 1]);
+    if (ADD) g[i] += dg[i] * du * PetscRealPart(x[2 * i + 1]);
+    else g[i] = dg[i] * du * PetscRealPart(x[2 * i + 1]);
   }
 }
 
@@ -219,6 +221,62 @@ public:
     PetscFunctionReturn(0);
   }
 
+  bool has_stage_adjoint() const override { return fuse_adjoint_; }
+  bool stage_adjoint_takes_positions() const override { return true; }
+  // An explicit RK adjoint stage at state U (a whole state or u alone): y = J^T x = [D2 (c^2 x_v) ; x_u]
+  // (walls 0) and mu += 2 c (D2 u) x_v, in one sweep; a scalar c's local sum goes to the Parameters
+  // (deferred there by the Simulation to one reduction per adjoint).
+  PetscErrorCode stage_adjoint(PetscReal, Vec U, Vec x, Vec y, Vec mu) override {
+    const ParamInfo &pi = params_->info(c_index_);
+    PetscReal local[4] = {0, 0, 0, 0};
+    PetscInt nu;
+    PetscFunctionBeginUser;
+    PetscCall(VecGetLocalSize(U, &nu));
+    const PetscInt su = nu == grid_->xm() ? 1 : 2; // stride of u in U
+    Halo &halo_u = su == 1 ? halo_q_ : halo_u_;
+    PetscCall(halo_u.begin(U));
+    PetscCall(halo_v_.begin(x));
+    {
+      ConstArray xa(x), ua(U);
+      Array ya(y);
+      PetscCall(xa.error());
+      PetscCall(ua.error());
+      PetscCall(ya.error());
+      PetscScalar *gm = nullptr;
+      if (mu && c_field_) PetscCall(VecGetArray(mu, &gm));
+      const PetscScalar *X = xa.data(), *u = ua.data();
+      PetscScalar *Y = ya.data();
+      PetscReal *g = gm ? gm + pi.local_offset : gbuf_.data(); // a field's gradient in place, else scratch
+      const PetscInt xm = grid_->xm();
+      for (PetscInt il : {(PetscInt)0, xm - 1}) // the walls (no gradient there: 2c = 0)
+        if (xm > 0 && grid_->is_boundary(grid_->xs() + il)) Y[2 * il] = Y[2 * il + 1] = 0;
+      const PetscReal *c2 = c2_.data(), *dg = two_c_.data();
+      if (gm && su == 1) stage_interior<true, 1>(X, u, c2, dg, Y, g);
+      else if (gm) stage_interior<true, 2>(X, u, c2, dg, Y, g);
+      else if (su == 1) stage_interior<false, 1>(X, u, c2, dg, Y, g);
+      else stage_interior<false, 2>(X, u, c2, dg, Y, g);
+      if (!gm && mu) sum4(g, lo_, hi_, local);
+      PetscCall(halo_u.end(U));
+      PetscCall(halo_v_.end(x));
+      for_edge_points([&](PetscInt il, const std::array<StencilEntry, 5> &st, PetscInt m) {
+        PetscReal du = 0, dz = 0;
+        for (PetscInt q = 0; q < m; ++q) {
+          const PetscInt jl = local_offset(st[q].j);
+          du += st[q].weight * PetscRealPart(jl >= 0 && jl < grid_->xm() ? u[su * jl] : halo_u(jl, 0));
+          dz += st[q].weight * c2_at(jl) * value(X, halo_v_, 1, jl);
+        }
+        Y[2 * il] = dz;
+        Y[2 * il + 1] = X[2 * il];
+        const PetscReal gi = two_c_[il] * du * PetscRealPart(X[2 * il + 1]);
+        if (gm) g[il] += gi;
+        else local[il & 3] += gi;
+      });
+      if (gm) PetscCall(VecRestoreArray(mu, &gm));
+    }
+    if (mu && !c_field_) PetscCall(params_->add_local_sum(mu, c_index_, local[0] + local[1] + local[2] + local[3]));
+    PetscFunctionReturn(0);
+  }
+
   PetscErrorCode create_jacobian_matrix_free(Mat *J) override {
     const PetscInt nstate = grid_->xm() * dof();
     PetscFunctionBeginUser;
@@ -346,6 +404,13 @@ public:
   }
 
 private:
+  // The RK adjoint stage's sweep on the plain interior (stage_adjoint), by half-width.
+  template <bool ADD, int SU>
+  void stage_interior(const PetscScalar *X, const PetscScalar *u, const PetscReal *c2, const PetscReal *dg,
+                      PetscScalar *Y, PetscReal *g) const {
+    if (hw_ == 1) fused_transpose_interior<1, ADD, SU>(lo_, hi_, wt_, X, u, c2, dg, Y, g);
+    else fused_transpose_interior<2, ADD, SU>(lo_, hi_, wt_, X, u, c2, dg, Y, g);
+  }
   template <int SU>
   void kick_interior(const PetscScalar *ua, PetscScalar *L, const PetscReal *c2, const PetscReal *dg, PetscReal *out,
                      PetscReal w, bool add) const {
