@@ -125,51 +125,6 @@ void transpose_row_bound(PetscInt n, PetscReal cx, const PetscReal c[5], const P
   }
 }
 
-// The transpose in two passes, on more than one rank (see j_mult_transpose): the first writes the
-// x term and sums w, before E is known; the second adds E dvt and c = hv K w (c null: left out, the
-// dissipation goes first). y ends as in the one-pass kernels above, rounding included.
-void transpose_first_interior(PetscInt n, PetscReal cx, PetscReal cv, const PetscScalar *__restrict r,
-                              const PetscScalar *__restrict m2, const PetscScalar *__restrict m1,
-                              const PetscScalar *__restrict p1, const PetscScalar *__restrict p2,
-                              const PetscScalar *__restrict f, PetscScalar *__restrict y, PetscReal *__restrict w) {
-  for (PetscInt il = 0; il < n; ++il) {
-    const PetscScalar dvt = cv * (m2[il] - 8.0 * m1[il] + 8.0 * p1[il] - p2[il]);
-    y[il] = cx * (r[il - 2] - 8.0 * r[il - 1] + 8.0 * r[il + 1] - r[il + 2]);
-    w[il] += PetscRealPart(f[il] * dvt);
-  }
-}
-void transpose_second_interior(PetscInt n, PetscReal cv, const PetscScalar *__restrict m2,
-                               const PetscScalar *__restrict m1, const PetscScalar *__restrict p1,
-                               const PetscScalar *__restrict p2, const PetscReal *__restrict E,
-                               const PetscReal *__restrict c, PetscScalar *__restrict y) {
-  if (c)
-    for (PetscInt il = 0; il < n; ++il)
-      y[il] = (y[il] + E[il] * (cv * (m2[il] - 8.0 * m1[il] + 8.0 * p1[il] - p2[il]))) + c[il];
-  else
-    for (PetscInt il = 0; il < n; ++il) y[il] = y[il] + E[il] * (cv * (m2[il] - 8.0 * m1[il] + 8.0 * p1[il] - p2[il]));
-}
-void transpose_first_bound(PetscInt n, PetscReal cx, const PetscReal d[5], const PetscScalar *__restrict r,
-                           const PetscScalar *__restrict m2, const PetscScalar *__restrict m1,
-                           const PetscScalar *__restrict p1, const PetscScalar *__restrict p2,
-                           const PetscScalar *__restrict f, PetscScalar *__restrict y, PetscReal *__restrict w) {
-  const PetscReal d0 = d[0], d1 = d[1], d2 = d[2], d3 = d[3], d4 = d[4];
-  for (PetscInt il = 0; il < n; ++il) {
-    const PetscScalar dvt = d0 * m2[il] + d1 * m1[il] + d2 * r[il] + d3 * p1[il] + d4 * p2[il];
-    y[il] = cx * (r[il - 2] - 8.0 * r[il - 1] + 8.0 * r[il + 1] - r[il + 2]);
-    w[il] += PetscRealPart(f[il] * dvt);
-  }
-}
-void transpose_second_bound(PetscInt n, const PetscReal d[5], const PetscScalar *__restrict r,
-                            const PetscScalar *__restrict m2, const PetscScalar *__restrict m1,
-                            const PetscScalar *__restrict p1, const PetscScalar *__restrict p2,
-                            const PetscReal *__restrict E, const PetscReal *__restrict c, PetscScalar *__restrict y) {
-  const PetscReal d0 = d[0], d1 = d[1], d2 = d[2], d3 = d[3], d4 = d[4];
-  for (PetscInt il = 0; il < n; ++il) {
-    const PetscScalar a = y[il] + E[il] * (d0 * m2[il] + d1 * m1[il] + d2 * r[il] + d3 * p1[il] + d4 * p2[il]);
-    y[il] = c ? a + c[il] : a;
-  }
-}
-
 class VlasovModel final : public Model {
 public:
   const char *name() const override { return "vlasov"; }
@@ -248,8 +203,6 @@ public:
     // multiplier 1 / (i kappa_m) for 0 < m < N_x / 2, 0 for the mean and the Nyquist mode.
     fft_.setup(nx_, grid.x1() - grid.x0());
     rho_.assign(nx_, 0.0);
-    rho_part_.assign(nx_, 0.0);
-    rho_w_.assign(2 * nx_, 0.0);
     Efull_.assign(nx_, 0.0);
     w_.assign(nx_, 0.0);
     E_.assign(grid.xm(), 0.0);
@@ -322,7 +275,8 @@ public:
   // Records what dG/dU needs of the linearisation state f: a copy of f at the owned points and
   // E(f), in one pass over f (the copy and the density together) and no ghost exchange. D_v f,
   // which only dG/dU itself needs, is made from the copy on the first MatMult (j_mult); the
-  // transpose reads f directly (w = S (f o D_v^T x), see j_mult_transpose).
+  // transpose reads f directly (w = S (f o D_v^T x), see j_mult_transpose). (An explicit RK
+  // adjoint stage does without the copy: stage_adjoint.)
   PetscErrorCode rhs_jacobian(PetscReal, Vec U, Mat J) override {
     const Grid &g = *grid_;
     const PetscScalar *u;
@@ -343,11 +297,10 @@ public:
     }
     PetscCall(VecRestoreArrayWrite(f_lin_, &c));
     PetscCall(VecRestoreArrayRead(U, &u));
-    // On more than one rank the density's reduction waits for the transpose, which reduces it with
-    // its own sum w (one reduction per adjoint stage instead of two), or for the first MatMult.
-    elin_valid_ = nranks_ == 1;
-    if (elin_valid_) PetscCall(field_from_row_sums(Elin_));
-    else std::copy(rho_.begin(), rho_.end(), rho_part_.begin());
+    // The density is reduced here, so that the transpose's one sweep knows E. (Deferring it to the
+    // transpose's own reduction of w saves a synchronisation but needs a second pass over x and y:
+    // on 2 ranks at 512^2 the adjoint took 0.134-0.139 s that way against 0.110-0.118 s this way.)
+    PetscCall(field_from_row_sums(Elin_));
     dvf_valid_ = false;
     PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY)); // resets any shift/scale a TS applied
     PetscCall(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
@@ -662,16 +615,6 @@ private:
 
   static PetscErrorCode zero_mult(Mat, Vec, Vec y) { return VecSet(y, 0.0); }
 
-  // E at the linearisation state, when rhs_jacobian left its density unreduced (collective).
-  PetscErrorCode make_elin() {
-    PetscFunctionBeginUser;
-    if (elin_valid_) PetscFunctionReturn(0);
-    std::copy(rho_part_.begin(), rho_part_.end(), rho_.begin());
-    PetscCall(field_from_row_sums(Elin_));
-    elin_valid_ = true;
-    PetscFunctionReturn(0);
-  }
-
   // D_v f at the owned points of the linearisation state, from the copy rhs_jacobian made (once
   // per linearisation: only dG/dU x needs it, the transpose does not).
   PetscErrorCode make_dvf() {
@@ -700,7 +643,6 @@ private:
     PetscCall(MatShellGetContext(J, &m));
     const Grid &g = *m->grid_;
     PetscCall(m->make_dvf());
-    PetscCall(m->make_elin());
     PetscCall(m->to_local(x, m->X_local_));
     PetscCall(DMDAVecGetArrayRead(m->dm_, m->X_local_, &xa));
     PetscCall(m->field(xa, m->dE_));
@@ -720,11 +662,9 @@ private:
   // The second form of w needs only the owned f (no ghosts of the linearisation state, no stored
   // D_v f) and D_v^T x, which the sweep for y computes anyway: one sweep makes v D_x x + E D_v^T x
   // and w together, and after the reduction of w a streaming pass adds hv K w.
-  // On more than one rank E is not known yet (rhs_jacobian left the density unreduced): the sweep
-  // writes v D_x x and sums w, one MPI_Allreduce completes the density and w together, and a second
-  // pass adds E D_v^T x + hv K w. So an adjoint stage synchronises the ranks twice (this reduction
-  // and the exchange of x's ghosts, overlapped with the sweep), as a forward stage does, not three
-  // times; on a loaded machine each synchronisation costs a wait.
+  // On more than one rank, w is reduced over the ranks before the K pass (rhs_jacobian reduced the
+  // density): with the exchange of x's ghosts (overlapped with the sweep), three synchronisations per
+  // adjoint stage.
   // x is read in place: its owned rows from its array, the two rows beyond each end of the owned
   // block and the two x ghosts of each row from the Halo, so no ghosted copy of x is made
   // (DMGlobalToLocal gathers every point through an index list).
@@ -737,7 +677,6 @@ private:
     const Grid &g = *m->grid_;
     const Halo &h = m->halo_;
     const PetscInt xm = g.xm(), ys = g.ys(), ym = g.ym(), nv = m->nv_, nx = m->nx_;
-    const bool two_pass = !m->elin_valid_;
     // x whole on this rank (1 rank, or a split in v only): each row's x ghosts are its own periodic
     // ends, and the rows away from the ends of the owned block are swept while the ghost rows arrive.
     // On one rank with x whole there is nothing to exchange (the rows beyond the bounds are zero).
@@ -757,8 +696,8 @@ private:
     };
     PetscCall(VecGetArrayRead(m->f_lin_, &fl));
     PetscCall(VecGetArray(y, &yo));
-    std::fill(m->rho_w_.begin(), m->rho_w_.end(), 0.0);
-    PetscReal *w = m->rho_w_.data() + nx + g.xs();
+    std::fill(m->w_.begin(), m->w_.end(), 0.0);
+    PetscReal *w = m->w_.data() + g.xs();
     const PetscReal *E = m->Elin_.data();
     const PetscReal cv = -1.0 / (12 * m->hv_);
     auto sweep_row = [&](PetscInt jl) {
@@ -769,11 +708,6 @@ private:
       const PetscReal cx = g.y(j) / (12 * m->h_);
       PetscReal d[5];
       if (j < 2 || j > nv - 3) m->dv_transpose_row(j, d); // the two rows next to each bound: D_v^T row by row
-      if (two_pass) {
-        if (j >= 2 && j <= nv - 3) transpose_first_interior(xm, cx, cv, rows[2], rows[0], rows[1], rows[3], rows[4], fr, yr, w);
-        else transpose_first_bound(xm, cx, d, rows[2], rows[0], rows[1], rows[3], rows[4], fr, yr, w);
-        return;
-      }
       if (j >= 2 && j <= nv - 3) // D_v^T = -D_v, D_x^T = -D_x
         transpose_row_interior(xm, cx, cv, rows[2], rows[0], rows[1], rows[3], rows[4], E, fr, yr, w);
       else transpose_row_bound(xm, cx, d, rows[2], rows[0], rows[1], rows[3], rows[4], E, fr, yr, w);
@@ -793,43 +727,14 @@ private:
     } else
       for (PetscInt jl = 0; jl < ym; ++jl) sweep_row(jl); // in order
     PetscCall(VecRestoreArrayRead(m->f_lin_, &fl));
-    if (two_pass) { // the density (this rank's sums from rhs_jacobian) and w in one reduction
-      std::copy(m->rho_part_.begin(), m->rho_part_.end(), m->rho_w_.begin());
-      PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, m->rho_w_.data(), (PetscMPIInt)(2 * nx), MPIU_REAL, MPI_SUM, g.comm()));
-      std::copy(m->rho_w_.begin(), m->rho_w_.begin() + nx, m->rho_.begin());
-      m->field_from_sums(m->Elin_);
-      m->elin_valid_ = true;
-    } else
-      PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, w - g.xs(), (PetscMPIInt)nx, MPIU_REAL, MPI_SUM, g.comm()));
-    std::copy(m->rho_w_.begin() + nx, m->rho_w_.end(), m->w_.begin());
+    if (m->nranks_ > 1) PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, m->w_.data(), (PetscMPIInt)nx, MPIU_REAL, MPI_SUM, g.comm()));
     m->apply_K(m->w_, m->dE_);
     const PetscReal hv = m->hv_;
     for (PetscInt il = 0; il < xm; ++il) m->dE_[il] *= hv; // hv K w
     const PetscReal *__restrict c = m->dE_.data();
     for (PetscInt jl = 0; jl < ym; ++jl) {
       PetscScalar *__restrict yr = yo + jl * xm;
-      const PetscInt j = ys + jl;
-      if (!two_pass) { // + hv K w
-        for (PetscInt il = 0; il < xm; ++il) yr[il] += c[il];
-        continue;
-      }
-      const bool inner = j >= 2 && j <= nv - 3;
-      if (inner && m->c_diss_ == 0) { // + E D_v^T x + hv K w
-        transpose_second_interior(xm, cv, row(jl - 2), row(jl - 1), row(jl + 1), row(jl + 2), E, c, yr);
-        continue;
-      }
-      const PetscScalar *rows[5] = {row(jl - 2), row(jl - 1), padded(jl), row(jl + 1), row(jl + 2)};
-      const PetscReal *cc = m->c_diss_ > 0 ? nullptr : c;
-      if (inner) transpose_second_interior(xm, cv, rows[0], rows[1], rows[3], rows[4], E, cc, yr);
-      else {
-        PetscReal d[5];
-        m->dv_transpose_row(j, d);
-        transpose_second_bound(xm, d, rows[2], rows[0], rows[1], rows[3], rows[4], E, cc, yr);
-      }
-      if (m->c_diss_ > 0) { // symmetric; then hv K w
-        m->dissipation_in_rows(rows, j, yr);
-        for (PetscInt il = 0; il < xm; ++il) yr[il] += c[il];
-      }
+      for (PetscInt il = 0; il < xm; ++il) yr[il] += c[il]; // + hv K w
     }
     PetscCall(VecRestoreArrayRead(x, &xo));
     PetscCall(VecRestoreArray(y, &yo));
@@ -889,8 +794,6 @@ private:
   std::vector<PetscReal> E_, Elin_, dE_; // at the owned x: E(U) of rhs, E at the linearisation state, work
   std::vector<PetscReal> dvf_;           // D_v f at the owned points of the linearisation state (j_mult only)
   bool dvf_valid_ = false;               // dvf_ belongs to the current linearisation state
-  bool elin_valid_ = false;              // so does Elin_ (else rho_part_ holds this rank's density sums)
-  std::vector<PetscReal> rho_part_, rho_w_; // those sums; the two-pass transpose's [density | w] sums
   OwnedVec U_local_, X_local_;
   Halo halo_;                          // ghosts of x for the transpose (j_mult_transpose)
   PetscMPIInt nranks_ = 1;
