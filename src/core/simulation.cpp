@@ -369,7 +369,7 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
     PetscCall(TSGetTrajectory(ts, &tj));
     PetscCall(store_trajectory_use_buffer(tj, &trajectory_buffer_));
   }
-  PetscBool rk_fused = PETSC_TRUE;
+  PetscBool rk_fused = PETSC_TRUE, rk_stage = PETSC_TRUE;
   PetscOptionsBegin(comm, nullptr, "Simulation", "Simulation");
   PetscCall(PetscOptionsBool("-sim_stability_check", "Refuse explicit steps beyond the stability limit", "Simulation",
                              stability_check, &stability_check, nullptr));
@@ -385,6 +385,8 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
                              "one (else its Jacobians)", "Simulation", fused_adjoint_, &fused_adjoint_, nullptr));
   PetscCall(PetscOptionsBool("-rk_fused_adjoint", "Explicit RK adjoint with one pass per stage besides the model's "
                              "products (rk_adjoint.hpp; else TSRK's own)", "Simulation", rk_fused, &rk_fused, nullptr));
+  PetscCall(PetscOptionsBool("-rk_stage_adjoint", "That adjoint calls the model's fused stage products when it has them "
+                             "(Model::stage_adjoint; else its Jacobians)", "Simulation", rk_stage, &rk_stage, nullptr));
   PetscOptionsEnd();
   PetscCheck(blowup_every_ >= 0, comm, PETSC_ERR_ARG_OUTOFRANGE, "-sim_blowup_check_every must be non-negative");
   if (blowup_every_ > 0) PetscCall(TSMonitorSet(ts, blowup_monitor, this, nullptr));
@@ -426,7 +428,7 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
     PetscCall(SNESSetLagJacobian(snes, -2));
     PetscCall(SNESSetLagJacobianPersists(snes, PETSC_TRUE));
   }
-  rk_stage_fused_ = with_adjoint && rk_fused && !std::strcmp(type, TSRK) && model_->has_stage_adjoint();
+  rk_stage_fused_ = with_adjoint && rk_fused && rk_stage && !std::strcmp(type, TSRK) && model_->has_stage_adjoint();
   if (with_adjoint && rk_fused && !std::strcmp(type, TSRK))
     PetscCall(rk_adjoint_install(ts, rk_stage_fused_ ? stage_adjoint_cb : nullptr, this,
                                  model_->stage_adjoint_takes_positions() ? model_->second_order_pairs() : 0));

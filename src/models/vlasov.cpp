@@ -207,6 +207,7 @@ public:
     w_.assign(nx_, 0.0);
     E_.assign(grid.xm(), 0.0);
     Elin_.assign(grid.xm(), 0.0);
+    Estage_.assign(grid.xm(), 0.0);
     dE_.assign(grid.xm(), 0.0);
     PetscCall(DMCreateGlobalVector(dm_, f_lin_.out()));
     PetscCall(DMCreateLocalVector(dm_, U_local_.out()));
@@ -670,10 +671,39 @@ private:
   // (DMGlobalToLocal gathers every point through an index list).
   static PetscErrorCode j_mult_transpose(Mat J, Vec x, Vec y) {
     VlasovModel *m;
+    PetscFunctionBeginUser;
+    PetscCall(MatShellGetContext(J, &m));
+    PetscCall(m->transpose(m->f_lin_, m->Elin_, x, y));
+    PetscFunctionReturn(0);
+  }
+
+  // An explicit RK adjoint stage at the stored stage U: y = (dG/dU)(U)^T x as j_mult_transpose, read
+  // from U in place (rhs_jacobian would copy it) with E(U) from one pass over U; no dG/dp (mu).
+  PetscErrorCode stage_adjoint(PetscReal, Vec U, Vec x, Vec y, Vec) override {
+    const Grid &g = *grid_;
+    const PetscScalar *u;
+    PetscFunctionBeginUser;
+    PetscCall(VecGetArrayRead(U, &u));
+    std::fill(rho_.begin(), rho_.end(), 0.0);
+    PetscReal *__restrict rho = rho_.data() + g.xs();
+    const PetscInt xm = g.xm();
+    for (PetscInt jl = 0; jl < g.ym(); ++jl) {
+      const PetscScalar *__restrict ur = u + jl * xm;
+      for (PetscInt il = 0; il < xm; ++il) rho[il] += PetscRealPart(ur[il]);
+    }
+    PetscCall(VecRestoreArrayRead(U, &u));
+    PetscCall(field_from_row_sums(Estage_));
+    PetscCall(transpose(U, Estage_, x, y));
+    PetscFunctionReturn(0);
+  }
+  bool has_stage_adjoint() const override { return true; }
+
+  // y = (dG/dU)(f)^T x at the state f with field E = E(f) (see j_mult_transpose).
+  PetscErrorCode transpose(Vec f, const std::vector<PetscReal> &Ef, Vec x, Vec y) {
+    VlasovModel *m = this;
     const PetscScalar *xo, *fl;
     PetscScalar *yo;
     PetscFunctionBeginUser;
-    PetscCall(MatShellGetContext(J, &m));
     const Grid &g = *m->grid_;
     const Halo &h = m->halo_;
     const PetscInt xm = g.xm(), ys = g.ys(), ym = g.ym(), nv = m->nv_, nx = m->nx_;
@@ -694,11 +724,11 @@ private:
       pad[xm + 3] = x_whole ? xr[1] : h(xm + 1, jl);
       return (const PetscScalar *)pad + 2;
     };
-    PetscCall(VecGetArrayRead(m->f_lin_, &fl));
+    PetscCall(VecGetArrayRead(f, &fl));
     PetscCall(VecGetArray(y, &yo));
     std::fill(m->w_.begin(), m->w_.end(), 0.0);
     PetscReal *w = m->w_.data() + g.xs();
-    const PetscReal *E = m->Elin_.data();
+    const PetscReal *E = Ef.data();
     const PetscReal cv = -1.0 / (12 * m->hv_);
     auto sweep_row = [&](PetscInt jl) {
       const PetscInt j = ys + jl;
@@ -726,7 +756,7 @@ private:
       for (PetscInt jl = early_end; jl < ym; ++jl) sweep_row(jl);
     } else
       for (PetscInt jl = 0; jl < ym; ++jl) sweep_row(jl); // in order
-    PetscCall(VecRestoreArrayRead(m->f_lin_, &fl));
+    PetscCall(VecRestoreArrayRead(f, &fl));
     if (m->nranks_ > 1) PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, m->w_.data(), (PetscMPIInt)nx, MPIU_REAL, MPI_SUM, g.comm()));
     m->apply_K(m->w_, m->dE_);
     const PetscReal hv = m->hv_;
@@ -792,6 +822,7 @@ private:
   Antiderivative fft_;
   std::vector<PetscReal> rho_, w_, ks_, Efull_; // length-N_x work arrays
   std::vector<PetscReal> E_, Elin_, dE_; // at the owned x: E(U) of rhs, E at the linearisation state, work
+  std::vector<PetscReal> Estage_;        // at the owned x: E at stage_adjoint's stage
   std::vector<PetscReal> dvf_;           // D_v f at the owned points of the linearisation state (j_mult only)
   bool dvf_valid_ = false;               // dvf_ belongs to the current linearisation state
   OwnedVec U_local_, X_local_;
