@@ -1,6 +1,7 @@
 #include "flexipde/simulation.hpp"
 #include "flexipde/leapfrog.hpp"
 #include "flexipde/rk_adjoint.hpp"
+#include "flexipde/theta_adjoint.hpp"
 #include <cmath>
 #include <complex>
 #include <cstring>
@@ -369,7 +370,7 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
     PetscCall(TSGetTrajectory(ts, &tj));
     PetscCall(store_trajectory_use_buffer(tj, &trajectory_buffer_));
   }
-  PetscBool rk_fused = PETSC_TRUE, rk_stage = PETSC_TRUE;
+  PetscBool rk_fused = PETSC_TRUE, rk_stage = PETSC_TRUE, theta_direct = PETSC_TRUE;
   PetscOptionsBegin(comm, nullptr, "Simulation", "Simulation");
   PetscCall(PetscOptionsBool("-sim_stability_check", "Refuse explicit steps beyond the stability limit", "Simulation",
                              stability_check, &stability_check, nullptr));
@@ -385,6 +386,9 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
                              "one (else its Jacobians)", "Simulation", fused_adjoint_, &fused_adjoint_, nullptr));
   PetscCall(PetscOptionsBool("-rk_fused_adjoint", "Explicit RK adjoint with one pass per stage besides the model's "
                              "products (rk_adjoint.hpp; else TSRK's own)", "Simulation", rk_fused, &rk_fused, nullptr));
+  PetscCall(PetscOptionsBool("-theta_direct_adjoint", "Implicit theta/cn/beuler adjoint evaluating the IJacobian "
+                             "directly, not through SNESComputeJacobian (theta_adjoint.hpp; else TSTHETA's own)",
+                             "Simulation", theta_direct, &theta_direct, nullptr));
   PetscCall(PetscOptionsBool("-rk_stage_adjoint", "That adjoint calls the model's fused stage products when it has them "
                              "(Model::stage_adjoint; else its Jacobians)", "Simulation", rk_stage, &rk_stage, nullptr));
   PetscOptionsEnd();
@@ -428,6 +432,7 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
     PetscCall(SNESSetLagJacobian(snes, -2));
     PetscCall(SNESSetLagJacobianPersists(snes, PETSC_TRUE));
   }
+  if (with_adjoint && theta_direct) PetscCall(theta_adjoint_install(ts)); // only theta types
   rk_stage_fused_ = with_adjoint && rk_fused && rk_stage && !std::strcmp(type, TSRK) && model_->has_stage_adjoint();
   if (with_adjoint && rk_fused && !std::strcmp(type, TSRK))
     PetscCall(rk_adjoint_install(ts, rk_stage_fused_ ? stage_adjoint_cb : nullptr, this,

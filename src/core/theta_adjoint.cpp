@@ -1,0 +1,196 @@
+// The implicit theta adjoint step of theta_adjoint.hpp.
+#include "flexipde/theta_adjoint.hpp"
+#include <petsc/private/tsimpl.h>
+#include <vector>
+
+namespace flexipde {
+namespace {
+
+constexpr const char *kName = "flexipde_theta_adjoint";
+
+struct ThetaAdjoint {
+  PetscErrorCode (*petsc_step)(TS) = nullptr; // TSTHETA's own adjoint step, for what this one does not do
+  std::vector<Vec> rhs, nu;                   // per cost: the transposed solve's right-hand side and solution
+  Vec X0 = nullptr, Xdot = nullptr, dmu = nullptr;
+  PetscInt ncost = 0;
+  ~ThetaAdjoint() { release(); }
+  void release() {
+    for (Vec &v : rhs) (void)VecDestroy(&v);
+    for (Vec &v : nu) (void)VecDestroy(&v);
+    rhs.clear();
+    nu.clear();
+    (void)VecDestroy(&X0);
+    (void)VecDestroy(&Xdot);
+    (void)VecDestroy(&dmu);
+    ncost = 0;
+  }
+};
+
+PetscErrorCode destroy_context(void *ctx) {
+  delete static_cast<ThetaAdjoint *>(ctx);
+  return 0;
+}
+
+// The IJacobian at (t, U) with this shift, as the KSP's operators (what TSComputeSNESJacobian and
+// KSPSetOperators do in PETSc's step, without SNESComputeJacobian).
+PetscErrorCode ijacobian(TS ts, PetscReal t, Vec U, Vec Udot, PetscReal shift, Mat J, Mat P, KSP ksp) {
+  PetscFunctionBegin;
+  PetscCall(TSComputeIJacobian(ts, t, U, Udot, shift, J, P, PETSC_FALSE));
+  PetscCall(KSPSetOperators(ksp, J, P));
+  PetscFunctionReturn(0);
+}
+
+// y = a x (as PETSc's step: a copy and a scaling, whatever y held).
+PetscErrorCode scaled_copy(Vec y, PetscReal a, Vec x) {
+  PetscFunctionBegin;
+  PetscCall(VecCopy(x, y));
+  PetscCall(VecScale(y, a));
+  PetscFunctionReturn(0);
+}
+
+// nu_k = (shift I - A)^T \ rhs_k for every cost (the operators are set).
+PetscErrorCode solve_transpose(TS ts, KSP ksp, ThetaAdjoint &c) {
+  PetscFunctionBegin;
+  for (PetscInt k = 0; k < ts->numcost; ++k) {
+    KSPConvergedReason reason;
+    PetscCall(KSPSolveTranspose(ksp, c.rhs[k], c.nu[k]));
+    PetscCall(KSPGetConvergedReason(ksp, &reason));
+    if (reason < 0) {
+      ts->reason = TSADJOINT_DIVERGED_LINEAR_SOLVE;
+      PetscCall(PetscInfo(ts, "Step=%" PetscInt_FMT ", cost %" PetscInt_FMT ": transposed linear solve failed\n", ts->steps, k));
+    }
+  }
+  PetscFunctionReturn(0);
+}
+
+// mu_k += w (-dF/dp)(t, U)^T nu_k, with the IJacobianP at this shift.
+PetscErrorCode add_parameter_terms(TS ts, ThetaAdjoint &c, PetscReal t, Vec U, PetscReal shift, PetscReal w) {
+  PetscFunctionBegin;
+  PetscCall(TSComputeIJacobianP(ts, t, U, c.Xdot, shift, ts->Jacp, PETSC_FALSE));
+  for (PetscInt k = 0; k < ts->numcost; ++k) {
+    PetscCall(MatMultTranspose(ts->Jacp, c.nu[k], c.dmu));
+    PetscCall(VecAXPY(ts->vecs_sensip[k], w, c.dmu));
+  }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode adjoint_step(TS ts) {
+  PetscContainer container;
+  ThetaAdjoint *c;
+  PetscReal theta;
+  PetscBool endpoint;
+  TSEquationType eqtype;
+  PetscFunctionBegin;
+  PetscCall(PetscObjectQuery((PetscObject)ts, kName, (PetscObject *)&container));
+  PetscCheck(container, PetscObjectComm((PetscObject)ts), PETSC_ERR_PLIB, "theta_adjoint: context missing");
+  PetscCall(PetscContainerGetPointer(container, (void **)&c));
+  PetscCall(TSThetaGetTheta(ts, &theta));
+  PetscCall(TSThetaGetEndpoint(ts, &endpoint));
+  PetscCall(TSGetEquationType(ts, &eqtype));
+  if (ts->quadraturets || ts->vecs_sensi2 || ts->numcost < 1 || (theta == 1 && eqtype == TS_EQ_ODE_EXPLICIT)) {
+    PetscCall(c->petsc_step(ts));
+    PetscFunctionReturn(0);
+  }
+  if (c->ncost != ts->numcost) {
+    c->release();
+    c->rhs.assign(ts->numcost, nullptr);
+    c->nu.assign(ts->numcost, nullptr);
+    for (PetscInt k = 0; k < ts->numcost; ++k) {
+      PetscCall(VecDuplicate(ts->vecs_sensi[0], &c->rhs[k]));
+      PetscCall(VecDuplicate(ts->vecs_sensi[0], &c->nu[k]));
+    }
+    PetscCall(VecDuplicate(ts->vec_sol, &c->X0));
+    PetscCall(VecDuplicate(ts->vec_sol, &c->Xdot));
+    c->ncost = ts->numcost;
+  }
+  if (ts->vecs_sensip && !c->dmu) PetscCall(VecDuplicate(ts->vecs_sensip[0], &c->dmu));
+
+  SNES snes;
+  KSP ksp;
+  Mat J, P;
+  Vec *Y;
+  PetscInt ns;
+  PetscCall(TSGetSNES(ts, &snes));
+  PetscCall(SNESGetKSP(snes, &ksp));
+  PetscCall(TSGetIJacobian(ts, &J, &P, nullptr, nullptr));
+  PetscCall(TSGetStages(ts, &ns, &Y)); // endpoint forms: {U_n, U_{n+1}}; midpoint: {X}
+  const PetscReal h = -ts->time_step, t1 = ts->ptime, t0 = ts->ptime + ts->time_step;
+  const PetscInt ncost = ts->numcost;
+
+  if (theta == 1) { // backward Euler (PETSc's TSAdjointStepBEuler_Private)
+    Vec U0 = Y[0];
+    for (PetscInt k = 0; k < ncost; ++k) PetscCall(scaled_copy(c->rhs[k], 1.0 / h, ts->vecs_sensi[k]));
+    PetscCall(ijacobian(ts, t1, ts->vec_sol, c->Xdot, 1.0 / h, J, P, ksp));
+    PetscCall(solve_transpose(ts, ksp, *c));
+    PetscCall(ijacobian(ts, t1, ts->vec_sol, c->Xdot, 0.0, J, P, ksp)); // -A
+    for (PetscInt k = 0; k < ncost; ++k) {
+      PetscCall(VecScale(c->rhs[k], -1.0));
+      PetscCall(MatMultTransposeAdd(J, c->nu[k], c->rhs[k], c->rhs[k]));
+      PetscCall(scaled_copy(ts->vecs_sensi[k], -h, c->rhs[k]));
+    }
+    if (ts->vecs_sensip) {
+      PetscCall(VecAXPBYPCZ(c->Xdot, -1.0 / h, 1.0 / h, 0.0, U0, ts->vec_sol));
+      PetscCall(add_parameter_terms(ts, *c, t1, ts->vec_sol, 1.0 / h, -h));
+    }
+    PetscFunctionReturn(0);
+  }
+
+  for (PetscInt k = 0; k < ncost; ++k) PetscCall(scaled_copy(c->rhs[k], 1.0 / (theta * h), ts->vecs_sensi[k]));
+  if (endpoint) { // CN and the endpoint theta methods
+    Vec U0 = Y[0];
+    PetscCall(ijacobian(ts, t1, ts->vec_sol, c->Xdot, 1.0 / (theta * h), J, P, ksp));
+    PetscCall(solve_transpose(ts, ksp, *c));
+    const PetscReal s2 = 1.0 / ((theta - 1.0) * h);
+    PetscCall(ijacobian(ts, t0, U0, c->Xdot, s2, J, P, ksp));
+    for (PetscInt k = 0; k < ncost; ++k) {
+      PetscCall(MatMultTranspose(J, c->nu[k], ts->vecs_sensi[k]));
+      PetscCall(VecScale(ts->vecs_sensi[k], 1.0 / s2));
+    }
+    if (ts->vecs_sensip) {
+      const PetscReal s1 = 1.0 / (h * theta);
+      PetscCall(VecAXPBYPCZ(c->Xdot, -s1, s1, 0.0, U0, ts->vec_sol));
+      PetscCall(add_parameter_terms(ts, *c, t1, ts->vec_sol, -1.0 / (theta * h), -h * theta));
+      PetscCall(VecZeroEntries(c->Xdot));
+      PetscCall(add_parameter_terms(ts, *c, t0, U0, s2, -h * (1.0 - theta)));
+    }
+    PetscFunctionReturn(0);
+  }
+  // midpoint: the stage X, and U_n recovered from it and U_{n+1}
+  Vec X = Y[0];
+  const PetscReal ts_stage = t1 - (1.0 - theta) * h;
+  PetscCall(VecAXPBYPCZ(c->X0, 1.0 / (1.0 - theta), theta / (theta - 1.0), 0.0, X, ts->vec_sol));
+  PetscCall(ijacobian(ts, ts_stage, X, c->Xdot, 1.0 / (theta * h), J, P, ksp));
+  PetscCall(solve_transpose(ts, ksp, *c));
+  PetscCall(ijacobian(ts, ts_stage, X, c->Xdot, 0.0, J, P, ksp)); // -A(X)
+  for (PetscInt k = 0; k < ncost; ++k) {
+    PetscCall(MatMultTranspose(J, c->nu[k], c->rhs[k]));
+    PetscCall(VecAXPY(ts->vecs_sensi[k], -h, c->rhs[k]));
+  }
+  if (ts->vecs_sensip) {
+    const PetscReal s1 = 1.0 / (h * theta);
+    PetscCall(VecAXPBYPCZ(c->Xdot, -s1, s1, 0.0, c->X0, X));
+    PetscCall(add_parameter_terms(ts, *c, ts_stage, X, s1, -h));
+  }
+  PetscFunctionReturn(0);
+}
+
+} // namespace
+
+PetscErrorCode theta_adjoint_install(TS ts) {
+  PetscBool theta;
+  PetscContainer container;
+  PetscFunctionBegin;
+  PetscCall(PetscObjectTypeCompareAny((PetscObject)ts, &theta, TSTHETA, TSCN, TSBEULER, ""));
+  if (!theta || ts->ops->adjointstep == adjoint_step) PetscFunctionReturn(0);
+  auto *ctx = new ThetaAdjoint();
+  ctx->petsc_step = ts->ops->adjointstep;
+  PetscCall(PetscContainerCreate(PetscObjectComm((PetscObject)ts), &container));
+  PetscCall(PetscContainerSetPointer(container, ctx));
+  PetscCall(PetscContainerSetUserDestroy(container, destroy_context));
+  PetscCall(PetscObjectCompose((PetscObject)ts, kName, (PetscObject)container));
+  PetscCall(PetscContainerDestroy(&container));
+  ts->ops->adjointstep = adjoint_step;
+  PetscFunctionReturn(0);
+}
+
+} // namespace flexipde
