@@ -68,7 +68,7 @@ TEST_P(ThetaAdjoint, SameGradientAsPetscTheta) {
               (double)rel_diff(direct.g, petsc.g));
   EXPECT_GT(flexipde_test::norm(petsc.g), 0.0);
   EXPECT_EQ(direct.J, petsc.J);
-  EXPECT_LE(rel_diff(direct.g, petsc.g), 1e-13);
+  EXPECT_LE(rel_diff(direct.g, petsc.g), 1e-12); // endpoint forms: the parameter products paired, round-off
 }
 
 INSTANTIATE_TEST_SUITE_P(

@@ -16,7 +16,10 @@
 //   backward Euler (theta = 1):
 //     (I/h - A)^T nu = lambda / h;  lambda_n = h (lambda / h + A^T nu);  mu += h (dG/dp)(U_{n+1})^T nu
 //
-// (mu's terms through TSComputeIJacobianP, i.e. -dF/dp.) It assumes, as the Simulation's implicit
+// (mu's terms through TSComputeIJacobianP, i.e. -dF/dp.) The endpoint form's two parameter products
+// per step are one: U_{n+1} gets h theta nu_n and, from the adjoint step before (for the forward step
+// after), h (1 - theta) nu_{n+1} together (dG/dp is linear in what it is applied to), so the
+// gradient equals PETSc's to round-off rather than bitwise. It assumes, as the Simulation's implicit
 // form F = U_t - G(t, U) gives, an IJacobian that does not depend on U_t. Cost integrands and
 // second-order adjoints go to PETSc's own step.
 #pragma once

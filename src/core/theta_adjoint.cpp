@@ -11,14 +11,17 @@ constexpr const char *kName = "flexipde_theta_adjoint";
 struct ThetaAdjoint {
   PetscErrorCode (*petsc_step)(TS) = nullptr; // TSTHETA's own adjoint step, for what this one does not do
   std::vector<Vec> rhs, nu;                   // per cost: the transposed solve's right-hand side and solution
+  std::vector<Vec> pending;                   // endpoint: h (1 - theta) nu of the step after, for its U_n
   Vec X0 = nullptr, Xdot = nullptr, dmu = nullptr;
   PetscInt ncost = 0;
   ~ThetaAdjoint() { release(); }
   void release() {
     for (Vec &v : rhs) (void)VecDestroy(&v);
     for (Vec &v : nu) (void)VecDestroy(&v);
+    for (Vec &v : pending) (void)VecDestroy(&v);
     rhs.clear();
     nu.clear();
+    pending.clear();
     (void)VecDestroy(&X0);
     (void)VecDestroy(&Xdot);
     (void)VecDestroy(&dmu);
@@ -63,12 +66,13 @@ PetscErrorCode solve_transpose(TS ts, KSP ksp, ThetaAdjoint &c) {
   PetscFunctionReturn(0);
 }
 
-// mu_k += w (-dF/dp)(t, U)^T nu_k, with the IJacobianP at this shift.
-PetscErrorCode add_parameter_terms(TS ts, ThetaAdjoint &c, PetscReal t, Vec U, PetscReal shift, PetscReal w) {
+// mu_k += w (-dF/dp)(t, U)^T v_k (v = nu by default), with the IJacobianP at this shift.
+PetscErrorCode add_parameter_terms(TS ts, ThetaAdjoint &c, PetscReal t, Vec U, PetscReal shift, PetscReal w,
+                                   const std::vector<Vec> *v = nullptr) {
   PetscFunctionBegin;
   PetscCall(TSComputeIJacobianP(ts, t, U, c.Xdot, shift, ts->Jacp, PETSC_FALSE));
   for (PetscInt k = 0; k < ts->numcost; ++k) {
-    PetscCall(MatMultTranspose(ts->Jacp, c.nu[k], c.dmu));
+    PetscCall(MatMultTranspose(ts->Jacp, v ? (*v)[k] : c.nu[k], c.dmu));
     PetscCall(VecAXPY(ts->vecs_sensip[k], w, c.dmu));
   }
   PetscFunctionReturn(0);
@@ -95,9 +99,11 @@ PetscErrorCode adjoint_step(TS ts) {
     c->release();
     c->rhs.assign(ts->numcost, nullptr);
     c->nu.assign(ts->numcost, nullptr);
+    c->pending.assign(ts->numcost, nullptr);
     for (PetscInt k = 0; k < ts->numcost; ++k) {
       PetscCall(VecDuplicate(ts->vecs_sensi[0], &c->rhs[k]));
       PetscCall(VecDuplicate(ts->vecs_sensi[0], &c->nu[k]));
+      PetscCall(VecDuplicate(ts->vecs_sensi[0], &c->pending[k]));
     }
     PetscCall(VecDuplicate(ts->vec_sol, &c->X0));
     PetscCall(VecDuplicate(ts->vec_sol, &c->Xdot));
@@ -147,11 +153,21 @@ PetscErrorCode adjoint_step(TS ts) {
       PetscCall(VecScale(ts->vecs_sensi[k], 1.0 / s2));
     }
     if (ts->vecs_sensip) {
+      // U_{n+1} takes h theta nu_n from this step and h (1 - theta) nu_{n+1} from the step after it
+      // (done before: its U_n), in one product; only the last step applies its own U_n term.
+      const bool first = ts->adjoint_steps == 0, last = ts->adjoint_steps + 1 >= ts->adjoint_max_steps;
+      for (PetscInt k = 0; k < ncost; ++k) {
+        if (first) PetscCall(scaled_copy(c->rhs[k], h * theta, c->nu[k]));
+        else PetscCall(VecAXPBYPCZ(c->rhs[k], h * theta, 1.0, 0.0, c->nu[k], c->pending[k]));
+        PetscCall(scaled_copy(c->pending[k], h * (1.0 - theta), c->nu[k]));
+      }
       const PetscReal s1 = 1.0 / (h * theta);
       PetscCall(VecAXPBYPCZ(c->Xdot, -s1, s1, 0.0, U0, ts->vec_sol));
-      PetscCall(add_parameter_terms(ts, *c, t1, ts->vec_sol, -1.0 / (theta * h), -h * theta));
-      PetscCall(VecZeroEntries(c->Xdot));
-      PetscCall(add_parameter_terms(ts, *c, t0, U0, s2, -h * (1.0 - theta)));
+      PetscCall(add_parameter_terms(ts, *c, t1, ts->vec_sol, -1.0 / (theta * h), -1.0, &c->rhs));
+      if (last) {
+        PetscCall(VecZeroEntries(c->Xdot));
+        PetscCall(add_parameter_terms(ts, *c, t0, U0, s2, -1.0, &c->pending));
+      }
     }
     PetscFunctionReturn(0);
   }
