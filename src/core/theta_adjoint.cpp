@@ -69,10 +69,17 @@ PetscErrorCode solve_transpose(TS ts, KSP ksp, ThetaAdjoint &c) {
 // mu_k += w (-dF/dp)(t, U)^T v_k (v = nu by default), with the IJacobianP at this shift.
 PetscErrorCode add_parameter_terms(TS ts, ThetaAdjoint &c, PetscReal t, Vec U, PetscReal shift, PetscReal w,
                                    const std::vector<Vec> *v = nullptr) {
+  Mat Jp = ts->Jacp;
   PetscFunctionBegin;
-  PetscCall(TSComputeIJacobianP(ts, t, U, c.Xdot, shift, ts->Jacp, PETSC_FALSE));
+  if (!ts->ijacobianp && ts->rhsjacobianp && ts->Jacprhs == ts->Jacp) {
+    // Only dG/dp (the Simulation's form): what TSComputeIJacobianP gives, -dG/dp, is that matrix
+    // scaled by -1, which a shell then has to undo at its next evaluation (a reassembly): the sign
+    // goes into w instead, exactly.
+    PetscCall(TSComputeRHSJacobianP(ts, t, U, ts->Jacprhs));
+    w = -w;
+  } else PetscCall(TSComputeIJacobianP(ts, t, U, c.Xdot, shift, Jp, PETSC_FALSE));
   for (PetscInt k = 0; k < ts->numcost; ++k) {
-    PetscCall(MatMultTranspose(ts->Jacp, v ? (*v)[k] : c.nu[k], c.dmu));
+    PetscCall(MatMultTranspose(Jp, v ? (*v)[k] : c.nu[k], c.dmu));
     PetscCall(VecAXPY(ts->vecs_sensip[k], w, c.dmu));
   }
   PetscFunctionReturn(0);
