@@ -153,6 +153,34 @@ FaceStencil face_stencil(PetscInt order) {
   return {0, 2, {-1.0, 1.0, 0, 0}, {0.5, 0.5, 0, 0}};
 }
 
+// One-dimensional face kernels (WD = the face stencil's width), on ghosted arrays: the faces the
+// owned points [0, n) touch are k = 0 .. n + WD - 2, face k reading ghosted entries k .. k + WD - 1
+// of a and b (the arrays passed start at the first of them). F_k = (sum_m pa[m] a) (sum_m pb[m] b).
+template <int WD>
+void face_products(PetscInt n, const PetscReal *__restrict pa, const PetscReal *__restrict pb,
+                   const PetscScalar *__restrict a, const PetscScalar *__restrict b, PetscReal *__restrict F) {
+  for (PetscInt k = 0; k < n + WD - 1; ++k) {
+    PetscReal va = 0, vb = 0;
+#pragma GCC unroll 4
+    for (int m = 0; m < WD; ++m) {
+      va += pa[m] * PetscRealPart(a[k + m]);
+      vb += pb[m] * PetscRealPart(b[k + m]);
+    }
+    F[k] = va * vb;
+  }
+}
+// y_i (+)= -sum_q w[q] F_{i + WD - 1 - q} s at the owned points (ADD: added to y).
+template <int WD, bool ADD, class Y>
+void gather_faces(PetscInt n, const PetscReal *__restrict w, PetscReal s, const PetscReal *__restrict F, Y *__restrict y) {
+  for (PetscInt i = 0; i < n; ++i) {
+    PetscReal v = 0;
+#pragma GCC unroll 4
+    for (int q = 0; q < WD; ++q) v -= w[q] * F[i + WD - 1 - q] * s;
+    if (ADD) y[i] += v;
+    else y[i] = v;
+  }
+}
+
 class AdvectionModel final : public LinearModel {
 public:
   const char *name() const override { return "advection"; }
@@ -288,6 +316,7 @@ public:
     for (PetscInt d = 0; d < dim_; ++d) dGdv_[d].assign(grid.local_points(), 0.0);
     dGdD_.assign(grid.local_points(), 0.0);
     if (lazy_) scratch_.assign(grid.local_points(), 0.0);
+    faces_.assign(grid.xm() + 4, 0.0);
     if (diffusion_ && D_field_) gD_.assign(grid.local_points(), 0.0);
     PetscFunctionReturn(0);
   }
@@ -523,6 +552,19 @@ private:
   // (dD, u) for the field-D column of dG/dp.
   void add_face_diffusion(const PetscScalar *c, const PetscScalar *w, PetscScalar *y) const {
     const Grid &g = *grid_;
+    if (dim_ == 1) { // each face once: F_f = (I c)_f (B w)_f, then y -= B^T F / h^2
+      const PetscInt n = g.xm(), f0 = ghost_index(g.xs(), g.ys()) - (face_.offset + face_.width - 1) + face_.offset;
+      PetscReal *F = faces_.data();
+      const PetscReal s = 1.0 / (h_[0] * h_[0]);
+      if (face_.width == 2) {
+        face_products<2>(n, face_.interp.data(), face_.grad.data(), c + f0, w + f0, F);
+        gather_faces<2, true>(n, face_.grad.data(), s, F, y);
+      } else {
+        face_products<4>(n, face_.interp.data(), face_.grad.data(), c + f0, w + f0, F);
+        gather_faces<4, true>(n, face_.grad.data(), s, F, y);
+      }
+      return;
+    }
     PetscInt il = 0;
     for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j)
       for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i, ++il) {
@@ -1055,6 +1097,24 @@ private:
       ConstArray a(m->t3_);
       PetscCall(a.error());
       for (PetscInt il = 0; il < g.local_points(); ++il) gD[il] = PetscRealPart(a[il]);
+    } else if (m->dim_ == 1) { // -I^T (B u .* B x) / h^2, each face once
+      const PetscScalar *u, *xl;
+      PetscCall(m->fill_ghosted(x, m->X_local_));
+      PetscCall(VecGetArrayRead(m->U_local_, &u));
+      PetscCall(VecGetArrayRead(m->X_local_, &xl));
+      const FaceStencil &fs = m->face_;
+      const PetscInt n = g.xm(), f0 = m->ghost_index(g.xs(), g.ys()) - (fs.offset + fs.width - 1) + fs.offset;
+      PetscReal *F = m->faces_.data();
+      const PetscReal s = 1.0 / (m->h_[0] * m->h_[0]);
+      if (fs.width == 2) {
+        face_products<2>(n, fs.grad.data(), fs.grad.data(), u + f0, xl + f0, F);
+        gather_faces<2, false>(n, fs.interp.data(), s, F, gD.data());
+      } else {
+        face_products<4>(n, fs.grad.data(), fs.grad.data(), u + f0, xl + f0, F);
+        gather_faces<4, false>(n, fs.interp.data(), s, F, gD.data());
+      }
+      PetscCall(VecRestoreArrayRead(m->U_local_, &u));
+      PetscCall(VecRestoreArrayRead(m->X_local_, &xl));
     } else { // -sum_d I_d^T (B_d u .* B_d x): faces around each owned D_k
       const PetscScalar *u, *xl;
       PetscCall(m->fill_ghosted(x, m->X_local_));
@@ -1107,6 +1167,7 @@ private:
   unsigned long columns_serial_ = 0;
   FusedProducts fused_;
   std::vector<PetscReal> scratch_;
+  mutable std::vector<PetscReal> faces_; // 1D: one value per face the owned points touch (face kernels)
   PetscObjectId dx_id_ = -1;
   PetscObjectState dx_state_ = -1;
   // dG/dv_d = dGdv_scale_[d] * dGdv_[d] (the scale kept apart: no division per point).
