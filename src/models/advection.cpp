@@ -317,6 +317,7 @@ public:
     dGdD_.assign(grid.local_points(), 0.0);
     if (lazy_) scratch_.assign(grid.local_points(), 0.0);
     faces_.assign(grid.xm() + 4, 0.0);
+    stage_scratch_.assign(grid.local_points(), 0.0);
     if (diffusion_ && D_field_) gD_.assign(grid.local_points(), 0.0);
     PetscFunctionReturn(0);
   }
@@ -1097,44 +1098,108 @@ private:
       ConstArray a(m->t3_);
       PetscCall(a.error());
       for (PetscInt il = 0; il < g.local_points(); ++il) gD[il] = PetscRealPart(a[il]);
-    } else if (m->dim_ == 1) { // -I^T (B u .* B x) / h^2, each face once
+    } else { // finite differences: from the ghosted stage u (fd_columns) and x
       const PetscScalar *u, *xl;
       PetscCall(m->fill_ghosted(x, m->X_local_));
       PetscCall(VecGetArrayRead(m->U_local_, &u));
       PetscCall(VecGetArrayRead(m->X_local_, &xl));
-      const FaceStencil &fs = m->face_;
-      const PetscInt n = g.xm(), f0 = m->ghost_index(g.xs(), g.ys()) - (fs.offset + fs.width - 1) + fs.offset;
-      PetscReal *F = m->faces_.data();
-      const PetscReal s = 1.0 / (m->h_[0] * m->h_[0]);
-      if (fs.width == 2) {
-        face_products<2>(n, fs.grad.data(), fs.grad.data(), u + f0, xl + f0, F);
-        gather_faces<2, false>(n, fs.interp.data(), s, F, gD.data());
-      } else {
-        face_products<4>(n, fs.grad.data(), fs.grad.data(), u + f0, xl + f0, F);
-        gather_faces<4, false>(n, fs.interp.data(), s, F, gD.data());
-      }
-      PetscCall(VecRestoreArrayRead(m->U_local_, &u));
-      PetscCall(VecRestoreArrayRead(m->X_local_, &xl));
-    } else { // -sum_d I_d^T (B_d u .* B_d x): faces around each owned D_k
-      const PetscScalar *u, *xl;
-      PetscCall(m->fill_ghosted(x, m->X_local_));
-      PetscCall(VecGetArrayRead(m->U_local_, &u));
-      PetscCall(VecGetArrayRead(m->X_local_, &xl));
-      PetscInt il = 0;
-      for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j)
-        for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i, ++il) {
-          const PetscInt gk = m->ghost_index(i, j);
-          for (PetscInt d = 0; d < m->dim_; ++d)
-            for (PetscInt q = 0; q < m->face_.width; ++q) {
-              const PetscInt gf = gk - (m->face_.offset + q) * m->stride_[d];
-              gD[il] -= m->face_.interp[q] * m->face_gradient(u, gf, d) * m->face_gradient(xl, gf, d) /
-                        (m->h_[d] * m->h_[d]);
-            }
-        }
+      m->field_D_gradient(u, xl, gD.data());
       PetscCall(VecRestoreArrayRead(m->U_local_, &u));
       PetscCall(VecRestoreArrayRead(m->X_local_, &xl));
     }
     PetscCall(m->params_->add_pointwise(y, m->D_index_, gD));
+    PetscFunctionReturn(0);
+  }
+
+  // g = (dG/dD)^T x for a field D (finite differences), from ghosted u and x: -sum_d I_d^T (B_d u .* B_d x)
+  // / h_d^2 at every owned point; in 1D each face once (face kernels).
+  void field_D_gradient(const PetscScalar *u, const PetscScalar *xl, PetscReal *gD) const {
+    const Grid &g = *grid_;
+    if (dim_ == 1) {
+      const FaceStencil &fs = face_;
+      const PetscInt n = g.xm(), f0 = ghost_index(g.xs(), g.ys()) - (fs.width - 1);
+      PetscReal *F = faces_.data();
+      const PetscReal s = 1.0 / (h_[0] * h_[0]);
+      if (fs.width == 2) {
+        face_products<2>(n, fs.grad.data(), fs.grad.data(), u + f0, xl + f0, F);
+        gather_faces<2, false>(n, fs.interp.data(), s, F, gD);
+      } else {
+        face_products<4>(n, fs.grad.data(), fs.grad.data(), u + f0, xl + f0, F);
+        gather_faces<4, false>(n, fs.interp.data(), s, F, gD);
+      }
+      return;
+    }
+    PetscInt il = 0;
+    for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j)
+      for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i, ++il) {
+        const PetscInt gk = ghost_index(i, j);
+        gD[il] = 0;
+        for (PetscInt d = 0; d < dim_; ++d)
+          for (PetscInt q = 0; q < face_.width; ++q) {
+            const PetscInt gf = gk - (face_.offset + q) * stride_[d];
+            gD[il] -= face_.interp[q] * face_gradient(u, gf, d) * face_gradient(xl, gf, d) / (h_[d] * h_[d]);
+          }
+      }
+  }
+
+  // An explicit RK adjoint stage at state U (finite differences): y = A^T x and mu += (dG/dp)^T x in
+  // one pass over the ghosted x: the velocities' -<u, D_d^T x> / h_d, a scalar D's <u, B^T B x>-column
+  // (local sums, reduced once per adjoint by the Parameters), a field D's face products with u.
+  bool has_stage_adjoint() const override { return scheme_ != SPECTRAL && fuse_adjoint_; }
+  PetscErrorCode stage_adjoint(PetscReal, Vec U, Vec x, Vec y, Vec mu) override {
+    const PetscScalar *xl, *u, *D = nullptr;
+    PetscReal local[3] = {0, 0, 0};
+    const bool field = diffusion_ && D_field_;
+    const PetscInt n = grid_->local_points(), nd = dim_;
+    PetscFunctionBeginUser;
+    PetscCall(fill_ghosted(x, X_local_));
+    PetscCall(VecGetArrayRead(X_local_, &xl));
+    PetscCall(VecGetArrayRead(U, &u));
+    if (field) PetscCall(VecGetArrayRead(D_local_, &D));
+    {
+      Array Y(y);
+      PetscCall(Y.error());
+      PetscScalar *ya = Y.data();
+      if (nd == 1 && !diffusion_) { // A^T = -(a / h) D^T: one sweep for both
+        sweep(xl, vel_taps_t_[0], ya);
+        local[0] = -1.0 / h_[0] * dot4(ya, u, n);
+        const PetscReal s = vel_[0] * (-1.0 / h_[0]);
+        for (PetscInt il = 0; il < n; ++il) ya[il] *= s;
+      } else {
+        sweep(xl, at_taps_, ya);
+        if (field) add_face_diffusion(D, xl, ya);
+        if (mu) {
+          PetscReal *z = stage_scratch_.data();
+          for (PetscInt d = 0; d < nd; ++d) {
+            sweep(xl, vel_taps_t_[d], z);
+            local[d] = -1.0 / h_[d] * dot4(z, u, n);
+          }
+          if (diffusion_ && !field) {
+            sweep(xl, lap_taps_, z);
+            local[nd] = dot4(z, u, n);
+          }
+        }
+      }
+    }
+    PetscCall(VecRestoreArrayRead(U, &u));
+    if (field) PetscCall(VecRestoreArrayRead(D_local_, &D));
+    if (mu) {
+      for (PetscInt d = 0; d < nd; ++d) PetscCall(params_->add_local_sum(mu, vel_index_[d], local[d]));
+      if (diffusion_ && !field) PetscCall(params_->add_local_sum(mu, D_index_, local[nd]));
+      if (field) {
+        const PetscScalar *ul;
+        PetscCall(fill_ghosted(U, U_local_));
+        PetscCall(VecGetArrayRead(U_local_, &ul));
+        field_D_gradient(ul, xl, gD_.data());
+        PetscCall(VecRestoreArrayRead(U_local_, &ul));
+        const ParamInfo &pi = params_->info(D_index_);
+        PetscScalar *g;
+        PetscCall(VecGetArray(mu, &g));
+        for (PetscInt il = 0; il < pi.local_size; ++il) g[pi.local_offset + il] += gD_[il];
+        PetscCall(VecRestoreArray(mu, &g));
+      }
+    }
+    PetscCall(VecRestoreArrayRead(X_local_, &xl));
     PetscFunctionReturn(0);
   }
 
@@ -1167,6 +1232,7 @@ private:
   unsigned long columns_serial_ = 0;
   FusedProducts fused_;
   std::vector<PetscReal> scratch_;
+  std::vector<PetscReal> stage_scratch_;  // stage_adjoint's sweeps
   mutable std::vector<PetscReal> faces_; // 1D: one value per face the owned points touch (face kernels)
   PetscObjectId dx_id_ = -1;
   PetscObjectState dx_state_ = -1;
