@@ -169,6 +169,35 @@ void face_products(PetscInt n, const PetscReal *__restrict pa, const PetscReal *
     F[k] = va * vb;
   }
 }
+// A 1D field-D RK adjoint stage's face work in one pass over the faces and one over the points:
+// y = a y - B^T diag(I D) B x / h^2 (Df = I D at the faces) and, unless g is null,
+// g += -I^T (B u .* B x) / h^2 (a field D's gradient); x, u ghosted from the first face's first entry.
+template <int WD>
+void field_stage_faces(PetscInt n, const PetscReal *__restrict Df, const PetscReal *__restrict gr,
+                       const PetscReal *__restrict ip, const PetscScalar *__restrict x, const PetscScalar *__restrict u,
+                       PetscReal s, PetscReal a, PetscReal *__restrict F1, PetscReal *__restrict F2,
+                       PetscScalar *__restrict y, PetscScalar *__restrict g) {
+  for (PetscInt k = 0; k < n + WD - 1; ++k) {
+    PetscReal bx = 0, bu = 0;
+#pragma GCC unroll 4
+    for (int m = 0; m < WD; ++m) {
+      bx += gr[m] * PetscRealPart(x[k + m]);
+      bu += gr[m] * PetscRealPart(u[k + m]);
+    }
+    F1[k] = Df[k] * bx;
+    F2[k] = bu * bx;
+  }
+  for (PetscInt i = 0; i < n; ++i) {
+    PetscReal v1 = 0, v2 = 0;
+#pragma GCC unroll 4
+    for (int q = 0; q < WD; ++q) {
+      v1 -= gr[q] * F1[i + WD - 1 - q] * s;
+      v2 -= ip[q] * F2[i + WD - 1 - q] * s;
+    }
+    y[i] = a * y[i] + v1;
+    if (g) g[i] += v2;
+  }
+}
 // y_i (+)= -sum_q w[q] F_{i + WD - 1 - q} s at the owned points (ADD: added to y).
 template <int WD, bool ADD, class Y>
 void gather_faces(PetscInt n, const PetscReal *__restrict w, PetscReal s, const PetscReal *__restrict F, Y *__restrict y) {
@@ -317,6 +346,7 @@ public:
     dGdD_.assign(grid.local_points(), 0.0);
     if (lazy_) scratch_.assign(grid.local_points(), 0.0);
     faces_.assign(grid.xm() + 4, 0.0);
+    faces2_.assign(grid.xm() + 4, 0.0);
     stage_scratch_.assign(grid.local_points(), 0.0);
     if (diffusion_ && D_field_) gD_.assign(grid.local_points(), 0.0);
     PetscFunctionReturn(0);
@@ -379,6 +409,7 @@ public:
       else {
         PetscCall(DMGlobalToLocal(grid_->dm(), D_, INSERT_VALUES, D_local_));
         PetscCall(face_diffusivity_range());
+        PetscCall(cache_face_diffusivity());
       }
     }
     if (scheme_ != SPECTRAL) set_taps();
@@ -1142,6 +1173,25 @@ private:
       }
   }
 
+  // 1D field D: (I D)_f at the faces the owned points touch (as face_products indexes them), for
+  // stage_adjoint's diffusion transpose: D changes only with the parameters.
+  PetscErrorCode cache_face_diffusivity() {
+    const PetscScalar *D;
+    PetscFunctionBeginUser;
+    if (dim_ != 1) PetscFunctionReturn(0);
+    const Grid &g = *grid_;
+    const PetscInt n = g.xm(), f0 = ghost_index(g.xs(), g.ys()) - (face_.width - 1);
+    face_D_.assign(n + face_.width - 1, 0.0);
+    PetscCall(VecGetArrayRead(D_local_, &D));
+    for (PetscInt k = 0; k < n + face_.width - 1; ++k) {
+      PetscReal v = 0;
+      for (PetscInt m = 0; m < face_.width; ++m) v += face_.interp[m] * PetscRealPart(D[f0 + k + m]);
+      face_D_[k] = v;
+    }
+    PetscCall(VecRestoreArrayRead(D_local_, &D));
+    PetscFunctionReturn(0);
+  }
+
   // An explicit RK adjoint stage at state U (finite differences): y = A^T x and mu += (dG/dp)^T x in
   // one pass over the ghosted x: the velocities' -<u, D_d^T x> / h_d, a scalar D's <u, B^T B x>-column
   // (local sums, reduced once per adjoint by the Parameters), a field D's face products with u.
@@ -1150,6 +1200,7 @@ private:
     const PetscScalar *xl, *u, *D = nullptr;
     PetscReal local[3] = {0, 0, 0};
     const bool field = diffusion_ && D_field_;
+    bool field_done = false; // the field D's gradient added already (1D)
     const PetscInt n = grid_->local_points(), nd = dim_;
     PetscFunctionBeginUser;
     PetscCall(fill_ghosted(x, X_local_));
@@ -1160,11 +1211,28 @@ private:
       Array Y(y);
       PetscCall(Y.error());
       PetscScalar *ya = Y.data();
-      if (nd == 1 && !diffusion_) { // A^T = -(a / h) D^T: one sweep for both
+      if (nd == 1 && (!diffusion_ || field)) { // A^T = -(a / h) D^T (+ the field's faces): one sweep for both
         sweep(xl, vel_taps_t_[0], ya);
         local[0] = -1.0 / h_[0] * dot4(ya, u, n);
         const PetscReal s = vel_[0] * (-1.0 / h_[0]);
-        for (PetscInt il = 0; il < n; ++il) ya[il] *= s;
+        if (!field)
+          for (PetscInt il = 0; il < n; ++il) ya[il] *= s;
+        else { // the scaling, the faces: J^T's diffusion (cached face D) and, with mu, D's gradient
+          const PetscScalar *ul;
+          PetscScalar *g = nullptr;
+          PetscCall(fill_ghosted(U, U_local_));
+          PetscCall(VecGetArrayRead(U_local_, &ul));
+          if (mu) PetscCall(VecGetArray(mu, &g));
+          PetscScalar *gD = g ? g + params_->info(D_index_).local_offset : nullptr;
+          const PetscInt f0 = ghost_index(grid_->xs(), grid_->ys()) - (face_.width - 1);
+          const PetscReal *Df = face_D_.data(), *gr = face_.grad.data(), *ip = face_.interp.data();
+          const PetscReal ih2 = 1.0 / (h_[0] * h_[0]);
+          if (face_.width == 2) field_stage_faces<2>(n, Df, gr, ip, xl + f0, ul + f0, ih2, s, faces_.data(), faces2_.data(), ya, gD);
+          else field_stage_faces<4>(n, Df, gr, ip, xl + f0, ul + f0, ih2, s, faces_.data(), faces2_.data(), ya, gD);
+          if (g) PetscCall(VecRestoreArray(mu, &g));
+          PetscCall(VecRestoreArrayRead(U_local_, &ul));
+          field_done = true;
+        }
       } else {
         sweep(xl, at_taps_, ya);
         if (field) add_face_diffusion(D, xl, ya);
@@ -1186,7 +1254,7 @@ private:
     if (mu) {
       for (PetscInt d = 0; d < nd; ++d) PetscCall(params_->add_local_sum(mu, vel_index_[d], local[d]));
       if (diffusion_ && !field) PetscCall(params_->add_local_sum(mu, D_index_, local[nd]));
-      if (field) {
+      if (field && !field_done) {
         const PetscScalar *ul;
         PetscCall(fill_ghosted(U, U_local_));
         PetscCall(VecGetArrayRead(U_local_, &ul));
@@ -1233,6 +1301,8 @@ private:
   FusedProducts fused_;
   std::vector<PetscReal> scratch_;
   std::vector<PetscReal> stage_scratch_;  // stage_adjoint's sweeps
+  std::vector<PetscReal> face_D_;         // 1D field D: D at the faces (cache_face_diffusivity)
+  std::vector<PetscReal> faces2_;       // 1D: stage_adjoint's second face array
   mutable std::vector<PetscReal> faces_; // 1D: one value per face the owned points touch (face kernels)
   PetscObjectId dx_id_ = -1;
   PetscObjectState dx_state_ = -1;
