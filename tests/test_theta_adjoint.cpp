@@ -3,7 +3,8 @@
 // the midpoint theta method and an endpoint theta method; linear models with the factored shifted
 // operator (1 rank) and with PETSc's assembled path (2 ranks: MUMPS), a matrix-free spectral
 // operator (GMRES), the nonlinear Vlasov-Poisson model (GMRES on its Jacobian shell), field and
-// scalar parameters, and binomial checkpointing (forward steps re-run inside the adjoint). Both
+// scalar parameters, and binomial checkpointing (forward steps re-run inside the adjoint); and full
+// storage (for the endpoint forms only the solutions) against PETSc's memory trajectory. Both
 // steps do the same arithmetic, so the tolerance is round-off; each gradient is checked to be
 // nonzero, so the comparison means something.
 #include "flexipde/scene.hpp"
@@ -43,8 +44,9 @@ struct ThetaRun {
   OwnedVec g;
 };
 
-PetscErrorCode gradient_once(const char *direct, ThetaRun &r) {
+PetscErrorCode gradient_once(const char *direct, ThetaRun &r, const char *trajectory = nullptr) {
   ScopedOptions o{{"-theta_direct_adjoint", direct}};
+  if (trajectory) o.set("-ts_trajectory_type", trajectory);
   flexipde_test::SceneProblem pb;
   PetscFunctionBeginUser;
   PetscCall(pb.setup(PETSC_COMM_WORLD));
@@ -69,6 +71,19 @@ TEST_P(ThetaAdjoint, SameGradientAsPetscTheta) {
   EXPECT_GT(flexipde_test::norm(petsc.g), 0.0);
   EXPECT_EQ(direct.J, petsc.J);
   EXPECT_LE(rel_diff(direct.g, petsc.g), 1e-12); // endpoint forms: the parameter products paired, round-off
+}
+
+// Full storage ("store") keeps an endpoint form's solutions only and hands the adjoint U_{k-1} and U_k
+// as its two stages; PETSc's memory trajectory stores the stages themselves: the same gradient.
+TEST_P(ThetaAdjoint, SameGradientAsPetscMemoryTrajectory) {
+  ScopedOptions opts;
+  for (auto &o : GetParam().options) opts.set(o.first, o.second);
+  ThetaRun store, memory;
+  PETSC_ASSERT_OK(gradient_once("1", store));
+  PETSC_ASSERT_OK(gradient_once("1", memory, "memory"));
+  EXPECT_GT(flexipde_test::norm(memory.g), 0.0);
+  EXPECT_EQ(store.J, memory.J);
+  EXPECT_LE(rel_diff(store.g, memory.g), 1e-13);
 }
 
 INSTANTIATE_TEST_SUITE_P(

@@ -126,7 +126,7 @@ PetscErrorCode register_store_trajectory();
 PetscErrorCode store_trajectory_use_buffer(TSTrajectory tj, StateBuffer *buffer);
 PetscInt64 store_trajectory_recomputed(TSTrajectory tj);
 PetscInt store_trajectory_states(TSTrajectory tj);
-bool store_trajectory_keeps_stages(TSTrajectory tj); // each step's stages stored too: nothing re-run
+bool store_trajectory_keeps_stages(TSTrajectory tj); // every step's stages at hand (stored, or solutions themselves): nothing re-run
 PetscReal store_trajectory_mb(TSTrajectory tj);      // memory of the states stored so far on this rank (MB)
 
 // Called on a TS before TSSetFromOptions: saves the trajectory for TSAdjointSolve as full storage

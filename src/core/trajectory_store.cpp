@@ -62,6 +62,10 @@ struct StoreTrajectory {
   // (rk_n entries per stage), copied from the TS's stages after the step with streaming stores and
   // placed for the adjoint in place; nothing else is stored (U_k is never read).
   PetscInt rk_pairs = 0, rk_n = 0;
+  // An endpoint theta method (cn, beuler, -ts_theta_endpoint): its two stages are U_{k-1} and U_k, both
+  // stored as solutions, so only the solutions are kept and Get hands it both (no stage copies, no
+  // re-run, a third of the memory).
+  bool theta_endpoint = false;
   PetscBool positions_only = PETSC_TRUE; // -checkpoint_positions_only
   PetscBool prefetch = PETSC_TRUE;       // -checkpoint_prefetch
   PetscBool stream = PETSC_TRUE;         // -checkpoint_stream_stores
@@ -166,7 +170,18 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
   PetscCall(VecGetLocalSize(ts->vec_sol, &st->nlocal));
   PetscCall(TSGetStages(ts, &st->nstages, nullptr));
   st->keep_stages = false;
-  if (!is_leapfrog(ts) && st->nstages > 0 && st->keep_stages_option) {
+  st->theta_endpoint = false;
+  {
+    PetscBool theta;
+    PetscCall(PetscObjectTypeCompareAny((PetscObject)ts, &theta, TSTHETA, TSCN, TSBEULER, ""));
+    if (theta && ts->max_steps < PETSC_MAX_INT) {
+      Vec *Y;
+      PetscInt ns;
+      PetscCall(TSGetStages(ts, &ns, &Y));
+      st->theta_endpoint = ns == 2 && Y[1] == ts->vec_sol; // {U_{k-1}, U_k}: PETSc's endpoint forms
+    }
+  }
+  if (!is_leapfrog(ts) && !st->theta_endpoint && st->nstages > 0 && st->keep_stages_option) {
     if (st->keep_stages_set) st->keep_stages = true;
     else if (ts->max_steps < PETSC_MAX_INT) { // by default only within the memory cap, decided alike on every rank
       PetscReal mb = (PetscReal)(ts->max_steps + 1) * (1 + st->nstages) * st->nlocal * sizeof(PetscScalar) / 1048576.0;
@@ -302,7 +317,15 @@ PetscErrorCode store_get(TSTrajectory tj, TS ts, PetscInt k, PetscReal *t) {
       st->lf_placed = true;
     }
   }
-  if (st->rk_pairs) { // the positions of the stages of step k-1 -> k, read in place
+  if (st->theta_endpoint) { // the stages U_{k-1} and U_k (U_last is still in the TS)
+    Vec *Y;
+    PetscCall(TSGetStages(ts, nullptr, &Y));
+    PetscCall(copy_out(*st, k - 1, 0, Y[0]));
+    if (k < st->last) PetscCall(copy_out(*st, k, 0, ts->vec_sol));
+    if (st->prefetch) prefetch_slot(*st, k - 2);
+    ts->ptime = st->times[k];
+    ts->ptime_prev = st->times[k - 1];
+  } else if (st->rk_pairs) { // the positions of the stages of step k-1 -> k, read in place
     PetscCall(rk_adjoint_place_positions(ts, at(*st, k - 1, 0), st->rk_n));
     if (st->prefetch) prefetch_slot(*st, k - 2);
     ts->ptime = st->times[k];
@@ -423,7 +446,7 @@ PetscErrorCode store_trajectory_use_buffer(TSTrajectory tj, StateBuffer *buffer)
 
 PetscInt64 store_trajectory_recomputed(TSTrajectory tj) { return context(tj)->recomputed; }
 PetscInt store_trajectory_states(TSTrajectory tj) { return context(tj)->last; } // U_0 .. U_{n-1}
-bool store_trajectory_keeps_stages(TSTrajectory tj) { return context(tj)->keep_stages; }
+bool store_trajectory_keeps_stages(TSTrajectory tj) { return context(tj)->keep_stages || context(tj)->theta_endpoint; }
 PetscReal store_trajectory_mb(TSTrajectory tj) {
   const StoreTrajectory *st = context(tj);
   return (PetscReal)(st->last + 1) * st->slot * sizeof(PetscScalar) / 1048576.0;
