@@ -94,7 +94,11 @@ class RkPositions : public RkAdjoint {};
 
 } // namespace
 
-TEST_P(RkPositions, HalfTheMemorySameGradient) {
+namespace {
+
+// The gradient with full storage as configured (stages' positions alone when the adjoint can use them)
+// against whole stages (-checkpoint_positions_only 0): bitwise the same, with `ratio` times the memory.
+void expect_positions_memory(Scene &scene, Vec p, PetscReal ratio) {
   OwnedVec p_true, g1, g0;
   PetscReal J1, J0;
   flexipde_test::data_and_gradient(scene, p, p_true, g1, &J1);
@@ -108,11 +112,75 @@ TEST_P(RkPositions, HalfTheMemorySameGradient) {
   const PetscReal mb_whole = scene.sim.checkpoint_stats().stored_mb;
   flexipde_test::expect_gradients_match(J1, J0, g1, g0, 1e-300); // bitwise
   EXPECT_GT(mb_whole, 0.0);
-  EXPECT_DOUBLE_EQ(mb_positions / mb_whole, 0.5);
+  EXPECT_DOUBLE_EQ(mb_positions / mb_whole, ratio);
 }
+
+} // namespace
+
+TEST_P(RkPositions, HalfTheMemorySameGradient) { expect_positions_memory(scene, p, 0.5); }
 
 TEST_P(RkPositions, SameGradientAsJacobianTransposes) {
   flexipde_test::expect_same_gradient_other_setup(scene, p, {}, {{"-wave_fused_adjoint", "0"}}, 1e-12);
 }
 
 INSTANTIATE_TEST_SUITE_P(Wave, RkPositions, ::testing::ValuesIn(positions_cases()), rk_name);
+
+// The 2D wave's fused stage products (wave2d's Model::stage_adjoint: J^T and (dG/dc)^T in one sweep)
+// give the gradient of its two Jacobian transposes (-rk_stage_adjoint 0) to round-off, for field and
+// scalar speeds (the scalar's sums deferred to one reduction), with and without the sponge, on grids
+// that 2 ranks split along x (23 x 19) and along y (19 x 23). Without a sponge the model is in
+// second-order form and full storage keeps only the stages' positions: half the memory, the same
+// gradient bitwise. With one, G_v depends on v (second_order_pairs() = 0): whole stages are stored.
+namespace {
+
+struct Wave2DStageCase {
+  RkCase rk;
+  PetscReal memory_ratio; // stored by default / stored with -checkpoint_positions_only 0
+};
+
+std::vector<Wave2DStageCase> wave2d_stage_cases() {
+  const auto all = rk_cases();
+  auto wave2d = [](const char *name, const char *nx, const char *ny, const char *field, const char *sponge,
+                   const char *rk) {
+    return RkCase{name,
+                  {{"-model", "wave2d"}, {"-da_grid_x", nx}, {"-da_grid_y", ny}, {"-wave2d_c_field", field},
+                   {"-wave2d_sponge_width", sponge}, {"-wave2d_ic", "pulse"}, {"-wave2d_ic_width", "0.2"},
+                   {"-ts_rk_type", rk}},
+                  1e-12};
+  };
+  return {
+      {wave2d("wave2d_rk4_field", "23", "19", "1", "0", "4"), 0.5},
+      {wave2d("wave2d_rk3_scalar", "19", "23", "0", "0", "3"), 0.5},
+      {all[4], 1.0}, // wave2d_sponge_rk4_field
+      {wave2d("wave2d_sponge_rk3_scalar", "19", "23", "0", "0.2", "3"), 1.0},
+  };
+}
+
+class RkPositionsWave2D : public ::testing::TestWithParam<Wave2DStageCase> {
+protected:
+  void SetUp() override {
+    opts_.set("-ts_max_time", "0.1");
+    opts_.set("-ts_dt", "2e-3");
+    opts_.set("-ts_type", "rk");
+    for (auto &o : GetParam().rk.opts) opts_.set(o.first, o.second);
+    PETSC_ASSERT_OK(scene.setup(PETSC_COMM_WORLD));
+    PETSC_ASSERT_OK(scene.params.create_vec(p.out()));
+    PETSC_ASSERT_OK(scene.parameters_from_options("", p));
+  }
+  ScopedOptions opts_;
+  Scene scene;
+  OwnedVec p;
+};
+
+std::string wave2d_stage_name(const ::testing::TestParamInfo<Wave2DStageCase> &i) { return i.param.rk.name; }
+
+} // namespace
+
+TEST_P(RkPositionsWave2D, SameGradientAsJacobianTransposes) {
+  ASSERT_TRUE(scene.model->has_stage_adjoint());
+  expect_same_gradient(scene, p, {}, {{"-rk_stage_adjoint", "0"}}, GetParam().rk.tol);
+}
+
+TEST_P(RkPositionsWave2D, PositionsMemorySameGradient) { expect_positions_memory(scene, p, GetParam().memory_ratio); }
+
+INSTANTIATE_TEST_SUITE_P(Wave2D, RkPositionsWave2D, ::testing::ValuesIn(wave2d_stage_cases()), wave2d_stage_name);

@@ -22,7 +22,10 @@
 // serves implicit integrators and PETSc's RK/theta adjoints. Without a sponge the model also offers
 // the leapfrog's fused adjoint (Model::second_order_adjoint): one sweep gives
 // lambda_u += w L (c^2 lambda_v) (c^2 taken as 0 on the edge rows, which A does not have) and
-// mu += w 2 c (L u) lambda_v.
+// mu += w 2 c (L u) lambda_v. For the explicit RK adjoint it offers the stage products fused
+// (Model::stage_adjoint, sponge or not): one sweep gives y = (dG/dU)^T x and mu += (dG/dc)^T x, the
+// numbers of the two transposes above; without a sponge they also take a stage's u alone, so that
+// full storage keeps only the stages' positions (half the memory).
 //
 // Initial condition (-wave2d_ic zero|pulse): zero (waves from point sources, survey.hpp), or a
 // Gaussian exp(-|x - x_c|^2 / w^2) at rest (-wave2d_ic_x, -wave2d_ic_y, -wave2d_ic_width).
@@ -42,6 +45,59 @@
 
 namespace flexipde {
 namespace {
+
+// One row of the RK adjoint stage's operands made contiguous (Wave2DModel::stage_adjoint): z = c^2 x_v
+// (x interleaved (u, v)) and u (read at stride SU: 2 in a whole (u, v) state, 1 in positions alone).
+template <int SU>
+void stage_operands(PetscInt n, const PetscScalar *__restrict X, const PetscScalar *__restrict u,
+                    const PetscReal *__restrict c2, PetscReal *__restrict z, PetscReal *__restrict ur) {
+  for (PetscInt i = 0; i < n; ++i) z[i] = c2[i] * PetscRealPart(X[2 * i + 1]);
+  for (PetscInt i = 0; i < n; ++i) ur[i] = PetscRealPart(u[SU * i]);
+}
+
+// The interior points [k0, k1) of one row (all four neighbours owned, xm apart in y) of the RK adjoint
+// stage (Wave2DModel::stage_adjoint): y = [L (c^2 x_v) ; x_u - sigma x_v] and g = 2 c (L u) x_v, added
+// to g when ADD (a field's gradient), else written (a scalar's terms); u at stride SU (2: a whole
+// (u, v) state, 1: positions alone), sigma only when SPONGE. The expressions of jmf_apply<true> and
+// jp_mult_transpose, term by term.
+template <int SU, bool SPONGE, bool ADD>
+void stage_interior_row(PetscInt k0, PetscInt k1, PetscInt xm, PetscReal ax, PetscReal ay, PetscReal a0,
+                        const PetscScalar *__restrict X, const PetscScalar *__restrict u,
+                        const PetscReal *__restrict c2, const PetscReal *__restrict tc,
+                        const PetscReal *__restrict sig, PetscScalar *__restrict Y, PetscReal *__restrict g) {
+  for (PetscInt k = k0; k < k1; ++k) {
+    const PetscReal lu = ax * (PetscRealPart(u[SU * (k - 1)]) + PetscRealPart(u[SU * (k + 1)])) +
+                         ay * (PetscRealPart(u[SU * (k - xm)]) + PetscRealPart(u[SU * (k + xm)])) +
+                         a0 * PetscRealPart(u[SU * k]);
+    const PetscReal xv = PetscRealPart(X[2 * k + 1]);
+    const PetscReal lz = ax * (c2[k - 1] * PetscRealPart(X[2 * (k - 1) + 1]) + c2[k + 1] * PetscRealPart(X[2 * (k + 1) + 1])) +
+                         ay * (c2[k - xm] * PetscRealPart(X[2 * (k - xm) + 1]) + c2[k + xm] * PetscRealPart(X[2 * (k + xm) + 1])) +
+                         a0 * (c2[k] * xv);
+    Y[2 * k] = lz;
+    Y[2 * k + 1] = SPONGE ? X[2 * k] - sig[k] * X[2 * k + 1] : X[2 * k];
+    if (ADD) g[k] += tc[k] * lu * xv;
+    else g[k] = tc[k] * lu * xv;
+  }
+}
+
+// The same for n points of a row whose operands z = c^2 x_v and u were made contiguous (stage_operands,
+// ghosts included): rows m, 0, p below, at and above it, z0[-1] and z0[n] its left and right neighbours.
+template <bool SPONGE, bool ADD>
+void stage_row(PetscInt n, PetscReal ax, PetscReal ay, PetscReal a0, const PetscReal *__restrict zm,
+               const PetscReal *__restrict z0, const PetscReal *__restrict zp, const PetscReal *__restrict um,
+               const PetscReal *__restrict u0, const PetscReal *__restrict up, const PetscScalar *__restrict X,
+               const PetscReal *__restrict tc, const PetscReal *__restrict sig, PetscScalar *__restrict Y,
+               PetscReal *__restrict g) {
+  for (PetscInt i = 0; i < n; ++i) {
+    const PetscReal lu = ax * (u0[i - 1] + u0[i + 1]) + ay * (um[i] + up[i]) + a0 * u0[i];
+    const PetscReal lz = ax * (z0[i - 1] + z0[i + 1]) + ay * (zm[i] + zp[i]) + a0 * z0[i];
+    const PetscReal xv = PetscRealPart(X[2 * i + 1]);
+    Y[2 * i] = lz;
+    Y[2 * i + 1] = SPONGE ? X[2 * i] - sig[i] * X[2 * i + 1] : X[2 * i];
+    if (ADD) g[i] += tc[i] * lu * xv;
+    else g[i] = tc[i] * lu * xv;
+  }
+}
 
 class Wave2DModel final : public LinearModel {
 public:
@@ -103,6 +159,7 @@ public:
     ihx2_ = 1.0 / (grid.h() * grid.h());
     ihy2_ = 1.0 / (grid.hy() * grid.hy());
     gbuf_.assign(n, 0.0);
+    rows_.assign(6 * (grid.xm() + 2), 0.0);
     sigma_.assign(n, 0.0);
     for (PetscInt k = 0; k < n; ++k) {
       const PetscInt i = grid.xs() + k % grid.xm(), j = grid.ys() + k / grid.xm();
@@ -255,23 +312,133 @@ public:
       }
       PetscCall(halo_u.end(U));
       PetscCall(halo_v_.end(lambda));
-      auto uat = [&](PetscInt il, PetscInt jl) {
-        return PetscRealPart(inside(il, jl) ? ua[SU * (jl * xm + il)] : halo_u(il, jl));
-      };
-      auto zat = [&](PetscInt il, PetscInt jl) {
-        if (inside(il, jl)) return c2[jl * xm + il] * PetscRealPart(L[2 * (jl * xm + il) + 1]);
+      PetscCall(perimeter_laps<SU>(ua, L, halo_u, body));
+      if (g) PetscCall(VecRestoreArray(mu, &g));
+    }
+    PetscFunctionReturn(0);
+  }
+
+  // The explicit RK adjoint's stage products (rk_adjoint.hpp) in one sweep, at a stage U (a whole
+  // state, or u alone when there is no sponge):
+  //   y = (dG/dU)^T x = [L (c^2 x_v) ; x_u - sigma x_v]  (L (c^2 x_v) at every point, edge columns
+  //       included as in A^T; the second block 0 on the edge rows)
+  //   mu += (dG/dc)^T x = 2 c (L u) x_v  off the edges (a scalar c: its sum, deferred to the Parameters).
+  // The same expressions as jmf_apply<true> and jp_mult_transpose: a field's gradient equals theirs
+  // bitwise, a scalar's up to the order of the sum. dG/dU and dG/dc read u only, sponge or not; but
+  // with a sponge G_v depends on v, so the model is not in second-order form (second_order_pairs() =
+  // 0) and its stages are stored whole.
+  bool has_stage_adjoint() const override { return true; }
+  bool stage_adjoint_takes_positions() const override { return sponge_width_ <= 0; }
+  PetscErrorCode stage_adjoint(PetscReal, Vec U, Vec x, Vec y, Vec mu) override {
+    PetscReal local[4] = {0, 0, 0, 0};
+    PetscInt nu;
+    PetscFunctionBeginUser;
+    PetscCall(VecGetLocalSize(U, &nu));
+    const bool sponge = sponge_width_ > 0;
+    if (nu == grid_->local_points()) {
+      PetscCheck(!sponge, grid_->comm(), PETSC_ERR_ARG_WRONG, "wave2d: a stage's positions alone with a sponge");
+      PetscCall(stage_sweep<1, false>(U, x, y, mu, local));
+    } else if (sponge) PetscCall(stage_sweep<2, true>(U, x, y, mu, local));
+    else PetscCall(stage_sweep<2, false>(U, x, y, mu, local));
+    if (mu && !c_field_) PetscCall(params_->add_local_sum(mu, c_index_, local[0] + local[1] + local[2] + local[3]));
+    PetscFunctionReturn(0);
+  }
+
+  // stage_adjoint's sweep, u read at stride SU in U, SPONGE: sigma read (else 0).
+  template <int SU, bool SPONGE>
+  PetscErrorCode stage_sweep(Vec U, Vec x, Vec y, Vec mu, PetscReal local[4]) {
+    const PetscInt xm = grid_->xm(), ym = grid_->ym(), w = xm + 2;
+    Halo &halo_u = SU == 1 ? halo_q_ : halo_u_;
+    PetscFunctionBeginUser;
+    PetscCall(halo_u.begin(U));
+    PetscCall(halo_v_.begin(x));
+    {
+      ConstArray u(U), xa(x);
+      Array ya(y);
+      PetscCall(u.error());
+      PetscCall(xa.error());
+      PetscCall(ya.error());
+      PetscScalar *gm = nullptr;
+      if (mu && c_field_) PetscCall(VecGetArray(mu, &gm));
+      const PetscScalar *ua = u.data(), *X = xa.data();
+      PetscScalar *Y = ya.data();
+      const PetscReal *c2 = c2m_.data(), *tc = two_c_.data(), *sig = sigma_.data();
+      const PetscReal ax = ihx2_, ay = ihy2_, a0 = -2 * (ihx2_ + ihy2_);
+      // A field's gradient is added in place; a scalar's per-point terms are written to gbuf_ and
+      // summed per row (no reduction inside the loop, which keeps it vectorised).
+      PetscReal *g = gm ? gm + params_->info(c_index_).local_offset : gbuf_.data();
+      // the interior (all four neighbours owned), while the ghosts travel
+      for (PetscInt jl = 1; jl < ym - 1; ++jl) {
+        const PetscInt k0 = jl * xm + 1, k1 = jl * xm + xm - 1;
+        if (k1 <= k0) break;
+        if (gm) stage_interior_row<SU, SPONGE, true>(k0, k1, xm, ax, ay, a0, X, ua, c2, tc, sig, Y, g);
+        else {
+          stage_interior_row<SU, SPONGE, false>(k0, k1, xm, ax, ay, a0, X, ua, c2, tc, sig, Y, g);
+          if (mu) sum4(g, k0, k1, local);
+        }
+      }
+      PetscCall(halo_u.end(U));
+      PetscCall(halo_v_.end(x));
+      // ghost z: 0 at an edge point (and beyond a wall, where the halo reads 0), else c^2 x_v
+      auto zg = [&](PetscInt il, PetscInt jl) {
         if (edge_point(grid_->xs() + il, grid_->ys() + jl)) return 0.0;
         const PetscReal c = PetscRealPart(halo_c_(il, jl));
         return c * c * PetscRealPart(halo_v_(il, jl));
       };
-      PetscCall(for_perimeter([&](PetscInt il, PetscInt jl) {
-        const PetscInt k = jl * xm + il;
-        const PetscReal lz = ax * (zat(il - 1, jl) + zat(il + 1, jl)) + ay * (zat(il, jl - 1) + zat(il, jl + 1)) + a0 * zat(il, jl);
-        const PetscReal lu = edge_[k] ? 0.0 : ax * (uat(il - 1, jl) + uat(il + 1, jl)) + ay * (uat(il, jl - 1) + uat(il, jl + 1)) + a0 * uat(il, jl);
-        body(k, lu, lz);
-        return PetscErrorCode(0);
-      }));
-      if (g) PetscCall(VecRestoreArray(mu, &g));
+      // The first and last rows whole, from their rows of z = c^2 x_v and u and those below and above
+      // made contiguous with their ghosts (stage_operands; three rows of xm + 2, entry 1 + il, the two
+      // ends for the ghosts).
+      PetscReal *zr = rows_.data(), *ur = zr + 3 * w;
+      auto own_row = [&](PetscInt jl, PetscInt slot) {
+        stage_operands<SU>(xm, X + 2 * jl * xm, ua + SU * jl * xm, c2 + jl * xm, zr + slot * w + 1, ur + slot * w + 1);
+      };
+      auto row = [&](PetscInt jl) {
+        const PetscInt k0 = jl * xm;
+        const PetscReal *zm = zr + 1, *z0 = zr + w + 1, *zp = zr + 2 * w + 1;
+        const PetscReal *um = ur + 1, *u0 = ur + w + 1, *up = ur + 2 * w + 1;
+        if (gm) stage_row<SPONGE, true>(xm, ax, ay, a0, zm, z0, zp, um, u0, up, X + 2 * k0, tc + k0, sig + k0, Y + 2 * k0, g + k0);
+        else {
+          stage_row<SPONGE, false>(xm, ax, ay, a0, zm, z0, zp, um, u0, up, X + 2 * k0, tc + k0, sig + k0, Y + 2 * k0, g + k0);
+          if (mu) sum4(g, k0, k0 + xm, local);
+        }
+      };
+      for (PetscInt jl : {(PetscInt)0, ym - 1}) {
+        for (PetscInt d = -1; d <= 1; ++d) {
+          const PetscInt jr = jl + d, slot = d + 1;
+          if (jr >= 0 && jr < ym) own_row(jr, slot);
+          else
+            for (PetscInt il = 0; il < xm; ++il) {
+              zr[slot * w + 1 + il] = zg(il, jr);
+              ur[slot * w + 1 + il] = PetscRealPart(halo_u(il, jr));
+            }
+        }
+        zr[w] = zg(-1, jl), zr[w + xm + 1] = zg(xm, jl);
+        ur[w] = PetscRealPart(halo_u(-1, jl)), ur[w + xm + 1] = PetscRealPart(halo_u(xm, jl));
+        row(jl);
+        for (PetscInt k = jl * xm; k < jl * xm + xm; ++k)
+          if (edge_[k]) Y[2 * k + 1] = 0;
+        if (ym == 1) break;
+      }
+      // the first and last columns between them, point by point
+      for (PetscInt il : {(PetscInt)0, xm - 1}) {
+        for (PetscInt jl = 1; jl < ym - 1; ++jl) {
+          const PetscInt k = jl * xm + il;
+          const PetscReal zl = il > 0 ? c2[k - 1] * PetscRealPart(X[2 * (k - 1) + 1]) : zg(il - 1, jl);
+          const PetscReal zx = il < xm - 1 ? c2[k + 1] * PetscRealPart(X[2 * (k + 1) + 1]) : zg(il + 1, jl);
+          const PetscReal ul = PetscRealPart(il > 0 ? ua[SU * (k - 1)] : halo_u(il - 1, jl));
+          const PetscReal ux = PetscRealPart(il < xm - 1 ? ua[SU * (k + 1)] : halo_u(il + 1, jl));
+          const PetscReal xv = PetscRealPart(X[2 * k + 1]);
+          const PetscReal lz = ax * (zl + zx) + ay * (c2[k - xm] * PetscRealPart(X[2 * (k - xm) + 1]) + c2[k + xm] * PetscRealPart(X[2 * (k + xm) + 1])) + a0 * (c2[k] * xv);
+          const PetscReal lu = ax * (ul + ux) + ay * (PetscRealPart(ua[SU * (k - xm)]) + PetscRealPart(ua[SU * (k + xm)])) + a0 * PetscRealPart(ua[SU * k]);
+          Y[2 * k] = lz;
+          Y[2 * k + 1] = edge_[k] ? 0.0 : (SPONGE ? X[2 * k] - sig[k] * X[2 * k + 1] : X[2 * k]);
+          const PetscReal gk = tc[k] * lu * xv; // 0 on the edges (2c = 0 there)
+          if (gm) g[k] += gk;
+          else local[k & 3] += gk;
+        }
+        if (xm < 2) break;
+      }
+      if (gm) PetscCall(VecRestoreArray(mu, &gm));
     }
     PetscFunctionReturn(0);
   }
@@ -321,6 +488,31 @@ private:
       }
     }
     PetscFunctionReturn(0);
+  }
+  // f(k, (L u)_k, (L z)_k) at every owned point on the block's perimeter, z = c^2 v (0 on the edges)
+  // with v component 1 of the interleaved V (ghosts: halo_v_, filled from V's Vec), u read at stride
+  // SU in ua (ghosts: halo_u); (L u)_k = 0 on the edges (where no gradient is taken).
+  template <int SU, class F>
+  PetscErrorCode perimeter_laps(const PetscScalar *ua, const PetscScalar *V, const Halo &halo_u, F &&f) const {
+    const PetscInt xm = grid_->xm();
+    const PetscReal *c2 = c2m_.data();
+    const PetscReal ax = ihx2_, ay = ihy2_, a0 = -2 * (ihx2_ + ihy2_);
+    auto uat = [&](PetscInt il, PetscInt jl) {
+      return PetscRealPart(inside(il, jl) ? ua[SU * (jl * xm + il)] : halo_u(il, jl));
+    };
+    auto zat = [&](PetscInt il, PetscInt jl) {
+      if (inside(il, jl)) return c2[jl * xm + il] * PetscRealPart(V[2 * (jl * xm + il) + 1]);
+      if (edge_point(grid_->xs() + il, grid_->ys() + jl)) return 0.0;
+      const PetscReal c = PetscRealPart(halo_c_(il, jl));
+      return c * c * PetscRealPart(halo_v_(il, jl));
+    };
+    return for_perimeter([&](PetscInt il, PetscInt jl) {
+      const PetscInt k = jl * xm + il;
+      const PetscReal lz = ax * (zat(il - 1, jl) + zat(il + 1, jl)) + ay * (zat(il, jl - 1) + zat(il, jl + 1)) + a0 * zat(il, jl);
+      const PetscReal lu = edge_[k] ? 0.0 : ax * (uat(il - 1, jl) + uat(il + 1, jl)) + ay * (uat(il, jl - 1) + uat(il, jl + 1)) + a0 * uat(il, jl);
+      f(k, lu, lz);
+      return PetscErrorCode(0);
+    });
   }
   // emit(k, (L u)_k, u) for every owned point (edges included: the caller masks them).
   template <class Emit>
@@ -476,6 +668,7 @@ private:
   PetscReal ic_x_ = 0.5, ic_y_ = 0.5, ic_w_ = 0.05;
   OwnedVec c_;
   std::vector<PetscReal> lap_, gbuf_, sigma_, c2m_, two_c_; // L u; work; sponge; c^2 and 2c, 0 on the edges
+  std::vector<PetscReal> rows_;                             // stage_adjoint: rings of 3 rows of z and of u
   std::vector<char> edge_;                                  // owned point on the outer edge
   Halo halo_u_, halo_v_, halo_c_;                           // ghosts of u, of lambda_v (adjoint) and of c
   Halo halo_q_;                                             // ghosts of u given alone (stored positions)
