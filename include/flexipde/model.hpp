@@ -88,9 +88,10 @@ public:
   //   y = (dG/dU)^T x   and, unless mu is null,   mu += (dG/dtheta)^T x.
   // Without it the RK adjoint applies rhs_jacobian's and rhs_jacobian_p's transposes: the same numbers.
   virtual bool has_stage_adjoint() const { return false; }
-  // True when stage_adjoint also accepts, as U, a second-order model's positions alone (as for
-  // second_order_adjoint_takes_positions): full storage then keeps only the stages' positions.
-  virtual bool stage_adjoint_takes_positions() const { return false; }
+  // m > 0 when dG/dU and dG/dtheta depend on the first m components of each grid point's state only
+  // (the wave models: u) and stage_adjoint also accepts, as U, those m components alone (laid out
+  // like the grid's own m-component Vecs): full storage then keeps only them of every stage.
+  virtual PetscInt stage_adjoint_positions() const { return 0; }
   virtual PetscErrorCode stage_adjoint(PetscReal t, Vec U, Vec x, Vec y, Vec mu) {
     (void)t, (void)x, (void)y, (void)mu;
     SETERRQ(PetscObjectComm((PetscObject)U), PETSC_ERR_SUP, "Model %s has no fused RK adjoint stage", name());

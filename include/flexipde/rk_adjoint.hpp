@@ -27,9 +27,9 @@ typedef PetscErrorCode (*RkStageAdjoint)(void *ctx, PetscReal t, Vec U, Vec x, V
 
 // After the TS's type is final: if it is TSRK, its adjoint step becomes the one above (idempotent).
 // With a stage hook, each stage calls it instead of evaluating and applying the two Jacobians.
-// position_pairs > 0: the hook also accepts, as U, a stage's positions alone (a second-order model,
-// Model::second_order_pairs, whose dG/dU and dG/dp depend on the positions only), so that full storage
-// may keep only those (trajectory_store.cpp).
+// position_pairs > 0: the hook also accepts, as U, the first position_pairs components of a stage's
+// points alone (Model::stage_adjoint_positions: dG/dU and dG/dp depend on those only), so that full
+// storage may keep only those (trajectory_store.cpp).
 PetscErrorCode rk_adjoint_install(TS ts, RkStageAdjoint stage = nullptr, void *stage_ctx = nullptr,
                                   PetscInt position_pairs = 0);
 // The positions per point that the installed adjoint can work from (0: whole stages needed): for

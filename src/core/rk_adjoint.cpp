@@ -16,9 +16,9 @@ struct RkAdjoint {
   std::vector<Vec> terms;                     // ... and their dLambda_j
   RkStageAdjoint stage = nullptr;             // the model's fused stage products, if any
   void *stage_ctx = nullptr;
-  // A second-order model's stages depend on their positions alone (Model::second_order_pairs): with a
-  // hook that takes them (`pairs` per point), a full-storage trajectory keeps only those and places
-  // them here, stage i in Q[i] (rk_adjoint_place_positions), for the hook to read in place.
+  // A model whose stage products read the first `pairs` components per point only
+  // (Model::stage_adjoint_positions): a full-storage trajectory keeps only those and places them here,
+  // stage i in Q[i] (rk_adjoint_place_positions), for the hook to read in place.
   PetscInt pairs = 0;
   std::vector<Vec> Q;
   bool q_placed = false;

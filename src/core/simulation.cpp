@@ -436,7 +436,7 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
   rk_stage_fused_ = with_adjoint && rk_fused && rk_stage && !std::strcmp(type, TSRK) && model_->has_stage_adjoint();
   if (with_adjoint && rk_fused && !std::strcmp(type, TSRK))
     PetscCall(rk_adjoint_install(ts, rk_stage_fused_ ? stage_adjoint_cb : nullptr, this,
-                                 model_->stage_adjoint_takes_positions() ? model_->second_order_pairs() : 0));
+                                 model_->stage_adjoint_positions()));
   if (with_adjoint && Jp_ && !std::strcmp(type, TSRK)) {
     // PETSc 3.18's TSAdjointStep_RK skips dG/dp for a stage whose weight b_i is zero (it rescales
     // a stale vector instead), so parameter gradients of such tableaux are wrong. The FSAL last

@@ -181,20 +181,11 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
       st->theta_endpoint = ns == 2 && Y[1] == ts->vec_sol; // {U_{k-1}, U_k}: PETSc's endpoint forms
     }
   }
-  if (!is_leapfrog(ts) && !st->theta_endpoint && st->nstages > 0 && st->keep_stages_option) {
-    if (st->keep_stages_set) st->keep_stages = true;
-    else if (ts->max_steps < PETSC_MAX_INT) { // by default only within the memory cap, decided alike on every rank
-      PetscReal mb = (PetscReal)(ts->max_steps + 1) * (1 + st->nstages) * st->nlocal * sizeof(PetscScalar) / 1048576.0;
-      PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &mb, 1, MPIU_REAL, MPI_MAX, PetscObjectComm((PetscObject)tj)));
-      st->keep_stages = mb <= st->keep_stages_max_mb;
-    }
-  }
   st->pairs = 0;
   if (is_leapfrog(ts) && !ts->quadraturets && st->positions_only) {
     PetscCall(VecGetBlockSize(ts->vec_sol, &st->dof));
     st->pairs = leapfrog_pairs(ts);
   }
-  st->slot = st->pairs ? st->nlocal / st->dof * st->pairs : (st->keep_stages ? 1 + st->nstages : 1) * st->nlocal;
   st->times.clear();
   st->last = -1;
   st->recomputed = 0;
@@ -204,37 +195,43 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
   st->lf_placed = false;
   st->use_stream = st->stream && is_leapfrog(ts);
   st->rk_pairs = st->rk_n = 0;
-  if (st->keep_stages && st->positions_only && !adjoint_monitors_read_state(ts) && ts->max_steps < PETSC_MAX_INT) {
+  // Stages: how they would be kept (explicit RK: positions only, compact or placed; otherwise
+  // copied next to the state), then whether that fits the memory cap.
+  PetscInt stage_slot = 0;
+  if (!is_leapfrog(ts) && !st->theta_endpoint && st->nstages > 0 && st->keep_stages_option) {
+    PetscBool rk;
     Vec *Y;
-    PetscCall(rk_adjoint_positions(ts, &st->rk_pairs));
+    bool stage_is_solution = false;
+    PetscCall(PetscObjectTypeCompare((PetscObject)ts, TSRK, &rk));
     PetscCall(TSGetStages(ts, nullptr, &Y));
-    for (PetscInt i = 0; st->rk_pairs && i < st->nstages; ++i)
-      if (Y[i] == ts->vec_sol) st->rk_pairs = 0;
+    for (PetscInt i = 0; i < st->nstages; ++i) stage_is_solution = stage_is_solution || Y[i] == ts->vec_sol;
+    const bool fixed = ts->max_steps < PETSC_MAX_INT;
+    if (st->positions_only && !adjoint_monitors_read_state(ts) && fixed && !stage_is_solution)
+      PetscCall(rk_adjoint_positions(ts, &st->rk_pairs));
     if (st->rk_pairs) {
       PetscCall(VecGetBlockSize(ts->vec_sol, &st->dof));
       st->rk_n = st->nlocal / st->dof * st->rk_pairs;
-      st->slot = st->nstages * st->rk_n;
-    }
-  }
-  if (st->keep_stages && !st->rk_pairs) { // explicit RK only, and only when no stage is the solution itself
-    PetscBool rk;
-    Vec *Y;
-    PetscCall(PetscObjectTypeCompare((PetscObject)ts, TSRK, &rk));
-    PetscCall(TSGetStages(ts, nullptr, &Y));
-    st->place_stages = rk && ts->max_steps < PETSC_MAX_INT;
-    for (PetscInt i = 0; st->place_stages && i < st->nstages; ++i)
-      if (Y[i] == ts->vec_sol) st->place_stages = false;
-    if (st->place_stages && st->compact_option) { // Y_0 = U_k exactly: c_0 = 0 and A's first row zero
-      PetscInt s;
-      const PetscReal *A, *c;
-      PetscCall(TSRKGetTableau(ts, &s, &A, nullptr, &c, nullptr, nullptr, nullptr, nullptr));
-      st->compact = c[0] == 0;
-      for (PetscInt j = 0; j < s; ++j) st->compact = st->compact && A[j] == 0;
-      if (st->compact) {
-        st->slot = st->nstages * st->nlocal;
+      stage_slot = st->nstages * st->rk_n;
+    } else {
+      st->place_stages = rk && fixed && !stage_is_solution;
+      if (st->place_stages && st->compact_option) { // Y_0 = U_k exactly: c_0 = 0 and A's first row zero
+        PetscInt s;
+        const PetscReal *A, *c;
+        PetscCall(TSRKGetTableau(ts, &s, &A, nullptr, &c, nullptr, nullptr, nullptr, nullptr));
+        st->compact = c[0] == 0;
+        for (PetscInt j = 0; j < s; ++j) st->compact = st->compact && A[j] == 0;
       }
+      stage_slot = (st->compact ? st->nstages : 1 + st->nstages) * st->nlocal;
     }
+    if (st->keep_stages_set) st->keep_stages = true;
+    else if (fixed) { // by default only within the memory cap, decided alike on every rank
+      PetscReal mb = (PetscReal)(ts->max_steps + 1) * stage_slot * sizeof(PetscScalar) / 1048576.0;
+      PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &mb, 1, MPIU_REAL, MPI_MAX, PetscObjectComm((PetscObject)tj)));
+      st->keep_stages = mb <= st->keep_stages_max_mb;
+    }
+    if (!st->keep_stages) st->rk_pairs = st->rk_n = 0, st->place_stages = st->compact = false;
   }
+  st->slot = st->pairs ? st->nlocal / st->dof * st->pairs : st->keep_stages ? stage_slot : st->nlocal;
   if (ts->max_steps < PETSC_MAX_INT) { // reserve the planned trajectory once
     st->buffer->grow((size_t)(ts->max_steps + 1) * st->slot, false);
     st->times.reserve(ts->max_steps + 1);

@@ -222,7 +222,7 @@ public:
   }
 
   bool has_stage_adjoint() const override { return fuse_adjoint_; }
-  bool stage_adjoint_takes_positions() const override { return true; }
+  PetscInt stage_adjoint_positions() const override { return 1; } // u alone
   // An explicit RK adjoint stage at state U (a whole state or u alone): y = J^T x = [D2 (c^2 x_v) ; x_u]
   // (walls 0) and mu += 2 c (D2 u) x_v, in one sweep; a scalar c's local sum goes to the Parameters
   // (deferred there by the Simulation to one reduction per adjoint).

@@ -319,16 +319,16 @@ public:
   }
 
   // The explicit RK adjoint's stage products (rk_adjoint.hpp) in one sweep, at a stage U (a whole
-  // state, or u alone when there is no sponge):
+  // state, or u alone):
   //   y = (dG/dU)^T x = [L (c^2 x_v) ; x_u - sigma x_v]  (L (c^2 x_v) at every point, edge columns
   //       included as in A^T; the second block 0 on the edge rows)
   //   mu += (dG/dc)^T x = 2 c (L u) x_v  off the edges (a scalar c: its sum, deferred to the Parameters).
   // The same expressions as jmf_apply<true> and jp_mult_transpose: a field's gradient equals theirs
-  // bitwise, a scalar's up to the order of the sum. dG/dU and dG/dc read u only, sponge or not; but
-  // with a sponge G_v depends on v, so the model is not in second-order form (second_order_pairs() =
-  // 0) and its stages are stored whole.
+  // bitwise, a scalar's up to the order of the sum. dG/dU and dG/dc read u only, sponge or not (with
+  // a sponge G_v depends on v, so the model is not in second-order form for the leapfrog, but its
+  // stages' u alone still serve the RK adjoint).
   bool has_stage_adjoint() const override { return true; }
-  bool stage_adjoint_takes_positions() const override { return sponge_width_ <= 0; }
+  PetscInt stage_adjoint_positions() const override { return 1; } // u alone, sponge or not
   PetscErrorCode stage_adjoint(PetscReal, Vec U, Vec x, Vec y, Vec mu) override {
     PetscReal local[4] = {0, 0, 0, 0};
     PetscInt nu;
@@ -336,8 +336,8 @@ public:
     PetscCall(VecGetLocalSize(U, &nu));
     const bool sponge = sponge_width_ > 0;
     if (nu == grid_->local_points()) {
-      PetscCheck(!sponge, grid_->comm(), PETSC_ERR_ARG_WRONG, "wave2d: a stage's positions alone with a sponge");
-      PetscCall(stage_sweep<1, false>(U, x, y, mu, local));
+      if (sponge) PetscCall(stage_sweep<1, true>(U, x, y, mu, local));
+      else PetscCall(stage_sweep<1, false>(U, x, y, mu, local));
     } else if (sponge) PetscCall(stage_sweep<2, true>(U, x, y, mu, local));
     else PetscCall(stage_sweep<2, false>(U, x, y, mu, local));
     if (mu && !c_field_) PetscCall(params_->add_local_sum(mu, c_index_, local[0] + local[1] + local[2] + local[3]));
