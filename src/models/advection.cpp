@@ -1173,6 +1173,36 @@ private:
       }
   }
 
+  // The spectral stage (scalar coefficients): with D_d skew and the Laplacian L symmetric,
+  // A^T x = sum_d a_d D_d x + D L x, and (dG/da_d)^T x = <-D_d u, x> = <u, D_d x>, (dG/dD)^T x = <u, L x>:
+  // one transform pair per derivative gives the product and the parameters' sums together (the
+  // Jacobian path transforms u as well at every stage).
+  PetscErrorCode spectral_stage_adjoint(PetscReal, Vec U, Vec x, Vec y, Vec mu) {
+    PetscReal local[3] = {0, 0, 0};
+    const PetscInt n = grid_->local_points(), nd = dim_;
+    PetscFunctionBeginUser;
+    PetscCall(VecSet(y, 0.0));
+    for (PetscInt d = 0; d <= nd; ++d) {
+      if (d == nd && !diffusion_) break;
+      if (d < nd) PetscCall(spectral_.derivative(d, 1, x, t1_));
+      else PetscCall(spectral_.apply([](const FourierMode &k) { return cplx(-(k.wx * k.wx + k.wy * k.wy)); }, x, t1_));
+      PetscCall(VecAXPY(y, d < nd ? vel_[d] : D_scalar_, t1_));
+      if (mu) {
+        ConstArray v(t1_), u(U);
+        PetscCall(v.error());
+        PetscCall(u.error());
+        PetscReal s = 0;
+        for (PetscInt il = 0; il < n; ++il) s += PetscRealPart(u[il]) * PetscRealPart(v[il]);
+        local[d] = s;
+      }
+    }
+    if (mu) {
+      for (PetscInt d = 0; d < nd; ++d) PetscCall(params_->add_local_sum(mu, vel_index_[d], local[d]));
+      if (diffusion_) PetscCall(params_->add_local_sum(mu, D_index_, local[nd]));
+    }
+    PetscFunctionReturn(0);
+  }
+
   // 1D field D: (I D)_f at the faces the owned points touch (as face_products indexes them), for
   // stage_adjoint's diffusion transpose: D changes only with the parameters.
   PetscErrorCode cache_face_diffusivity() {
@@ -1195,8 +1225,9 @@ private:
   // An explicit RK adjoint stage at state U (finite differences): y = A^T x and mu += (dG/dp)^T x in
   // one pass over the ghosted x: the velocities' -<u, D_d^T x> / h_d, a scalar D's <u, B^T B x>-column
   // (local sums, reduced once per adjoint by the Parameters), a field D's face products with u.
-  bool has_stage_adjoint() const override { return scheme_ != SPECTRAL && fuse_adjoint_; }
-  PetscErrorCode stage_adjoint(PetscReal, Vec U, Vec x, Vec y, Vec mu) override {
+  bool has_stage_adjoint() const override { return fuse_adjoint_ && !(scheme_ == SPECTRAL && diffusion_ && D_field_); }
+  PetscErrorCode stage_adjoint(PetscReal t, Vec U, Vec x, Vec y, Vec mu) override {
+    if (scheme_ == SPECTRAL) return spectral_stage_adjoint(t, U, x, y, mu);
     const PetscScalar *xl, *u, *D = nullptr;
     PetscReal local[3] = {0, 0, 0};
     const bool field = diffusion_ && D_field_;
