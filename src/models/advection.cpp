@@ -172,7 +172,7 @@ void face_products(PetscInt n, const PetscReal *__restrict pa, const PetscReal *
 // A 1D field-D RK adjoint stage's face work in one pass over the faces and one over the points:
 // y = a y - B^T diag(I D) B x / h^2 (Df = I D at the faces) and, unless g is null,
 // g += -I^T (B u .* B x) / h^2 (a field D's gradient); x, u ghosted from the first face's first entry.
-template <int WD>
+template <int WD, bool G>
 void field_stage_faces(PetscInt n, const PetscReal *__restrict Df, const PetscReal *__restrict gr,
                        const PetscReal *__restrict ip, const PetscScalar *__restrict x, const PetscScalar *__restrict u,
                        PetscReal s, PetscReal a, PetscReal *__restrict F1, PetscReal *__restrict F2,
@@ -195,7 +195,7 @@ void field_stage_faces(PetscInt n, const PetscReal *__restrict Df, const PetscRe
       v2 -= ip[q] * F2[i + WD - 1 - q] * s;
     }
     y[i] = a * y[i] + v1;
-    if (g) g[i] += v2;
+    if (G) g[i] += v2;
   }
 }
 // y_i (+)= -sum_q w[q] F_{i + WD - 1 - q} s at the owned points (ADD: added to y).
@@ -1258,8 +1258,11 @@ private:
           const PetscInt f0 = ghost_index(grid_->xs(), grid_->ys()) - (face_.width - 1);
           const PetscReal *Df = face_D_.data(), *gr = face_.grad.data(), *ip = face_.interp.data();
           const PetscReal ih2 = 1.0 / (h_[0] * h_[0]);
-          if (face_.width == 2) field_stage_faces<2>(n, Df, gr, ip, xl + f0, ul + f0, ih2, s, faces_.data(), faces2_.data(), ya, gD);
-          else field_stage_faces<4>(n, Df, gr, ip, xl + f0, ul + f0, ih2, s, faces_.data(), faces2_.data(), ya, gD);
+          PetscReal *F1 = faces_.data(), *F2 = faces2_.data();
+          if (face_.width == 2 && gD) field_stage_faces<2, true>(n, Df, gr, ip, xl + f0, ul + f0, ih2, s, F1, F2, ya, gD);
+          else if (face_.width == 2) field_stage_faces<2, false>(n, Df, gr, ip, xl + f0, ul + f0, ih2, s, F1, F2, ya, gD);
+          else if (gD) field_stage_faces<4, true>(n, Df, gr, ip, xl + f0, ul + f0, ih2, s, F1, F2, ya, gD);
+          else field_stage_faces<4, false>(n, Df, gr, ip, xl + f0, ul + f0, ih2, s, F1, F2, ya, gD);
           if (g) PetscCall(VecRestoreArray(mu, &g));
           PetscCall(VecRestoreArrayRead(U_local_, &ul));
           field_done = true;
