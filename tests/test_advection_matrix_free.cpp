@@ -15,7 +15,7 @@
 //     gradient with it equals one without (-advection_fused_adjoint 0); dG/dp applied after its state
 //     changed is an error, never other data.
 // Cases: 1D fd2, fd4, upwind with a < 0, scalar and field D at -fd_order 2 and 4; 2D with scalar and
-// field D; spectral (no matrix-free J: its J is already a shell).
+// field D (-fd_order 4 and 2); spectral (no matrix-free J: its J is already a shell).
 #include "flexipde/scene.hpp"
 #include "test_support.hpp"
 #include <string>
@@ -55,6 +55,7 @@ std::vector<AdvMFCase> cases() {
       {"dim2_fd4_scalar_D", with(dim2, {{"-advection_scheme", "fd4"}, {"-advection_D", "0.05"}})},
       {"dim2_upwind_field_D", with(dim2, {{"-advection_scheme", "upwind"}, {"-advection_D", "0.05"},
                                           {"-advection_D_field", "1"}, {"-fd_order", "4"}})},
+      {"dim2_fd2_field_D", with(dim2, {{"-advection_D", "0.05"}, {"-advection_D_field", "1"}})},
       {"spectral", {{"-advection_scheme", "spectral"}, {"-da_grid_x", "40"}}},
       {"spectral_scalar_D", {{"-advection_scheme", "spectral"}, {"-da_grid_x", "40"}, {"-advection_D", "0.05"}}},
   };

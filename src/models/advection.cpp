@@ -210,6 +210,45 @@ void gather_faces(PetscInt n, const PetscReal *__restrict w, PetscReal s, const 
   }
 }
 
+// Two-dimensional face kernels, one direction d at a time (a0, b0: ghosted arrays at the first owned
+// point; rows sy apart; xm x ym owned points, y row-major xm x ym): the faces along d around every
+// owned point, each once, F = (sum_m pa[m] a) (sum_m pb[m] b), then y (+)= -sum_q w[q] F s.
+template <int WD, bool ADD, class Y>
+void faces_2d(PetscInt d, PetscInt xm, PetscInt ym, PetscInt sy, const PetscReal *pa, const PetscReal *pb,
+              const PetscReal *w, const PetscScalar *a0, const PetscScalar *b0, PetscReal s, PetscReal *F, Y *y) {
+  if (d == 0) { // along x: row by row, as in 1D
+    for (PetscInt jl = 0; jl < ym; ++jl) {
+      const PetscInt base = jl * sy - (WD - 1);
+      face_products<WD>(xm, pa, pb, a0 + base, b0 + base, F);
+      gather_faces<WD, ADD>(xm, w, s, F, y + jl * xm);
+    }
+    return;
+  }
+  for (PetscInt kf = 0; kf < ym + WD - 1; ++kf) { // along y: face rows, vectorised along x
+    PetscReal *__restrict Fr = F + kf * xm;
+    for (PetscInt i = 0; i < xm; ++i) {
+      PetscReal va = 0, vb = 0;
+#pragma GCC unroll 4
+      for (int m = 0; m < WD; ++m) {
+        const PetscInt g = (kf - (WD - 1) + m) * sy + i;
+        va += pa[m] * PetscRealPart(a0[g]);
+        vb += pb[m] * PetscRealPart(b0[g]);
+      }
+      Fr[i] = va * vb;
+    }
+  }
+  for (PetscInt jl = 0; jl < ym; ++jl) {
+    Y *__restrict yr = y + jl * xm;
+    for (PetscInt i = 0; i < xm; ++i) {
+      PetscReal v = 0;
+#pragma GCC unroll 4
+      for (int q = 0; q < WD; ++q) v -= w[q] * F[(jl + WD - 1 - q) * xm + i] * s;
+      if (ADD) yr[i] += v;
+      else yr[i] = v;
+    }
+  }
+}
+
 class AdvectionModel final : public LinearModel {
 public:
   const char *name() const override { return "advection"; }
@@ -345,7 +384,7 @@ public:
     for (PetscInt d = 0; d < dim_; ++d) dGdv_[d].assign(grid.local_points(), 0.0);
     dGdD_.assign(grid.local_points(), 0.0);
     if (lazy_) scratch_.assign(grid.local_points(), 0.0);
-    faces_.assign(grid.xm() + 4, 0.0);
+    faces_.assign((grid.xm() + 4) * (dim_ == 2 ? grid.ym() + 4 : 1), 0.0);
     faces2_.assign(grid.xm() + 4, 0.0);
     stage_scratch_.assign(grid.local_points(), 0.0);
     if (diffusion_ && D_field_) gD_.assign(grid.local_points(), 0.0);
@@ -597,19 +636,19 @@ private:
       }
       return;
     }
-    PetscInt il = 0;
-    for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j)
-      for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i, ++il) {
-        const PetscInt gc = ghost_index(i, j);
-        PetscReal v = 0;
-        for (PetscInt d = 0; d < dim_; ++d)
-          for (PetscInt q = 0; q < face_.width; ++q) {
-            const PetscInt gf = gc - (face_.offset + q) * stride_[d];
-            v -= face_.grad[q] * face_value(c, gf, d) * face_gradient(w, gf, d) / (h_[d] * h_[d]);
-          }
-        y[il] += v;
+    if (dim_ == 2) { // each face once per direction: y -= sum_d B_d^T diag(I_d c) B_d w / h_d^2
+      const PetscInt g0 = ghost_index(g.xs(), g.ys());
+      for (PetscInt d = 0; d < 2; ++d) {
+        const PetscReal sd = 1.0 / (h_[d] * h_[d]);
+        const PetscReal *ip = face_.interp.data(), *gr = face_.grad.data();
+        const PetscScalar *a0 = c + g0, *b0 = w + g0; // (the face stencil's offset cancels: see face_products)
+        if (face_.width == 2) faces_2d<2, true>(d, g.xm(), g.ym(), stride_[1], ip, gr, gr, a0, b0, sd, faces_.data(), y);
+        else faces_2d<4, true>(d, g.xm(), g.ym(), stride_[1], ip, gr, gr, a0, b0, sd, faces_.data(), y);
       }
+      return;
+    }
   }
+
   // (D_d u) at ghosted index g, with the 1/h.
   PetscReal first_derivative(const PetscScalar *u, PetscInt g, PetscInt d) const {
     PetscReal s = 0;
@@ -1160,18 +1199,20 @@ private:
       }
       return;
     }
-    PetscInt il = 0;
-    for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j)
-      for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i, ++il) {
-        const PetscInt gk = ghost_index(i, j);
-        gD[il] = 0;
-        for (PetscInt d = 0; d < dim_; ++d)
-          for (PetscInt q = 0; q < face_.width; ++q) {
-            const PetscInt gf = gk - (face_.offset + q) * stride_[d];
-            gD[il] -= face_.interp[q] * face_gradient(u, gf, d) * face_gradient(xl, gf, d) / (h_[d] * h_[d]);
-          }
+    if (dim_ == 2) {
+      const PetscInt g0 = ghost_index(g.xs(), g.ys());
+      const PetscReal *ip = face_.interp.data(), *gr = face_.grad.data();
+      for (PetscInt d = 0; d < 2; ++d) {
+        const PetscReal sd = 1.0 / (h_[d] * h_[d]);
+        if (face_.width == 2 && d == 0) faces_2d<2, false>(d, g.xm(), g.ym(), stride_[1], gr, gr, ip, u + g0, xl + g0, sd, faces_.data(), gD);
+        else if (face_.width == 2) faces_2d<2, true>(d, g.xm(), g.ym(), stride_[1], gr, gr, ip, u + g0, xl + g0, sd, faces_.data(), gD);
+        else if (d == 0) faces_2d<4, false>(d, g.xm(), g.ym(), stride_[1], gr, gr, ip, u + g0, xl + g0, sd, faces_.data(), gD);
+        else faces_2d<4, true>(d, g.xm(), g.ym(), stride_[1], gr, gr, ip, u + g0, xl + g0, sd, faces_.data(), gD);
       }
+      return;
+    }
   }
+
 
   // The spectral stage (scalar coefficients): with D_d skew and the Laplacian L symmetric,
   // A^T x = sum_d a_d D_d x + D L x, and (dG/da_d)^T x = <-D_d u, x> = <u, D_d x>, (dG/dD)^T x = <u, L x>:
