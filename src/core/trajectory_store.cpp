@@ -34,6 +34,10 @@ struct StoreTrajectory {
   StateBuffer own;
   StateBuffer *buffer = &own;
   std::vector<PetscReal> times;
+  // h of the step k -> k+1 as the forward took it (ts->time_step when U_k is stored): the adjoint steps
+  // and any re-run use exactly it, not the difference of two stored times, which can differ from it
+  // in the last bits (and an implicit method's shift with it: a refactorisation at such steps).
+  std::vector<PetscReal> steps;
   PetscInt nlocal = 0, last = -1;
   PetscInt64 recomputed = 0;
   // Keep each step's stages too (slot = U_k and the stages of step k-1 -> k), so that nothing is
@@ -187,6 +191,7 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
     st->pairs = leapfrog_pairs(ts);
   }
   st->times.clear();
+  st->steps.clear();
   st->last = -1;
   st->recomputed = 0;
   st->placed = -1;
@@ -235,6 +240,7 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
   if (ts->max_steps < PETSC_MAX_INT) { // reserve the planned trajectory once
     st->buffer->grow((size_t)(ts->max_steps + 1) * st->slot, false);
     st->times.reserve(ts->max_steps + 1);
+    st->steps.reserve(ts->max_steps + 1);
   }
   PetscFunctionReturn(0);
 }
@@ -246,6 +252,7 @@ PetscErrorCode store_set(TSTrajectory tj, TS ts, PetscInt stepnum, PetscReal tim
   PetscCheck(stepnum == (PetscInt)st->times.size(), PetscObjectComm((PetscObject)tj), PETSC_ERR_PLIB,
              "TSTrajectory store: step %" PetscInt_FMT " stored out of order", stepnum);
   st->times.push_back(time);
+  st->steps.push_back(ts->time_step);
   st->last = stepnum;
   if (st->rk_pairs) { // the positions of the stages of step stepnum-1 -> stepnum, still in the TS
     if (stepnum == 0) PetscFunctionReturn(0);
@@ -350,7 +357,7 @@ PetscErrorCode store_get(TSTrajectory tj, TS ts, PetscInt k, PetscReal *t) {
       const TSConvergedReason reason = ts->reason;
       PetscCall(copy_out(*st, k - 1, 0, ts->vec_sol));
       ts->ptime = st->times[k - 1];
-      ts->time_step = st->times[k] - st->times[k - 1];
+      ts->time_step = st->steps[k - 1];
       PetscCall(TSSetStepNumber(ts, k - 1));
       PetscCall(TSRestartStep(ts));
       PetscCall(TSStep(ts));
@@ -362,7 +369,7 @@ PetscErrorCode store_get(TSTrajectory tj, TS ts, PetscInt k, PetscReal *t) {
       tj->recomps = (PetscInt)std::min<PetscInt64>(st->recomputed, PETSC_MAX_INT);
     }
   }
-  ts->time_step = ts->ptime_prev - ts->ptime;
+  ts->time_step = -st->steps[k - 1];
   *t = ts->ptime;
   PetscFunctionReturn(0);
 }
