@@ -9,6 +9,7 @@
 #include <array>
 #include <complex>
 #include <cmath>
+#include <cstdlib>
 #include <vector>
 
 using namespace flexipde;
@@ -165,6 +166,133 @@ TEST_P(VlasovRelinearise, SnapshotAndDotProduct) {
 INSTANTIATE_TEST_SUITE_P(Vlasov, VlasovRelinearise,
                          ::testing::Values(std::array<const char *, 2>{"20", "40"},
                                            std::array<const char *, 2>{"40", "20"}));
+
+// G = rhs(U) against a straightforward reference built here from a ghosted copy of U
+// (DMGlobalToLocal): D_x by its stencil, D_v as differences of the face values (-1, 7, 7, -1) / 12
+// with no flux through the outer faces and f = 0 beyond the velocity bounds, E = -K rho with K by a
+// direct DFT, and the dissipation with Q = L^2, L the second difference without flux through the
+// bounds. The model reads U in place (owned rows from U's array, ghosts from a Halo exchanged while it
+// sweeps), so the grids are ones that 2 ranks split in x (40 x 20) and in v (20 x 40). Two states in
+// turn, with a transpose product (which uses the same ghost buffers) in between: no stale ghost is
+// read.
+struct RhsCase {
+  const char *nx, *nv, *dissipation;
+};
+std::ostream &operator<<(std::ostream &os, const RhsCase &c) { return os << c.nx << "x" << c.nv << "_d" << c.dissipation; }
+class VlasovRhs : public ::testing::TestWithParam<RhsCase> {};
+
+PetscErrorCode vlasov_rhs_reference(const Grid &grid, DM dm, Vec U, PetscReal c_diss, PetscReal E_cfl, Vec G,
+                                    PetscReal *Emax) {
+  Vec Ul;
+  const PetscScalar **f;
+  PetscScalar **g;
+  PetscInt xs, ys, xm, ym;
+  PetscFunctionBeginUser;
+  const PetscInt nx = grid.n(), nv = grid.ny();
+  const PetscReal h = grid.h(), hv = grid.hy(), L = nx * h;
+  PetscCall(DMDAGetCorners(dm, &xs, &ys, nullptr, &xm, &ym, nullptr));
+  PetscCall(DMGetLocalVector(dm, &Ul));
+  PetscCall(DMGlobalToLocal(dm, U, INSERT_VALUES, Ul));
+  PetscCall(DMDAVecGetArrayRead(dm, Ul, &f));
+  auto F = [&](PetscInt i, PetscInt j) { return j < 0 || j >= nv ? 0.0 : PetscRealPart(f[j][i]); };
+  // rho_i = hv sum_j f_ij over all x (every rank), E = -K rho by a direct DFT.
+  std::vector<PetscReal> rho(nx, 0.0), E(nx, 0.0);
+  for (PetscInt j = ys; j < ys + ym; ++j)
+    for (PetscInt i = xs; i < xs + xm; ++i) rho[i] += hv * F(i, j);
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, rho.data(), (PetscMPIInt)nx, MPIU_REAL, MPI_SUM, grid.comm()));
+  for (PetscInt m = 1; 2 * m < nx; ++m) {
+    std::complex<double> s = 0; // (-rho)^_m
+    for (PetscInt l = 0; l < nx; ++l) s -= rho[l] * std::exp(std::complex<double>(0, -2 * M_PI * m * l / nx));
+    const std::complex<double> c = s / std::complex<double>(0, 2 * M_PI * m / L);
+    for (PetscInt i = 0; i < nx; ++i)
+      E[i] += 2.0 / nx * (c * std::exp(std::complex<double>(0, 2 * M_PI * m * i / nx))).real();
+  }
+  *Emax = 0;
+  for (PetscReal e : E) *Emax = std::max(*Emax, std::fabs(e));
+  auto face = [&](PetscInt i, PetscInt q) { // F_{q+1/2}
+    if (q < 0 || q > nv - 2) return 0.0;
+    return (-F(i, q - 1) + 7 * F(i, q) + 7 * F(i, q + 1) - F(i, q + 2)) / 12;
+  };
+  auto lap = [&](PetscInt i, PetscInt q) { // (L f)_q, no flux through the bounds
+    if (q < 0 || q >= nv) return 0.0;
+    return (q > 0 ? F(i, q - 1) - F(i, q) : 0.0) + (q < nv - 1 ? F(i, q + 1) - F(i, q) : 0.0);
+  };
+  PetscCall(DMDAVecGetArray(dm, G, &g));
+  for (PetscInt j = ys; j < ys + ym; ++j) {
+    const PetscReal v = grid.y(j);
+    for (PetscInt i = xs; i < xs + xm; ++i) {
+      const PetscReal dx = (F(i - 2, j) - 8 * F(i - 1, j) + 8 * F(i + 1, j) - F(i + 2, j)) / (12 * h);
+      const PetscReal dv = (face(i, j) - face(i, j - 1)) / hv;
+      PetscReal r = -v * dx + E[i] * dv;
+      if (c_diss > 0) {
+        const PetscReal d4x = F(i - 2, j) - 4 * F(i - 1, j) + 6 * F(i, j) - 4 * F(i + 1, j) + F(i + 2, j);
+        const PetscReal qv = (j > 0 ? lap(i, j - 1) - lap(i, j) : 0.0) + (j < nv - 1 ? lap(i, j + 1) - lap(i, j) : 0.0);
+        r -= c_diss * (std::fabs(v) / (12 * h) * d4x + E_cfl / (12 * hv) * qv);
+      }
+      g[j][i] = r;
+    }
+  }
+  PetscCall(DMDAVecRestoreArray(dm, G, &g));
+  PetscCall(DMDAVecRestoreArrayRead(dm, Ul, &f));
+  PetscCall(DMRestoreLocalVector(dm, &Ul));
+  PetscFunctionReturn(0);
+}
+
+TEST_P(VlasovRhs, MatchesReference) {
+  const RhsCase c = GetParam();
+  ScopedOptions o;
+  small_grid(o, "two_stream", c.nx, c.nv);
+  o.set("-vlasov_dissipation", c.dissipation);
+  o.set("-vlasov_E_cfl", "1.5");
+  Scene scene;
+  OwnedVec p, U, G, Gref, y, Jty;
+  OwnedMat J;
+  PETSC_ASSERT_OK(scene.setup(PETSC_COMM_WORLD));
+  PETSC_ASSERT_OK(scene.params.create_vec(p.out()));
+  PETSC_ASSERT_OK(scene.parameters_from_options("", p));
+  PETSC_ASSERT_OK(scene.sim.create_state(U.out()));
+  for (Vec *v : {G.out(), Gref.out(), y.out(), Jty.out()}) PETSC_ASSERT_OK(VecDuplicate(U, v));
+  PETSC_ASSERT_OK(scene.model->set_parameters(p));
+  PETSC_ASSERT_OK(scene.model->create_jacobian(J.out()));
+  const PetscReal c_diss = std::atof(c.dissipation);
+  for (int k = 0; k < 2; ++k) {
+    // A rough, non-negative state (E of order one), a function of the global (i, j) alone: fill_random
+    // would give every rank the same local values, so a ghost taken from the wrong place (the own
+    // block's other end) could go unseen.
+    {
+      PetscScalar **u;
+      PetscInt xs, ys, xm, ym;
+      PETSC_ASSERT_OK(DMDAGetCorners(scene.state_dm, &xs, &ys, nullptr, &xm, &ym, nullptr));
+      PETSC_ASSERT_OK(DMDAVecGetArray(scene.state_dm, U, &u));
+      for (PetscInt j = ys; j < ys + ym; ++j)
+        for (PetscInt i = xs; i < xs + xm; ++i) {
+          const double a = std::sin(12.9898 * i + 78.233 * j + 37.719 * k) * 43758.5453;
+          u[j][i] = a - std::floor(a);
+        }
+      PETSC_ASSERT_OK(DMDAVecRestoreArray(scene.state_dm, U, &u));
+    }
+    PETSC_ASSERT_OK(scene.model->rhs(0.0, U, G));
+    PetscReal Emax;
+    PETSC_ASSERT_OK(vlasov_rhs_reference(scene.grid, scene.state_dm, U, c_diss, 1.5, Gref, &Emax));
+    const PetscReal err = rel_diff(G, Gref);
+    PetscPrintf(PETSC_COMM_WORLD, "  [%s x %s, dissipation %s, state %d] max|E| = %.3e, ||G||_inf = %.3e, rel. diff %.2e\n",
+                c.nx, c.nv, c.dissipation, k, (double)Emax, (double)norm(Gref, NORM_INFINITY), (double)err);
+    EXPECT_GT(Emax, 0.1);
+    EXPECT_LE(err, 1e-13);
+    // A transpose product between the two states (it exchanges and buffers ghosts of its own).
+    PETSC_ASSERT_OK(fill_random(y, -1, 1, 71 + k));
+    PETSC_ASSERT_OK(scene.model->rhs_jacobian(0.0, U, J));
+    PETSC_ASSERT_OK(MatMultTranspose(J, y, Jty));
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Vlasov, VlasovRhs,
+                         ::testing::Values(RhsCase{"40", "20", "0"}, RhsCase{"40", "20", "0.5"},
+                                           RhsCase{"20", "40", "0"}, RhsCase{"20", "40", "0.5"}),
+                         [](const ::testing::TestParamInfo<RhsCase> &i) {
+                           return std::string(i.param.nx) + "x" + i.param.nv +
+                                  (std::atof(i.param.dissipation) > 0 ? "_dissipation" : "");
+                         });
 
 // Functionals: dF/dU against central differences (exact for the linear and quadratic ones).
 TEST(VlasovFunctionals, DerivativesMatchCentralDifferences) {
