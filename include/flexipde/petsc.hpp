@@ -89,4 +89,30 @@ private:
   PetscErrorCode err_;
 };
 
+// A heap object owned by a PETSc object: composed under `name` in a PetscContainer that deletes it
+// with the object (compose_owned); attached_object finds it again (null when there is none).
+template <class T>
+PetscErrorCode compose_owned(PetscObject obj, const char *name, T *p) {
+  PetscContainer container;
+  PetscFunctionBegin;
+  PetscCall(PetscContainerCreate(PetscObjectComm(obj), &container));
+  PetscCall(PetscContainerSetPointer(container, p));
+  PetscCall(PetscContainerSetUserDestroy(container, [](void *q) -> PetscErrorCode {
+    delete static_cast<T *>(q);
+    return 0;
+  }));
+  PetscCall(PetscObjectCompose(obj, name, (PetscObject)container));
+  PetscCall(PetscContainerDestroy(&container));
+  PetscFunctionReturn(0);
+}
+template <class T>
+PetscErrorCode attached_object(PetscObject obj, const char *name, T **p) {
+  PetscContainer container = nullptr;
+  PetscFunctionBegin;
+  *p = nullptr;
+  PetscCall(PetscObjectQuery(obj, name, (PetscObject *)&container));
+  if (container) PetscCall(PetscContainerGetPointer(container, (void **)p));
+  PetscFunctionReturn(0);
+}
+
 } // namespace flexipde

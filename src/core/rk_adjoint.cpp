@@ -36,11 +36,6 @@ struct RkAdjoint {
   }
 };
 
-PetscErrorCode destroy_context(void *ctx) {
-  delete static_cast<RkAdjoint *>(ctx);
-  return 0;
-}
-
 // w = c0 x0 + sum_{j < m} c[j] X[j], one pass.
 PetscErrorCode combine(Vec w, PetscScalar c0, Vec x0, PetscInt m, const PetscScalar *c, const Vec *X) {
   PetscScalar *wa;
@@ -82,15 +77,13 @@ PetscErrorCode combine(Vec w, PetscScalar c0, Vec x0, PetscInt m, const PetscSca
 }
 
 PetscErrorCode adjoint_step(TS ts) {
-  PetscContainer container;
   RkAdjoint *ctx;
   PetscInt s, pinterp;
   const PetscReal *A, *b, *c, *bembed, *binterp;
   PetscBool fsal;
   PetscFunctionBegin;
-  PetscCall(PetscObjectQuery((PetscObject)ts, kName, (PetscObject *)&container));
-  PetscCheck(container, PetscObjectComm((PetscObject)ts), PETSC_ERR_PLIB, "rk_adjoint: context missing");
-  PetscCall(PetscContainerGetPointer(container, (void **)&ctx));
+  PetscCall(attached_object((PetscObject)ts, kName, &ctx));
+  PetscCheck(ctx, PetscObjectComm((PetscObject)ts), PETSC_ERR_PLIB, "rk_adjoint: context missing");
   PetscCall(TSRKGetTableau(ts, &s, &A, &b, &c, &bembed, &pinterp, &binterp, &fsal));
   (void)bembed, (void)pinterp, (void)binterp;
   if (fsal || ts->quadraturets || ts->vecs_sensi2 || ts->numcost < 1) {
@@ -150,12 +143,9 @@ PetscErrorCode adjoint_step(TS ts) {
 
 // The context of an installed adjoint step, else null.
 PetscErrorCode installed(TS ts, RkAdjoint **ctx) {
-  PetscContainer container = nullptr;
   PetscFunctionBegin;
   *ctx = nullptr;
-  if (ts->ops->adjointstep != adjoint_step) PetscFunctionReturn(0);
-  PetscCall(PetscObjectQuery((PetscObject)ts, kName, (PetscObject *)&container));
-  if (container) PetscCall(PetscContainerGetPointer(container, (void **)ctx));
+  if (ts->ops->adjointstep == adjoint_step) PetscCall(attached_object((PetscObject)ts, kName, ctx));
   PetscFunctionReturn(0);
 }
 
@@ -163,7 +153,6 @@ PetscErrorCode installed(TS ts, RkAdjoint **ctx) {
 
 PetscErrorCode rk_adjoint_install(TS ts, RkStageAdjoint stage, void *stage_ctx, PetscInt position_pairs) {
   PetscBool rk;
-  PetscContainer container;
   RkAdjoint *ctx;
   PetscFunctionBegin;
   PetscCall(PetscObjectTypeCompare((PetscObject)ts, TSRK, &rk));
@@ -172,11 +161,7 @@ PetscErrorCode rk_adjoint_install(TS ts, RkStageAdjoint stage, void *stage_ctx, 
   if (!ctx) {
     ctx = new RkAdjoint();
     ctx->petsc_step = ts->ops->adjointstep;
-    PetscCall(PetscContainerCreate(PetscObjectComm((PetscObject)ts), &container));
-    PetscCall(PetscContainerSetPointer(container, ctx));
-    PetscCall(PetscContainerSetUserDestroy(container, destroy_context));
-    PetscCall(PetscObjectCompose((PetscObject)ts, kName, (PetscObject)container));
-    PetscCall(PetscContainerDestroy(&container));
+    PetscCall(compose_owned((PetscObject)ts, kName, ctx));
     ts->ops->adjointstep = adjoint_step;
   }
   ctx->stage = stage;

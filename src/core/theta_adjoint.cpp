@@ -29,11 +29,6 @@ struct ThetaAdjoint {
   }
 };
 
-PetscErrorCode destroy_context(void *ctx) {
-  delete static_cast<ThetaAdjoint *>(ctx);
-  return 0;
-}
-
 // The IJacobian at (t, U) with this shift, as the KSP's operators (what TSComputeSNESJacobian and
 // KSPSetOperators do in PETSc's step, without SNESComputeJacobian).
 PetscErrorCode ijacobian(TS ts, PetscReal t, Vec U, Vec Udot, PetscReal shift, Mat J, Mat P, KSP ksp) {
@@ -86,15 +81,13 @@ PetscErrorCode add_parameter_terms(TS ts, ThetaAdjoint &c, PetscReal t, Vec U, P
 }
 
 PetscErrorCode adjoint_step(TS ts) {
-  PetscContainer container;
   ThetaAdjoint *c;
   PetscReal theta;
   PetscBool endpoint;
   TSEquationType eqtype;
   PetscFunctionBegin;
-  PetscCall(PetscObjectQuery((PetscObject)ts, kName, (PetscObject *)&container));
-  PetscCheck(container, PetscObjectComm((PetscObject)ts), PETSC_ERR_PLIB, "theta_adjoint: context missing");
-  PetscCall(PetscContainerGetPointer(container, (void **)&c));
+  PetscCall(attached_object((PetscObject)ts, kName, &c));
+  PetscCheck(c, PetscObjectComm((PetscObject)ts), PETSC_ERR_PLIB, "theta_adjoint: context missing");
   PetscCall(TSThetaGetTheta(ts, &theta));
   PetscCall(TSThetaGetEndpoint(ts, &endpoint));
   PetscCall(TSGetEquationType(ts, &eqtype));
@@ -201,17 +194,12 @@ PetscErrorCode adjoint_step(TS ts) {
 
 PetscErrorCode theta_adjoint_install(TS ts) {
   PetscBool theta;
-  PetscContainer container;
   PetscFunctionBegin;
   PetscCall(PetscObjectTypeCompareAny((PetscObject)ts, &theta, TSTHETA, TSCN, TSBEULER, ""));
   if (!theta || ts->ops->adjointstep == adjoint_step) PetscFunctionReturn(0);
   auto *ctx = new ThetaAdjoint();
   ctx->petsc_step = ts->ops->adjointstep;
-  PetscCall(PetscContainerCreate(PetscObjectComm((PetscObject)ts), &container));
-  PetscCall(PetscContainerSetPointer(container, ctx));
-  PetscCall(PetscContainerSetUserDestroy(container, destroy_context));
-  PetscCall(PetscObjectCompose((PetscObject)ts, kName, (PetscObject)container));
-  PetscCall(PetscContainerDestroy(&container));
+  PetscCall(compose_owned((PetscObject)ts, kName, ctx));
   ts->ops->adjointstep = adjoint_step;
   PetscFunctionReturn(0);
 }

@@ -229,6 +229,21 @@ public:
   PetscErrorCode stage_adjoint(PetscReal, Vec U, Vec x, Vec y, Vec mu) override {
     const ParamInfo &pi = params_->info(c_index_);
     PetscReal local[4] = {0, 0, 0, 0};
+    PetscFunctionBeginUser;
+    if (mu && c_field_) { // a field's gradient added in place
+      PetscScalar *gm;
+      PetscCall(VecGetArray(mu, &gm));
+      PetscCall(transpose_sweep(U, x, y, gm + pi.local_offset, true, nullptr));
+      PetscCall(VecRestoreArray(mu, &gm));
+    } else PetscCall(transpose_sweep(U, x, y, gbuf_.data(), false, mu ? local : nullptr));
+    if (mu && !c_field_) PetscCall(params_->add_local_sum(mu, c_index_, local[0] + local[1] + local[2] + local[3]));
+    PetscFunctionReturn(0);
+  }
+
+  // y = J^T x = [D2 (c^2 x_v) ; x_u] (walls 0) and the pointwise 2 c (D2 u) x_v at the state U (whole, or
+  // u alone), in one sweep: added to g (add), or written to g (walls 0); local, when given, gets the
+  // pointwise terms' sum (four partial sums).
+  PetscErrorCode transpose_sweep(Vec U, Vec x, Vec y, PetscReal *g, bool add, PetscReal *local) {
     PetscInt nu;
     PetscFunctionBeginUser;
     PetscCall(VecGetLocalSize(U, &nu));
@@ -242,20 +257,20 @@ public:
       PetscCall(xa.error());
       PetscCall(ua.error());
       PetscCall(ya.error());
-      PetscScalar *gm = nullptr;
-      if (mu && c_field_) PetscCall(VecGetArray(mu, &gm));
       const PetscScalar *X = xa.data(), *u = ua.data();
       PetscScalar *Y = ya.data();
-      PetscReal *g = gm ? gm + pi.local_offset : gbuf_.data(); // a field's gradient in place, else scratch
       const PetscInt xm = grid_->xm();
       for (PetscInt il : {(PetscInt)0, xm - 1}) // the walls (no gradient there: 2c = 0)
-        if (xm > 0 && grid_->is_boundary(grid_->xs() + il)) Y[2 * il] = Y[2 * il + 1] = 0;
+        if (xm > 0 && grid_->is_boundary(grid_->xs() + il)) {
+          Y[2 * il] = Y[2 * il + 1] = 0;
+          if (!add) g[il] = 0;
+        }
       const PetscReal *c2 = c2_.data(), *dg = two_c_.data();
-      if (gm && su == 1) stage_interior<true, 1>(X, u, c2, dg, Y, g);
-      else if (gm) stage_interior<true, 2>(X, u, c2, dg, Y, g);
+      if (add && su == 1) stage_interior<true, 1>(X, u, c2, dg, Y, g);
+      else if (add) stage_interior<true, 2>(X, u, c2, dg, Y, g);
       else if (su == 1) stage_interior<false, 1>(X, u, c2, dg, Y, g);
       else stage_interior<false, 2>(X, u, c2, dg, Y, g);
-      if (!gm && mu) sum4(g, lo_, hi_, local);
+      if (local) sum4(g, lo_, hi_, local);
       PetscCall(halo_u.end(U));
       PetscCall(halo_v_.end(x));
       for_edge_points([&](PetscInt il, const std::array<StencilEntry, 5> &st, PetscInt m) {
@@ -268,12 +283,11 @@ public:
         Y[2 * il] = dz;
         Y[2 * il + 1] = X[2 * il];
         const PetscReal gi = two_c_[il] * du * PetscRealPart(X[2 * il + 1]);
-        if (gm) g[il] += gi;
-        else local[il & 3] += gi;
+        if (add) g[il] += gi;
+        else g[il] = gi;
+        if (local) local[il & 3] += gi;
       });
-      if (gm) PetscCall(VecRestoreArray(mu, &gm));
     }
-    if (mu && !c_field_) PetscCall(params_->add_local_sum(mu, c_index_, local[0] + local[1] + local[2] + local[3]));
     PetscFunctionReturn(0);
   }
 
@@ -531,36 +545,7 @@ private:
     Vec U = nullptr;
     PetscFunctionBeginUser;
     PetscCall(stage_.get(&U));
-    PetscCall(halo_u_.begin(U));
-    PetscCall(halo_v_.begin(x));
-    {
-      ConstArray xa(x), ua(U);
-      Array ya(y);
-      PetscCall(xa.error());
-      PetscCall(ua.error());
-      PetscCall(ya.error());
-      const PetscScalar *X = xa.data(), *u = ua.data();
-      PetscScalar *Y = ya.data();
-      PetscReal *g = fused_.g.data();
-      const PetscInt xm = grid_->xm();
-      for (PetscInt il : {(PetscInt)0, xm - 1}) // the walls
-        if (xm > 0 && grid_->is_boundary(grid_->xs() + il)) Y[2 * il] = Y[2 * il + 1] = 0, g[il] = 0;
-      if (hw_ == 1) fused_transpose_interior<1>(lo_, hi_, wt_, X, u, c2_.data(), two_c_.data(), Y, g);
-      else fused_transpose_interior<2>(lo_, hi_, wt_, X, u, c2_.data(), two_c_.data(), Y, g);
-      PetscCall(halo_u_.end(U));
-      PetscCall(halo_v_.end(x));
-      for_edge_points([&](PetscInt il, const std::array<StencilEntry, 5> &st, PetscInt m) {
-        PetscReal du = 0, dz = 0;
-        for (PetscInt q = 0; q < m; ++q) {
-          const PetscInt jl = local_offset(st[q].j);
-          du += st[q].weight * value(u, halo_u_, 0, jl);
-          dz += st[q].weight * c2_at(jl) * value(X, halo_v_, 1, jl);
-        }
-        Y[2 * il] = dz;
-        Y[2 * il + 1] = X[2 * il];
-        g[il] = two_c_[il] * du * PetscRealPart(X[2 * il + 1]);
-      });
-    }
+    PetscCall(transpose_sweep(U, x, y, fused_.g.data(), false, nullptr));
     PetscCall(fused_.store(x, stage_.serial()));
     PetscFunctionReturn(0);
   }

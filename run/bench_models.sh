@@ -1,0 +1,66 @@
+#!/usr/bin/env bash
+# Gradient / forward for every model and integrator flexipde offers (1 rank): the survey behind
+# issue 8's "gradient <= 2.5x forward for every model" (docs/performance.md, Session 5).
+#
+#   run/bench_models.sh              # markdown table on stdout
+#   REPS=3 run/bench_models.sh       # fewer repetitions
+#
+# Each line is one process, `flexipde -task gradient -timing_repeats REPS`: one gradient, then REPS
+# forward solves and REPS gradients alternately in the same process, and their medians. A gradient is
+# the whole value + gradient (forward solve storing the trajectory, then the adjoint). The default
+# scenes have the data made at the same parameters, so J = 0 there; the work is the same as at any
+# other parameters (the adjoint runs in full).
+# Environment: FLEXIPDE (build/flexipde), REPS (7), MPIEXEC (mpiexec, --allow-run-as-root as root).
+set -euo pipefail
+here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
+FLEXIPDE=${FLEXIPDE:-$(dirname "$here")/build/flexipde}
+REPS=${REPS:-7}
+MPIEXEC=${MPIEXEC:-mpiexec}
+[ "$(id -u)" = 0 ] && MPIEXEC="$MPIEXEC --allow-run-as-root"
+
+echo "| model | integrator | case | forward (s) | gradient (s) | gradient / forward |"
+echo "|---|---|---|---:|---:|---:|"
+run() {
+  local model=$1 ts=$2 label=$3
+  shift 3
+  local line
+  line=$($MPIEXEC -n 1 "$FLEXIPDE" "$@" -task gradient -timing_repeats "$REPS" 2>&1 | grep 'gradient/forward' || true)
+  if [ -z "$line" ]; then
+    echo "| $model | $ts | $label | | | failed |"
+    return
+  fi
+  sed -E "s/.*forward median ([0-9.]+).*gradient median ([0-9.]+).*gradient\/forward ([0-9.]+)/| $model | $ts | $label | \1 | \2 | \3 |/" <<<"$line"
+}
+A="-model advection -grid_periodic 1 -da_grid_x 512"
+D="-advection_D 0.01 -ts_dt 1e-4 -ts_max_time 0.5" # explicit RK needs the small step with diffusion
+for S in upwind fd2 fd4 spectral; do
+  for TS in rk4 cn; do
+    opt="-ts_type rk -ts_rk_type 4"
+    [ $TS = cn ] && opt="-ts_type cn"
+    run advection "$TS" "1D N=512 $S" $A -advection_scheme $S $opt
+    run advection "$TS" "1D N=512 $S, scalar D" $A -advection_scheme $S $opt $D
+    run advection "$TS" "1D N=512 $S, field D" $A -advection_scheme $S $opt $D -advection_D_field 1
+  done
+done
+A2="-model advection -advection_dim 2 -grid_periodic 1 -da_grid_x 128 -da_grid_y 128 -advection_b 0.5 -ts_dt 1e-3 -ts_max_time 0.5"
+for S in upwind fd2 spectral; do
+  for TS in rk4 cn; do
+    opt="-ts_type rk -ts_rk_type 4"
+    [ $TS = cn ] && opt="-ts_type cn"
+    run advection "$TS" "2D 128^2 $S" $A2 -advection_scheme $S $opt
+    run advection "$TS" "2D 128^2 $S, field D" $A2 -advection_scheme $S $opt -advection_D 0.01 -advection_D_field 1
+  done
+done
+for TS in leapfrog rk4 cn; do
+  opt="-ts_type $TS"
+  [ $TS = rk4 ] && opt="-ts_type rk -ts_rk_type 4"
+  run wave "$TS" "seed scene, field c" $opt -wave_c_field 1 -wave_c 0.9
+  run wave "$TS" "seed scene, scalar c" $opt -wave_c_field 0 -wave_c 0.9
+done
+for TS in rk4 cn; do
+  opt="-ts_type cn"
+  [ $TS = rk4 ] && opt="-ts_type rk -ts_rk_type 4"
+  run wave2d "$TS" "101^2, sponge, field c" -model wave2d -da_grid_x 101 -da_grid_y 101 $opt -wave2d_c_field 1
+done
+run vlasov rk4 "Landau 128^2" -model vlasov -objective_type functional -da_grid_x 128 -da_grid_y 128 -ts_dt 0.02 -ts_max_time 2
+run vlasov cn "Landau 64^2" -model vlasov -objective_type functional -da_grid_x 64 -da_grid_y 64 -ts_type cn -ts_dt 0.1 -ts_max_time 2
