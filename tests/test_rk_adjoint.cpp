@@ -66,13 +66,13 @@ std::vector<RkCase> rk_cases() {
   };
 }
 
-class RkAdjoint : public ::testing::TestWithParam<RkCase> {
-protected:
-  void SetUp() override {
+// A scene with an explicit RK TS (0.1 time units of 2e-3) and the case's options, and its p.
+struct RkScene {
+  void set_up(const std::vector<std::pair<const char *, const char *>> &opts) {
     opts_.set("-ts_max_time", "0.1");
     opts_.set("-ts_dt", "2e-3");
     opts_.set("-ts_type", "rk");
-    for (auto &o : GetParam().opts) opts_.set(o.first, o.second);
+    for (auto &o : opts) opts_.set(o.first, o.second);
     PETSC_ASSERT_OK(scene.setup(PETSC_COMM_WORLD));
     PETSC_ASSERT_OK(scene.params.create_vec(p.out()));
     PETSC_ASSERT_OK(scene.parameters_from_options("", p));
@@ -80,6 +80,11 @@ protected:
   ScopedOptions opts_;
   Scene scene;
   OwnedVec p;
+};
+
+class RkAdjoint : public ::testing::TestWithParam<RkCase>, public RkScene {
+protected:
+  void SetUp() override { set_up(GetParam().opts); }
 };
 
 std::string rk_name(const ::testing::TestParamInfo<RkCase> &i) { return i.param.name; }
@@ -170,20 +175,9 @@ std::vector<Wave2DStageCase> wave2d_stage_cases() {
   };
 }
 
-class RkPositionsWave2D : public ::testing::TestWithParam<Wave2DStageCase> {
+class RkPositionsWave2D : public ::testing::TestWithParam<Wave2DStageCase>, public RkScene {
 protected:
-  void SetUp() override {
-    opts_.set("-ts_max_time", "0.1");
-    opts_.set("-ts_dt", "2e-3");
-    opts_.set("-ts_type", "rk");
-    for (auto &o : GetParam().rk.opts) opts_.set(o.first, o.second);
-    PETSC_ASSERT_OK(scene.setup(PETSC_COMM_WORLD));
-    PETSC_ASSERT_OK(scene.params.create_vec(p.out()));
-    PETSC_ASSERT_OK(scene.parameters_from_options("", p));
-  }
-  ScopedOptions opts_;
-  Scene scene;
-  OwnedVec p;
+  void SetUp() override { set_up(GetParam().rk.opts); }
 };
 
 std::string wave2d_stage_name(const ::testing::TestParamInfo<Wave2DStageCase> &i) { return i.param.rk.name; }

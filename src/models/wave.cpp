@@ -207,12 +207,8 @@ public:
       PetscCall(halo_u.end(U));
       PetscCall(halo_v_.end(lambda));
       for_edge_points([&](PetscInt il, const std::array<StencilEntry, 5> &st, PetscInt m) {
-        PetscReal du = 0, dz = 0;
-        for (PetscInt q = 0; q < m; ++q) {
-          const PetscInt jl = local_offset(st[q].j);
-          du += st[q].weight * PetscRealPart(jl >= 0 && jl < grid_->xm() ? ua[su * jl] : halo_u(jl, 0));
-          dz += st[q].weight * c2_at(jl) * value(L, halo_v_, 1, jl);
-        }
+        PetscReal du, dz;
+        edge_sums(st, m, ua, su, halo_u, L, &du, &dz);
         body(il, du, dz);
       });
       if (g) PetscCall(VecRestoreArray(mu, &g));
@@ -274,12 +270,8 @@ public:
       PetscCall(halo_u.end(U));
       PetscCall(halo_v_.end(x));
       for_edge_points([&](PetscInt il, const std::array<StencilEntry, 5> &st, PetscInt m) {
-        PetscReal du = 0, dz = 0;
-        for (PetscInt q = 0; q < m; ++q) {
-          const PetscInt jl = local_offset(st[q].j);
-          du += st[q].weight * PetscRealPart(jl >= 0 && jl < grid_->xm() ? u[su * jl] : halo_u(jl, 0));
-          dz += st[q].weight * c2_at(jl) * value(X, halo_v_, 1, jl);
-        }
+        PetscReal du, dz;
+        edge_sums(st, m, u, su, halo_u, X, &du, &dz);
         Y[2 * il] = dz;
         Y[2 * il + 1] = X[2 * il];
         const PetscReal gi = two_c_[il] * du * PetscRealPart(X[2 * il + 1]);
@@ -432,6 +424,19 @@ private:
     else if (hw_ == 1) fused_kick_interior<1, false, SU>(lo_, hi_, wt_, ua, L, c2, dg, out, w);
     else if (add) fused_kick_interior<2, true, SU>(lo_, hi_, wt_, ua, L, c2, dg, out, w);
     else fused_kick_interior<2, false, SU>(lo_, hi_, wt_, ua, L, c2, dg, out, w);
+  }
+  // At an edge point with stencil st (m entries): du = (D2 u) (u at stride su in a whole state or the
+  // positions alone, ghosts from halo_u) and dz = D2 (c^2 z_v) (z an interleaved (u, v) array, ghosts
+  // of z_v from halo_v_).
+  void edge_sums(const std::array<StencilEntry, 5> &st, PetscInt m, const PetscScalar *u, PetscInt su,
+                 const Halo &halo_u, const PetscScalar *z, PetscReal *du, PetscReal *dz) const {
+    *du = 0;
+    *dz = 0;
+    for (PetscInt q = 0; q < m; ++q) {
+      const PetscInt jl = local_offset(st[q].j);
+      *du += st[q].weight * PetscRealPart(jl >= 0 && jl < grid_->xm() ? u[su * jl] : halo_u(jl, 0));
+      *dz += st[q].weight * c2_at(jl) * value(z, halo_v_, 1, jl);
+    }
   }
   // Local offset (i - xs) of global point j as the stencils see it: periodic neighbours of the
   // block's ends unwrapped into the halo.
