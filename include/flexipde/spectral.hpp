@@ -54,6 +54,9 @@ public:
 
   // y = M u (or M^T u); y may be u.
   PetscErrorCode apply(const Multiplier &m, Vec u, Vec y, bool transpose = false) const;
+  // ys[j] = ms[j] u for every j from one forward transform of u (one backward transform each);
+  // each equals apply(ms[j], u, ys[j]) bitwise. No y may be u.
+  PetscErrorCode apply_many(const std::vector<Multiplier> &ms, Vec u, const std::vector<Vec> &ys) const;
   // y = d^order u / d(x or y)^order (dir 0 = x, 1 = y), optionally de-aliased by the 2/3 rule.
   PetscErrorCode derivative(PetscInt dir, PetscInt order, Vec u, Vec y, bool dealias = false, bool transpose = false) const;
   // y = the 2/3-rule truncation of u (symmetric, a projection).

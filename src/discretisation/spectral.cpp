@@ -37,6 +37,7 @@ struct SpectralDifferentiator::Impl {
   fftw_plan fwd = nullptr, bwd = nullptr;
   OwnedVec v_fin, v_fout, v_bin, v_bout;
   OwnedScatter to_fft, relayout, from_fft;
+  std::vector<FourierMode> modes; // of the forward output this rank holds (fout), made once
 
   ~Impl() {
     if (fwd) fftw_destroy_plan(fwd);
@@ -239,6 +240,8 @@ PetscErrorCode SpectralDifferentiator::setup(const Grid &grid, bool x_only) {
     PetscCall(make_is(comm, both, is.out()));
     PetscCall(VecScatterCreate(im->v_fout, is, im->v_bin, is, im->relayout.out()));
   }
+  im->modes.resize((size_t)im->fout.count);
+  for (ptrdiff_t p = 0; p < im->fout.count; ++p) im->modes[p] = im->mode(im->fout.start + p);
   impl_ = std::move(im);
   PetscFunctionReturn(0);
 }
@@ -251,7 +254,7 @@ PetscErrorCode SpectralDifferentiator::apply(const Multiplier &m, Vec u, Vec y, 
   PetscCall(VecScatterEnd(im.to_fft, u, im.v_fin, INSERT_VALUES, SCATTER_FORWARD));
   if (im.fwd) fftw_execute(im.fwd);
   for (ptrdiff_t p = 0; p < im.fout.count; ++p) {
-    std::complex<PetscReal> f = m(im.mode(im.fout.start + p));
+    std::complex<PetscReal> f = m(im.modes[p]);
     if (transpose) f = std::conj(f);
     f /= im.norm;
     const std::complex<PetscReal> v(im.a_out[p][0], im.a_out[p][1]);
@@ -268,6 +271,37 @@ PetscErrorCode SpectralDifferentiator::apply(const Multiplier &m, Vec u, Vec y, 
   PetscCall(touched(im.v_bout));
   PetscCall(VecScatterBegin(im.from_fft, im.v_bout, y, INSERT_VALUES, SCATTER_FORWARD));
   PetscCall(VecScatterEnd(im.from_fft, im.v_bout, y, INSERT_VALUES, SCATTER_FORWARD));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SpectralDifferentiator::apply_many(const std::vector<Multiplier> &ms, Vec u, const std::vector<Vec> &ys) const {
+  Impl &im = *impl_;
+  PetscFunctionBeginUser;
+  PetscCheck(ms.size() == ys.size(), im.comm, PETSC_ERR_ARG_SIZ, "apply_many: %zu multipliers for %zu outputs", ms.size(), ys.size());
+  PetscCall(VecSet(im.v_fin, 0.0));
+  PetscCall(VecScatterBegin(im.to_fft, u, im.v_fin, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecScatterEnd(im.to_fft, u, im.v_fin, INSERT_VALUES, SCATTER_FORWARD));
+  if (im.fwd) fftw_execute(im.fwd);
+  std::vector<std::complex<PetscReal>> uhat((size_t)im.fout.count);
+  for (ptrdiff_t p = 0; p < im.fout.count; ++p) uhat[p] = std::complex<PetscReal>(im.a_out[p][0], im.a_out[p][1]);
+  for (size_t j = 0; j < ms.size(); ++j) {
+    for (ptrdiff_t p = 0; p < im.fout.count; ++p) { // as apply(): f / norm, then times the coefficient
+      std::complex<PetscReal> f = ms[j](im.modes[p]);
+      f /= im.norm;
+      const std::complex<PetscReal> w = f * uhat[p];
+      im.a_out[p][0] = w.real();
+      im.a_out[p][1] = w.imag();
+    }
+    if (!im.same_mid) {
+      PetscCall(touched(im.v_fout));
+      PetscCall(VecScatterBegin(im.relayout, im.v_fout, im.v_bin, INSERT_VALUES, SCATTER_FORWARD));
+      PetscCall(VecScatterEnd(im.relayout, im.v_fout, im.v_bin, INSERT_VALUES, SCATTER_FORWARD));
+    }
+    if (im.bwd) fftw_execute(im.bwd);
+    PetscCall(touched(im.v_bout));
+    PetscCall(VecScatterBegin(im.from_fft, im.v_bout, ys[j], INSERT_VALUES, SCATTER_FORWARD));
+    PetscCall(VecScatterEnd(im.from_fft, im.v_bout, ys[j], INSERT_VALUES, SCATTER_FORWARD));
+  }
   PetscFunctionReturn(0);
 }
 

@@ -1216,20 +1216,30 @@ private:
 
   // The spectral stage (scalar coefficients): with D_d skew and the Laplacian L symmetric,
   // A^T x = sum_d a_d D_d x + D L x, and (dG/da_d)^T x = <-D_d u, x> = <u, D_d x>, (dG/dD)^T x = <u, L x>:
-  // one transform pair per derivative gives the product and the parameters' sums together (the
-  // Jacobian path transforms u as well at every stage).
+  // one forward transform of x and one backward transform per derivative give the product and the
+  // parameters' sums together (the Jacobian path transforms u as well at every stage).
   PetscErrorCode spectral_stage_adjoint(PetscReal, Vec U, Vec x, Vec y, Vec mu) {
     PetscReal local[3] = {0, 0, 0};
     const PetscInt n = grid_->local_points(), nd = dim_;
     PetscFunctionBeginUser;
+    std::vector<SpectralDifferentiator::Multiplier> ms;
+    std::vector<Vec> out;
+    Vec work[3] = {t1_, t2_, t3_};
+    for (PetscInt d = 0; d < nd; ++d) {
+      ms.push_back([d](const FourierMode &k) { return SpectralDifferentiator::derivative_symbol(k, d, 1); });
+      out.push_back(work[d]);
+    }
+    if (diffusion_) {
+      ms.push_back([](const FourierMode &k) { return cplx(-(k.wx * k.wx + k.wy * k.wy)); });
+      out.push_back(work[nd]);
+    }
+    PetscCall(spectral_.apply_many(ms, x, out)); // one forward transform of x for all of them
     PetscCall(VecSet(y, 0.0));
-    for (PetscInt d = 0; d <= nd; ++d) {
-      if (d == nd && !diffusion_) break;
-      if (d < nd) PetscCall(spectral_.derivative(d, 1, x, t1_));
-      else PetscCall(spectral_.apply([](const FourierMode &k) { return cplx(-(k.wx * k.wx + k.wy * k.wy)); }, x, t1_));
-      PetscCall(VecAXPY(y, d < nd ? vel_[d] : D_scalar_, t1_));
+    for (size_t j = 0; j < out.size(); ++j) {
+      const PetscInt d = (PetscInt)j;
+      PetscCall(VecAXPY(y, d < nd ? vel_[d] : D_scalar_, out[j]));
       if (mu) {
-        ConstArray v(t1_), u(U);
+        ConstArray v(out[j]), u(U);
         PetscCall(v.error());
         PetscCall(u.error());
         PetscReal s = 0;
