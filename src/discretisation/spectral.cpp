@@ -38,6 +38,11 @@ struct SpectralDifferentiator::Impl {
   OwnedVec v_fin, v_fout, v_bin, v_bout;
   OwnedScatter to_fft, relayout, from_fft;
   std::vector<FourierMode> modes; // of the forward output this rank holds (fout), made once
+  // The three parts of apply(): u (DMDA) -> a_out; a_out = (m / norm) uhat mode by mode (conj(m) for
+  // the transpose; uhat null: a_out itself); a_out -> backward transform -> y (DMDA, real parts).
+  PetscErrorCode to_spectrum(Vec u);
+  void multiply(const SpectralDifferentiator::Multiplier &m, bool transpose, const std::complex<PetscReal> *uhat);
+  PetscErrorCode from_spectrum(Vec y);
 
   ~Impl() {
     if (fwd) fftw_destroy_plan(fwd);
@@ -246,31 +251,46 @@ PetscErrorCode SpectralDifferentiator::setup(const Grid &grid, bool x_only) {
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode SpectralDifferentiator::apply(const Multiplier &m, Vec u, Vec y, bool transpose) const {
-  Impl &im = *impl_;
+PetscErrorCode SpectralDifferentiator::Impl::to_spectrum(Vec u) {
   PetscFunctionBeginUser;
-  PetscCall(VecSet(im.v_fin, 0.0));
-  PetscCall(VecScatterBegin(im.to_fft, u, im.v_fin, INSERT_VALUES, SCATTER_FORWARD));
-  PetscCall(VecScatterEnd(im.to_fft, u, im.v_fin, INSERT_VALUES, SCATTER_FORWARD));
-  if (im.fwd) fftw_execute(im.fwd);
-  for (ptrdiff_t p = 0; p < im.fout.count; ++p) {
-    std::complex<PetscReal> f = m(im.modes[p]);
+  PetscCall(VecSet(v_fin, 0.0));
+  PetscCall(VecScatterBegin(to_fft, u, v_fin, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecScatterEnd(to_fft, u, v_fin, INSERT_VALUES, SCATTER_FORWARD));
+  if (fwd) fftw_execute(fwd);
+  PetscFunctionReturn(0);
+}
+
+void SpectralDifferentiator::Impl::multiply(const Multiplier &m, bool transpose, const std::complex<PetscReal> *uhat) {
+  for (ptrdiff_t p = 0; p < fout.count; ++p) {
+    std::complex<PetscReal> f = m(modes[p]);
     if (transpose) f = std::conj(f);
-    f /= im.norm;
-    const std::complex<PetscReal> v(im.a_out[p][0], im.a_out[p][1]);
+    f /= norm;
+    const std::complex<PetscReal> v = uhat ? uhat[p] : std::complex<PetscReal>(a_out[p][0], a_out[p][1]);
     const std::complex<PetscReal> w = f * v;
-    im.a_out[p][0] = w.real();
-    im.a_out[p][1] = w.imag();
+    a_out[p][0] = w.real();
+    a_out[p][1] = w.imag();
   }
-  if (!im.same_mid) {
-    PetscCall(touched(im.v_fout));
-    PetscCall(VecScatterBegin(im.relayout, im.v_fout, im.v_bin, INSERT_VALUES, SCATTER_FORWARD));
-    PetscCall(VecScatterEnd(im.relayout, im.v_fout, im.v_bin, INSERT_VALUES, SCATTER_FORWARD));
+}
+
+PetscErrorCode SpectralDifferentiator::Impl::from_spectrum(Vec y) {
+  PetscFunctionBeginUser;
+  if (!same_mid) {
+    PetscCall(touched(v_fout));
+    PetscCall(VecScatterBegin(relayout, v_fout, v_bin, INSERT_VALUES, SCATTER_FORWARD));
+    PetscCall(VecScatterEnd(relayout, v_fout, v_bin, INSERT_VALUES, SCATTER_FORWARD));
   }
-  if (im.bwd) fftw_execute(im.bwd);
-  PetscCall(touched(im.v_bout));
-  PetscCall(VecScatterBegin(im.from_fft, im.v_bout, y, INSERT_VALUES, SCATTER_FORWARD));
-  PetscCall(VecScatterEnd(im.from_fft, im.v_bout, y, INSERT_VALUES, SCATTER_FORWARD));
+  if (bwd) fftw_execute(bwd);
+  PetscCall(touched(v_bout));
+  PetscCall(VecScatterBegin(from_fft, v_bout, y, INSERT_VALUES, SCATTER_FORWARD));
+  PetscCall(VecScatterEnd(from_fft, v_bout, y, INSERT_VALUES, SCATTER_FORWARD));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SpectralDifferentiator::apply(const Multiplier &m, Vec u, Vec y, bool transpose) const {
+  PetscFunctionBeginUser;
+  PetscCall(impl_->to_spectrum(u));
+  impl_->multiply(m, transpose, nullptr);
+  PetscCall(impl_->from_spectrum(y));
   PetscFunctionReturn(0);
 }
 
@@ -278,29 +298,12 @@ PetscErrorCode SpectralDifferentiator::apply_many(const std::vector<Multiplier> 
   Impl &im = *impl_;
   PetscFunctionBeginUser;
   PetscCheck(ms.size() == ys.size(), im.comm, PETSC_ERR_ARG_SIZ, "apply_many: %zu multipliers for %zu outputs", ms.size(), ys.size());
-  PetscCall(VecSet(im.v_fin, 0.0));
-  PetscCall(VecScatterBegin(im.to_fft, u, im.v_fin, INSERT_VALUES, SCATTER_FORWARD));
-  PetscCall(VecScatterEnd(im.to_fft, u, im.v_fin, INSERT_VALUES, SCATTER_FORWARD));
-  if (im.fwd) fftw_execute(im.fwd);
+  PetscCall(im.to_spectrum(u));
   std::vector<std::complex<PetscReal>> uhat((size_t)im.fout.count);
   for (ptrdiff_t p = 0; p < im.fout.count; ++p) uhat[p] = std::complex<PetscReal>(im.a_out[p][0], im.a_out[p][1]);
   for (size_t j = 0; j < ms.size(); ++j) {
-    for (ptrdiff_t p = 0; p < im.fout.count; ++p) { // as apply(): f / norm, then times the coefficient
-      std::complex<PetscReal> f = ms[j](im.modes[p]);
-      f /= im.norm;
-      const std::complex<PetscReal> w = f * uhat[p];
-      im.a_out[p][0] = w.real();
-      im.a_out[p][1] = w.imag();
-    }
-    if (!im.same_mid) {
-      PetscCall(touched(im.v_fout));
-      PetscCall(VecScatterBegin(im.relayout, im.v_fout, im.v_bin, INSERT_VALUES, SCATTER_FORWARD));
-      PetscCall(VecScatterEnd(im.relayout, im.v_fout, im.v_bin, INSERT_VALUES, SCATTER_FORWARD));
-    }
-    if (im.bwd) fftw_execute(im.bwd);
-    PetscCall(touched(im.v_bout));
-    PetscCall(VecScatterBegin(im.from_fft, im.v_bout, ys[j], INSERT_VALUES, SCATTER_FORWARD));
-    PetscCall(VecScatterEnd(im.from_fft, im.v_bout, ys[j], INSERT_VALUES, SCATTER_FORWARD));
+    im.multiply(ms[j], false, uhat.data());
+    PetscCall(im.from_spectrum(ys[j]));
   }
   PetscFunctionReturn(0);
 }

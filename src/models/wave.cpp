@@ -175,11 +175,11 @@ public:
   PetscErrorCode second_order_adjoint(PetscReal, Vec U, Vec lambda, PetscReal w, Vec mu) override {
     const ParamInfo &pi = params_->info(c_index_);
     PetscReal local[4] = {0, 0, 0, 0}; // four partial sums: no single dependency chain through the sweep
-    PetscInt nu;
+    PetscInt su = 2;
+    Halo *hu = &halo_u_;
     PetscFunctionBeginUser;
-    PetscCall(VecGetLocalSize(U, &nu));
-    const PetscInt su = nu == grid_->xm() ? 1 : 2; // stride of u in U
-    Halo &halo_u = su == 1 ? halo_q_ : halo_u_;
+    PetscCall(u_layout(U, &su, &hu));
+    Halo &halo_u = *hu;
     PetscCall(halo_u.begin(U));
     PetscCall(halo_v_.begin(lambda));
     {
@@ -240,11 +240,11 @@ public:
   // u alone), in one sweep: added to g (add), or written to g (walls 0); local, when given, gets the
   // pointwise terms' sum (four partial sums).
   PetscErrorCode transpose_sweep(Vec U, Vec x, Vec y, PetscReal *g, bool add, PetscReal *local) {
-    PetscInt nu;
+    PetscInt su = 2;
+    Halo *hu = &halo_u_;
     PetscFunctionBeginUser;
-    PetscCall(VecGetLocalSize(U, &nu));
-    const PetscInt su = nu == grid_->xm() ? 1 : 2; // stride of u in U
-    Halo &halo_u = su == 1 ? halo_q_ : halo_u_;
+    PetscCall(u_layout(U, &su, &hu));
+    Halo &halo_u = *hu;
     PetscCall(halo_u.begin(U));
     PetscCall(halo_v_.begin(x));
     {
@@ -437,6 +437,15 @@ private:
       *du += st[q].weight * PetscRealPart(jl >= 0 && jl < grid_->xm() ? u[su * jl] : halo_u(jl, 0));
       *dz += st[q].weight * c2_at(jl) * value(z, halo_v_, 1, jl);
     }
+  }
+  // U is a whole (u, v) state or u alone: the stride of u in it, and the Halo for its ghosts.
+  PetscErrorCode u_layout(Vec U, PetscInt *su, Halo **halo) {
+    PetscInt nu;
+    PetscFunctionBeginUser;
+    PetscCall(VecGetLocalSize(U, &nu));
+    *su = nu == grid_->xm() ? 1 : 2;
+    *halo = *su == 1 ? &halo_q_ : &halo_u_;
+    PetscFunctionReturn(0);
   }
   // Local offset (i - xs) of global point j as the stencils see it: periodic neighbours of the
   // block's ends unwrapped into the halo.
