@@ -2,11 +2,13 @@
 //   - dot-product identities <M x, y> = <x, M^T y> of first and second derivatives, the 2/3
 //     filter and the derivative MatShell, in 1D, 2D and x-only on a 2D grid with a non-periodic y,
 //   - accuracy: round-off by N = 64 for smooth periodic functions (exponential convergence),
-//   - odd-derivative skew-symmetry, and refusal of odd N and non-periodic directions.
+//   - odd-derivative skew-symmetry, and refusal of odd N and non-periodic directions,
+//   - apply_many (two real outputs per backward transform) against apply, one output at a time.
 // Grids live on PETSC_COMM_WORLD, so every case runs distributed on 2 ranks too.
 #include "flexipde/spectral.hpp"
 #include "test_support.hpp"
 #include <cmath>
+#include <complex>
 #include <functional>
 
 using namespace flexipde;
@@ -90,6 +92,38 @@ TEST_P(SpectralTranspose, DotProductIdentities) {
   PETSC_ASSERT_OK(MatMult(D, x, Mx));
   PETSC_ASSERT_OK(MatMultTranspose(D, y, Mty));
   EXPECT_LE(rel_diff(dot(Mx, y), dot(x, Mty)), 1e-12);
+}
+
+// apply_many packs two outputs into each backward transform: (S_0 + i S_1) u^ -> S_0 u + i S_1 u,
+// which needs symbols with real backward transforms (symbol() symmetrises them). Three symbols (a
+// pair and a single), one of them neither even nor odd in k (i k + k^2 + 1/2): each output must
+// equal apply() of its symbol alone, and a first derivative must match derivative().
+TEST_P(SpectralTranspose, ApplyManyMatchesApply) {
+  const DotCase &c = GetParam();
+  Grid g;
+  SpectralDifferentiator s;
+  OwnedVec x, y0, y1, y2, r;
+  PETSC_ASSERT_OK(make_grid(c.dim, c.nx, c.ny, c.periodic_y, g));
+  PETSC_ASSERT_OK(s.setup(g, c.x_only));
+  PETSC_ASSERT_OK(DMCreateGlobalVector(g.dm(), x.out()));
+  for (auto *v : {&y0, &y1, &y2, &r}) PETSC_ASSERT_OK(VecDuplicate(x, v->out()));
+  PETSC_ASSERT_OK(fill_random(x, -1, 1, 43));
+  using cplx = std::complex<PetscReal>;
+  const SpectralDifferentiator::Symbol s0 = s.symbol([](const FourierMode &k) { return cplx(0.5 + k.wx * k.wx, k.wx); }),
+                                       s1 = s.symbol([](const FourierMode &k) { return SpectralDifferentiator::derivative_symbol(k, 0, 1); }),
+                                       s2 = s.symbol([](const FourierMode &k) { return cplx(-(k.wx * k.wx + k.wy * k.wy)); });
+  PETSC_ASSERT_OK(s.apply_many({&s0, &s1, &s2}, x, {y0, y1, y2}));
+  const SpectralDifferentiator::Symbol *ss[3] = {&s0, &s1, &s2};
+  Vec ys[3] = {y0, y1, y2};
+  for (int j = 0; j < 3; ++j) {
+    PETSC_ASSERT_OK(s.apply(*ss[j], x, r));
+    const PetscReal scale = flexipde_test::norm(r, NORM_INFINITY);
+    EXPECT_GT(scale, 0.1);
+    PETSC_ASSERT_OK(VecAXPY(r, -1.0, ys[j]));
+    EXPECT_LE(flexipde_test::norm(r, NORM_INFINITY), 1e-13 * scale) << c.name << " output " << j;
+  }
+  PETSC_ASSERT_OK(s.derivative(0, 1, x, r));
+  EXPECT_LE(rel_diff(r, y1), 1e-13) << c.name;
 }
 
 INSTANTIATE_TEST_SUITE_P(Spectral, SpectralTranspose,

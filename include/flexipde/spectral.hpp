@@ -21,12 +21,14 @@
 //                           velocity of a 1D1V phase space)
 // The data are real; the complex transforms cost a factor ~2 over real-to-complex ones, which is
 // what buys one code path for 1D and 2D and FFTW-MPI's 1D distribution (real 1D MPI transforms do
-// not exist in FFTW). N must be even in every transformed direction.
+// not exist in FFTW), and apply_many's use of the imaginary part: two real outputs per backward
+// transform. N must be even in every transformed direction.
 #pragma once
 #include "flexipde/grid.hpp"
 #include <complex>
 #include <functional>
 #include <memory>
+#include <vector>
 
 namespace flexipde {
 
@@ -54,9 +56,17 @@ public:
 
   // y = M u (or M^T u); y may be u.
   PetscErrorCode apply(const Multiplier &m, Vec u, Vec y, bool transpose = false) const;
-  // ys[j] = ms[j] u for every j from one forward transform of u (one backward transform each);
-  // each equals apply(ms[j], u, ys[j]) bitwise. No y may be u.
-  PetscErrorCode apply_many(const std::vector<Multiplier> &ms, Vec u, const std::vector<Vec> &ys) const;
+  // A multiplier evaluated once at the Fourier modes this rank holds, as the operator M sees it
+  // ((m(k) + conj(m(-k))) / 2, whose backward transform is real), divided by the transform's
+  // normalisation: what the transforms' loop reads, with no call or division per mode. Models keep
+  // the symbols of their operators (rebuilt when a coefficient changes) for their hot paths.
+  using Symbol = std::vector<std::complex<PetscReal>>;
+  Symbol symbol(const Multiplier &m) const;
+  PetscErrorCode apply(const Symbol &s, Vec u, Vec y, bool transpose = false) const;
+  // ys[j] = S_j u for every j from one forward transform of u and one backward transform per two
+  // outputs: (S_j + i S_{j+1}) u^ transforms back to S_j u + i S_{j+1} u, both real. Equal to
+  // apply(*ss[j], u, ys[j]) to round-off. No y may be u.
+  PetscErrorCode apply_many(const std::vector<const Symbol *> &ss, Vec u, const std::vector<Vec> &ys) const;
   // y = d^order u / d(x or y)^order (dir 0 = x, 1 = y), optionally de-aliased by the 2/3 rule.
   PetscErrorCode derivative(PetscInt dir, PetscInt order, Vec u, Vec y, bool dealias = false, bool transpose = false) const;
   // y = the 2/3-rule truncation of u (symmetric, a projection).

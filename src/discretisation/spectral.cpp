@@ -10,6 +10,7 @@
 #include <fftw3-mpi.h>
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <vector>
 
 #if defined(PETSC_USE_COMPLEX) || !defined(PETSC_USE_REAL_DOUBLE)
@@ -36,13 +37,21 @@ struct SpectralDifferentiator::Impl {
   bool same_mid = true; // backward input layout == forward output layout on every rank
   fftw_plan fwd = nullptr, bwd = nullptr;
   OwnedVec v_fin, v_fout, v_bin, v_bout;
-  OwnedScatter to_fft, relayout, from_fft;
+  OwnedScatter to_fft, relayout, from_fft, from_fft_imag;
+  // Every layout is this rank's block of the DMDA ordering (one rank, or y-slabs that match the
+  // DMDA's): the copies in and out of the transforms are plain loops, no VecScatter.
+  bool direct = false;
   std::vector<FourierMode> modes; // of the forward output this rank holds (fout), made once
-  // The three parts of apply(): u (DMDA) -> a_out; a_out = (m / norm) uhat mode by mode (conj(m) for
-  // the transpose; uhat null: a_out itself); a_out -> backward transform -> y (DMDA, real parts).
+  std::map<PetscInt, SpectralDifferentiator::Symbol> derivatives; // derivative()'s symbols, made on first use
+  std::vector<std::complex<PetscReal>> uhat;                      // apply_many's copy of the transform
+  // The three parts of apply(): u (DMDA) -> a_out; a_out = s uhat mode by mode (conj(s) for the
+  // transpose; uhat null: a_out itself); a_out -> backward transform -> y (DMDA, real parts).
+  // from_spectrum(y, y_imag): y = the real parts of the backward transform; y_imag (optional) = the
+  // imaginary parts.
   PetscErrorCode to_spectrum(Vec u);
-  void multiply(const SpectralDifferentiator::Multiplier &m, bool transpose, const std::complex<PetscReal> *uhat);
-  PetscErrorCode from_spectrum(Vec y);
+  void multiply(const std::complex<PetscReal> *s, bool transpose, const std::complex<PetscReal> *uhat,
+                const std::complex<PetscReal> *s_imag = nullptr);
+  PetscErrorCode from_spectrum(Vec y, Vec y_imag = nullptr);
 
   ~Impl() {
     if (fwd) fftw_destroy_plan(fwd);
@@ -65,6 +74,17 @@ struct SpectralDifferentiator::Impl {
       k.kept = k.kept && 3 * std::abs(k.ky) < ny;
     }
     return k;
+  }
+  // The mode -k (the Nyquist mode is its own negative).
+  FourierMode negative(const FourierMode &k) const {
+    FourierMode n = k;
+    if (2 * k.kx != -nx) n.kx = -k.kx;
+    n.wx = 2 * PETSC_PI * n.kx / Lx;
+    if (rank_dims == 2) {
+      if (2 * k.ky != -ny) n.ky = -k.ky;
+      n.wy = 2 * PETSC_PI * n.ky / Ly;
+    }
+    return n;
   }
 };
 
@@ -226,14 +246,25 @@ PetscErrorCode SpectralDifferentiator::setup(const Grid &grid, bool x_only) {
     PetscCall(make_is(comm, twice, to.out()));
     PetscCall(VecScatterCreate(g, from, im->v_fin, to, im->to_fft.out()));
   }
-  { // real parts of the backward output -> DMDA
+  for (int part = 0; part < 2; ++part) { // real (and imaginary) parts of the backward output -> DMDA
     OwnedIS from, to;
     PetscCall(layout_indices(grid.dm(), im->bout, nat, pet));
     twice.resize(nat.size());
-    for (size_t p = 0; p < nat.size(); ++p) twice[p] = 2 * nat[p];
+    for (size_t p = 0; p < nat.size(); ++p) twice[p] = 2 * nat[p] + part;
     PetscCall(make_is(comm, twice, from.out()));
     PetscCall(make_is(comm, pet, to.out()));
-    PetscCall(VecScatterCreate(im->v_bout, from, g, to, im->from_fft.out()));
+    PetscCall(VecScatterCreate(im->v_bout, from, g, to, part ? im->from_fft_imag.out() : im->from_fft.out()));
+  }
+  { // direct copies: every layout equal to this rank's DMDA block, in the same order
+    PetscInt lo;
+    PetscCall(VecGetOwnershipRange(g, &lo, nullptr));
+    int direct = im->fin == im->fout && im->fin == im->bin && im->fin == im->bout && (PetscInt)im->fin.count == im->nlocal;
+    if (direct) {
+      PetscCall(layout_indices(grid.dm(), im->fin, nat, pet));
+      for (size_t p = 0; p < pet.size() && direct; ++p) direct = pet[p] == lo + (PetscInt)p;
+    }
+    PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &direct, 1, MPI_INT, MPI_LAND, comm));
+    im->direct = direct;
   }
   if (!im->same_mid) { // forward output -> backward input, real and imaginary parts
     OwnedIS is;
@@ -253,26 +284,49 @@ PetscErrorCode SpectralDifferentiator::setup(const Grid &grid, bool x_only) {
 
 PetscErrorCode SpectralDifferentiator::Impl::to_spectrum(Vec u) {
   PetscFunctionBeginUser;
-  PetscCall(VecSet(v_fin, 0.0));
-  PetscCall(VecScatterBegin(to_fft, u, v_fin, INSERT_VALUES, SCATTER_FORWARD));
-  PetscCall(VecScatterEnd(to_fft, u, v_fin, INSERT_VALUES, SCATTER_FORWARD));
+  if (direct) {
+    const PetscScalar *x;
+    PetscReal *a = &a_in[0][0];
+    PetscCall(VecGetArrayRead(u, &x));
+    for (PetscInt p = 0; p < nlocal; ++p) {
+      a[2 * p] = PetscRealPart(x[p]);
+      a[2 * p + 1] = 0;
+    }
+    PetscCall(VecRestoreArrayRead(u, &x));
+  } else {
+    PetscCall(VecSet(v_fin, 0.0));
+    PetscCall(VecScatterBegin(to_fft, u, v_fin, INSERT_VALUES, SCATTER_FORWARD));
+    PetscCall(VecScatterEnd(to_fft, u, v_fin, INSERT_VALUES, SCATTER_FORWARD));
+  }
   if (fwd) fftw_execute(fwd);
   PetscFunctionReturn(0);
 }
 
-void SpectralDifferentiator::Impl::multiply(const Multiplier &m, bool transpose, const std::complex<PetscReal> *uhat) {
-  for (ptrdiff_t p = 0; p < fout.count; ++p) {
-    std::complex<PetscReal> f = m(modes[p]);
-    if (transpose) f = std::conj(f);
-    f /= norm;
-    const std::complex<PetscReal> v = uhat ? uhat[p] : std::complex<PetscReal>(a_out[p][0], a_out[p][1]);
-    const std::complex<PetscReal> w = f * v;
-    a_out[p][0] = w.real();
-    a_out[p][1] = w.imag();
+// a_out = (s + i s_imag) uhat: with symbols whose backward transforms are real (symbol() makes them
+// so), the real and imaginary parts of the backward transform are then S u and S_imag u.
+void SpectralDifferentiator::Impl::multiply(const std::complex<PetscReal> *s, bool transpose, const std::complex<PetscReal> *uhat,
+                                            const std::complex<PetscReal> *s_imag) {
+  const ptrdiff_t n = fout.count;
+  PetscReal *a = &a_out[0][0];
+  const PetscReal *v = uhat ? reinterpret_cast<const PetscReal *>(uhat) : a, *f = reinterpret_cast<const PetscReal *>(s);
+  const PetscReal c = transpose ? -1.0 : 1.0; // conj(s)
+  if (s_imag) {
+    const PetscReal *g = reinterpret_cast<const PetscReal *>(s_imag);
+    for (ptrdiff_t p = 0; p < n; ++p) { // f + i g, with c = 1
+      const PetscReal fr = f[2 * p] - g[2 * p + 1], fi = f[2 * p + 1] + g[2 * p], vr = v[2 * p], vi = v[2 * p + 1];
+      a[2 * p] = fr * vr - fi * vi;
+      a[2 * p + 1] = fr * vi + fi * vr;
+    }
+    return;
+  }
+  for (ptrdiff_t p = 0; p < n; ++p) {
+    const PetscReal fr = f[2 * p], fi = c * f[2 * p + 1], vr = v[2 * p], vi = v[2 * p + 1];
+    a[2 * p] = fr * vr - fi * vi;
+    a[2 * p + 1] = fr * vi + fi * vr;
   }
 }
 
-PetscErrorCode SpectralDifferentiator::Impl::from_spectrum(Vec y) {
+PetscErrorCode SpectralDifferentiator::Impl::from_spectrum(Vec y, Vec y_imag) {
   PetscFunctionBeginUser;
   if (!same_mid) {
     PetscCall(touched(v_fout));
@@ -280,30 +334,66 @@ PetscErrorCode SpectralDifferentiator::Impl::from_spectrum(Vec y) {
     PetscCall(VecScatterEnd(relayout, v_fout, v_bin, INSERT_VALUES, SCATTER_FORWARD));
   }
   if (bwd) fftw_execute(bwd);
+  if (direct) {
+    const PetscReal *b = &b_out[0][0];
+    PetscScalar *re, *im = nullptr;
+    PetscCall(VecGetArrayWrite(y, &re));
+    if (y_imag) PetscCall(VecGetArrayWrite(y_imag, &im));
+    for (PetscInt p = 0; p < nlocal; ++p) re[p] = b[2 * p];
+    if (y_imag)
+      for (PetscInt p = 0; p < nlocal; ++p) im[p] = b[2 * p + 1];
+    PetscCall(VecRestoreArrayWrite(y, &re));
+    if (y_imag) PetscCall(VecRestoreArrayWrite(y_imag, &im));
+    PetscFunctionReturn(0);
+  }
   PetscCall(touched(v_bout));
   PetscCall(VecScatterBegin(from_fft, v_bout, y, INSERT_VALUES, SCATTER_FORWARD));
   PetscCall(VecScatterEnd(from_fft, v_bout, y, INSERT_VALUES, SCATTER_FORWARD));
+  if (y_imag) {
+    PetscCall(VecScatterBegin(from_fft_imag, v_bout, y_imag, INSERT_VALUES, SCATTER_FORWARD));
+    PetscCall(VecScatterEnd(from_fft_imag, v_bout, y_imag, INSERT_VALUES, SCATTER_FORWARD));
+  }
   PetscFunctionReturn(0);
+}
+
+SpectralDifferentiator::Symbol SpectralDifferentiator::symbol(const Multiplier &m) const {
+  const Impl &im = *impl_;
+  Symbol s(im.modes.size());
+  for (size_t p = 0; p < s.size(); ++p) // the part with a real backward transform: (m(k) + conj(m(-k))) / 2
+    s[p] = (m(im.modes[p]) + std::conj(m(im.negative(im.modes[p])))) / (2 * im.norm);
+  return s;
 }
 
 PetscErrorCode SpectralDifferentiator::apply(const Multiplier &m, Vec u, Vec y, bool transpose) const {
   PetscFunctionBeginUser;
+  PetscCall(apply(symbol(m), u, y, transpose));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SpectralDifferentiator::apply(const Symbol &s, Vec u, Vec y, bool transpose) const {
+  PetscFunctionBeginUser;
+  PetscCheck(s.size() == impl_->modes.size(), impl_->comm, PETSC_ERR_ARG_SIZ, "A spectral symbol of %zu modes for %zu", s.size(),
+             impl_->modes.size());
   PetscCall(impl_->to_spectrum(u));
-  impl_->multiply(m, transpose, nullptr);
+  impl_->multiply(s.data(), transpose, nullptr);
   PetscCall(impl_->from_spectrum(y));
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode SpectralDifferentiator::apply_many(const std::vector<Multiplier> &ms, Vec u, const std::vector<Vec> &ys) const {
+PetscErrorCode SpectralDifferentiator::apply_many(const std::vector<const Symbol *> &ss, Vec u, const std::vector<Vec> &ys) const {
   Impl &im = *impl_;
   PetscFunctionBeginUser;
-  PetscCheck(ms.size() == ys.size(), im.comm, PETSC_ERR_ARG_SIZ, "apply_many: %zu multipliers for %zu outputs", ms.size(), ys.size());
+  PetscCheck(ss.size() == ys.size(), im.comm, PETSC_ERR_ARG_SIZ, "apply_many: %zu symbols for %zu outputs", ss.size(), ys.size());
   PetscCall(im.to_spectrum(u));
-  std::vector<std::complex<PetscReal>> uhat((size_t)im.fout.count);
-  for (ptrdiff_t p = 0; p < im.fout.count; ++p) uhat[p] = std::complex<PetscReal>(im.a_out[p][0], im.a_out[p][1]);
-  for (size_t j = 0; j < ms.size(); ++j) {
-    im.multiply(ms[j], false, uhat.data());
-    PetscCall(im.from_spectrum(ys[j]));
+  im.uhat.resize((size_t)im.fout.count);
+  for (ptrdiff_t p = 0; p < im.fout.count; ++p) im.uhat[p] = std::complex<PetscReal>(im.a_out[p][0], im.a_out[p][1]);
+  for (size_t j = 0; j < ss.size(); ++j)
+    PetscCheck(ss[j]->size() == im.modes.size(), im.comm, PETSC_ERR_ARG_SIZ, "A spectral symbol of %zu modes for %zu",
+               ss[j]->size(), im.modes.size());
+  for (size_t j = 0; j < ss.size(); j += 2) { // two outputs per backward transform (real, imaginary parts)
+    const bool pair = j + 1 < ss.size();
+    im.multiply(ss[j]->data(), false, im.uhat.data(), pair ? ss[j + 1]->data() : nullptr);
+    PetscCall(im.from_spectrum(ys[j], pair ? ys[j + 1] : nullptr));
   }
   PetscFunctionReturn(0);
 }
@@ -320,11 +410,15 @@ PetscErrorCode SpectralDifferentiator::derivative(PetscInt dir, PetscInt order, 
   PetscFunctionBeginUser;
   PetscCheck(dir == 0 || (dir == 1 && impl_->rank_dims == 2), impl_->comm, PETSC_ERR_ARG_OUTOFRANGE,
              "Spectral derivative along direction %" PetscInt_FMT " is not transformed here", dir);
-  PetscCall(apply(
-      [=](const FourierMode &k) {
-        return dealias && !k.kept ? std::complex<PetscReal>(0) : derivative_symbol(k, dir, order);
-      },
-      u, y, transpose));
+  const PetscInt key = 4 * order + 2 * dir + (dealias ? 1 : 0);
+  auto it = impl_->derivatives.find(key);
+  if (it == impl_->derivatives.end())
+    it = impl_->derivatives
+             .emplace(key, symbol([=](const FourierMode &k) {
+               return dealias && !k.kept ? std::complex<PetscReal>(0) : derivative_symbol(k, dir, order);
+             }))
+             .first;
+  PetscCall(apply(it->second, u, y, transpose));
   PetscFunctionReturn(0);
 }
 

@@ -452,6 +452,7 @@ public:
       }
     }
     if (scheme_ != SPECTRAL) set_taps();
+    else make_spectral_symbols();
     stage_.invalidate(); // dG/dp and any fused product are taken at the new parameters
     PetscCall(assemble(A_));
     PetscFunctionReturn(0);
@@ -954,16 +955,22 @@ private:
     PetscFunctionReturn(0);
   }
 
-  // The constant-coefficient part of the spectral operator as one Fourier multiplier.
-  SpectralDifferentiator::Multiplier spectral_symbol() const {
+  // The constant-coefficient part of the spectral operator as one Fourier symbol, and the symbols of
+  // the stage adjoint's derivatives (i kappa_d, then -|kappa|^2 with diffusion), made at set-up and
+  // whenever the parameters change (set_parameters).
+  void make_spectral_symbols() {
     const PetscReal a = vel_[0], b = dim_ == 2 ? vel_[1] : 0.0, D = diffusion_ && !D_field_ ? D_scalar_ : 0.0;
-    return [=](const FourierMode &k) { return cplx(-D * (k.wx * k.wx + k.wy * k.wy), -(a * k.wx + b * k.wy)); };
+    symbol_ = spectral_.symbol([=](const FourierMode &k) { return cplx(-D * (k.wx * k.wx + k.wy * k.wy), -(a * k.wx + b * k.wy)); });
+    if (!parts_.empty()) return;
+    for (PetscInt d = 0; d < dim_; ++d)
+      parts_.push_back(spectral_.symbol([d](const FourierMode &k) { return SpectralDifferentiator::derivative_symbol(k, d, 1); }));
+    if (diffusion_) parts_.push_back(spectral_.symbol([](const FourierMode &k) { return cplx(-(k.wx * k.wx + k.wy * k.wy)); }));
   }
 
   // y = A x (or A^T x) for the spectral scheme.
   PetscErrorCode spectral_apply(Vec x, Vec y, bool transpose) {
     PetscFunctionBeginUser;
-    PetscCall(spectral_.apply(spectral_symbol(), x, y, transpose));
+    PetscCall(spectral_.apply(symbol_, x, y, transpose));
     if (diffusion_ && D_field_) // sum_d E_d diag(P D) E_d x, E_d = P d/dx_d (transpose: E_d^T on both sides)
       for (PetscInt d = 0; d < dim_; ++d) {
         PetscCall(spectral_.derivative(d, 1, x, t1_, true, transpose));
@@ -1058,7 +1065,7 @@ private:
     if (D_field_) {
       for (PetscInt d = 0; d < dim_; ++d) PetscCall(spectral_.derivative(d, 1, U, w_[d], true));
     } else {
-      PetscCall(spectral_.apply([](const FourierMode &k) { return cplx(-(k.wx * k.wx + k.wy * k.wy)); }, U, t1_));
+      PetscCall(spectral_.apply(parts_[dim_], U, t1_));
       ConstArray a(t1_);
       PetscCall(a.error());
       for (PetscInt il = 0; il < grid_->local_points(); ++il) dGdD_[il] = PetscRealPart(a[il]);
@@ -1222,16 +1229,12 @@ private:
     PetscReal local[3] = {0, 0, 0};
     const PetscInt n = grid_->local_points(), nd = dim_;
     PetscFunctionBeginUser;
-    std::vector<SpectralDifferentiator::Multiplier> ms;
+    std::vector<const SpectralDifferentiator::Symbol *> ms;
     std::vector<Vec> out;
     Vec work[3] = {t1_, t2_, t3_};
-    for (PetscInt d = 0; d < nd; ++d) {
-      ms.push_back([d](const FourierMode &k) { return SpectralDifferentiator::derivative_symbol(k, d, 1); });
-      out.push_back(work[d]);
-    }
-    if (diffusion_) {
-      ms.push_back([](const FourierMode &k) { return cplx(-(k.wx * k.wx + k.wy * k.wy)); });
-      out.push_back(work[nd]);
+    for (size_t j = 0; j < parts_.size(); ++j) {
+      ms.push_back(&parts_[j]);
+      out.push_back(work[j]);
     }
     PetscCall(spectral_.apply_many(ms, x, out)); // one forward transform of x for all of them
     PetscCall(VecSet(y, 0.0));
@@ -1386,6 +1389,8 @@ private:
   FusedProducts fused_;
   std::vector<PetscReal> scratch_;
   std::vector<PetscReal> stage_scratch_;  // stage_adjoint's sweeps
+  SpectralDifferentiator::Symbol symbol_; // spectral: the constant-coefficient operator's symbol
+  std::vector<SpectralDifferentiator::Symbol> parts_; // spectral: i kappa_d (d < dim), then -|kappa|^2
   std::vector<PetscReal> face_D_;         // 1D field D: D at the faces (cache_face_diffusivity)
   std::vector<PetscReal> faces2_;       // 1D: stage_adjoint's second face array
   mutable std::vector<PetscReal> faces_; // 1D: one value per face the owned points touch (face kernels)
