@@ -124,6 +124,29 @@ TEST_P(SpectralTranspose, ApplyManyMatchesApply) {
   }
   PETSC_ASSERT_OK(s.derivative(0, 1, x, r));
   EXPECT_LE(rel_diff(r, y1), 1e-13) << c.name;
+  // The separate steps: y = S0 x + S2 u from two spectra and one backward transform, a pair of
+  // outputs from two different spectra, and <u, S0 x> by Parseval (summed over the ranks).
+  OwnedVec u;
+  PETSC_ASSERT_OK(VecDuplicate(x, u.out()));
+  PETSC_ASSERT_OK(fill_random(u, -1, 1, 44));
+  SpectralDifferentiator::Spectrum xh, uh;
+  PETSC_ASSERT_OK(s.transform(x, xh));
+  PETSC_ASSERT_OK(s.transform(u, uh));
+  PETSC_ASSERT_OK(s.backward({{&s0, &xh}, {&s2, &uh}}, y2));
+  PETSC_ASSERT_OK(s.apply(s0, x, y0));
+  PETSC_ASSERT_OK(s.apply(s2, u, r));
+  PETSC_ASSERT_OK(VecAXPY(r, 1.0, y0));
+  EXPECT_LE(rel_diff(r, y2), 1e-13) << c.name;
+  PETSC_ASSERT_OK(s.backward_pair(s1, xh, y1, s2, uh, y2));
+  PETSC_ASSERT_OK(s.apply(s1, x, r));
+  EXPECT_LE(rel_diff(r, y1), 1e-13) << c.name;
+  PETSC_ASSERT_OK(s.apply(s2, u, r));
+  EXPECT_LE(rel_diff(r, y2), 1e-13) << c.name;
+  PetscReal local = s.pairing(s0, xh, uh), parseval = 0;
+  MPI_Allreduce(&local, &parseval, 1, MPIU_REAL, MPI_SUM, PETSC_COMM_WORLD);
+  const PetscReal direct = dot(u, y0); // y0 = S0 x
+  EXPECT_GT(std::fabs(direct), 1e-3);
+  EXPECT_LE(rel_diff(parseval, direct), 1e-12) << c.name;
 }
 
 INSTANTIATE_TEST_SUITE_P(Spectral, SpectralTranspose,

@@ -96,6 +96,12 @@ public:
     (void)t, (void)x, (void)y, (void)mu;
     SETERRQ(PetscObjectComm((PetscObject)U), PETSC_ERR_SUP, "Model %s has no fused RK adjoint stage", name());
   }
+  // Called once after an adjoint solve that used stage_adjoint, with its mu: a stage_adjoint may add
+  // sums to mu that still need a linear map common to every stage (applied here once, not per stage).
+  virtual PetscErrorCode finish_stage_adjoint(Vec mu) {
+    (void)mu;
+    return 0;
+  }
   // Point sources (survey.hpp): a model that takes them adds the source's forcing density to G (the
   // wave: to v_t) from then on; null removes it. The forcing depends on t only, never on U or p.
   virtual bool accepts_point_source() const { return false; }

@@ -28,6 +28,7 @@
 #include <complex>
 #include <functional>
 #include <memory>
+#include <utility>
 #include <vector>
 
 namespace flexipde {
@@ -67,6 +68,18 @@ public:
   // outputs: (S_j + i S_{j+1}) u^ transforms back to S_j u + i S_{j+1} u, both real. Equal to
   // apply(*ss[j], u, ys[j]) to round-off. No y may be u.
   PetscErrorCode apply_many(const std::vector<const Symbol *> &ss, Vec u, const std::vector<Vec> &ys) const;
+
+  // The transforms as separate steps, for operators built from several products (a field
+  // coefficient between two derivatives, an adjoint's sums): a Spectrum is this rank's modes of F u.
+  using Spectrum = std::vector<std::complex<PetscReal>>;
+  PetscErrorCode transform(Vec u, Spectrum &uhat) const;
+  // y = sum_j S_j u_j from the spectra of the u_j: one backward transform.
+  PetscErrorCode backward(const std::vector<std::pair<const Symbol *, const Spectrum *>> &terms, Vec y) const;
+  // y0 = S0 a and y1 = S1 b from one backward transform (real and imaginary parts).
+  PetscErrorCode backward_pair(const Symbol &s0, const Spectrum &a, Vec y0, const Symbol &s1, const Spectrum &b, Vec y1) const;
+  // This rank's part of <b, S a> (Parseval: Re sum_k s(k) a(k) conj(b(k))); the sum over ranks is
+  // the inner product. Local, no communication.
+  PetscReal pairing(const Symbol &s, const Spectrum &a, const Spectrum &b) const;
   // y = d^order u / d(x or y)^order (dir 0 = x, 1 = y), optionally de-aliased by the 2/3 rule.
   PetscErrorCode derivative(PetscInt dir, PetscInt order, Vec u, Vec y, bool dealias = false, bool transpose = false) const;
   // y = the 2/3-rule truncation of u (symmetric, a projection).

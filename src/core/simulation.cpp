@@ -723,6 +723,7 @@ PetscErrorCode Simulation::gradient(Vec p, PetscReal *J, Vec grad_p, Vec grad_u0
     PetscCall(TSAdjointSolve(ts));
     stats_.adjoint_seconds = MPI_Wtime() - t0;
     if (defer) PetscCall(params_->flush_sums());
+    if (rk_stage_fused_ && mu) PetscCall(model_->finish_stage_adjoint(mu));
   }
   PetscCall(check_finite(lambda_, "adjoint solve"));
   if (grad_p) {

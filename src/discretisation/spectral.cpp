@@ -43,14 +43,13 @@ struct SpectralDifferentiator::Impl {
   bool direct = false;
   std::vector<FourierMode> modes; // of the forward output this rank holds (fout), made once
   std::map<PetscInt, SpectralDifferentiator::Symbol> derivatives; // derivative()'s symbols, made on first use
-  std::vector<std::complex<PetscReal>> uhat;                      // apply_many's copy of the transform
-  // The three parts of apply(): u (DMDA) -> a_out; a_out = s uhat mode by mode (conj(s) for the
-  // transpose; uhat null: a_out itself); a_out -> backward transform -> y (DMDA, real parts).
+  SpectralDifferentiator::Spectrum uhat;                          // apply_many's transform
+  // The three parts of apply(): u (DMDA) -> a_out; a_out = s a_out mode by mode (conj(s) for the
+  // transpose); a_out -> backward transform -> y (DMDA, real parts).
   // from_spectrum(y, y_imag): y = the real parts of the backward transform; y_imag (optional) = the
   // imaginary parts.
   PetscErrorCode to_spectrum(Vec u);
-  void multiply(const std::complex<PetscReal> *s, bool transpose, const std::complex<PetscReal> *uhat,
-                const std::complex<PetscReal> *s_imag = nullptr);
+  void multiply(const std::complex<PetscReal> *s, bool transpose);
   PetscErrorCode from_spectrum(Vec y, Vec y_imag = nullptr);
 
   ~Impl() {
@@ -302,25 +301,13 @@ PetscErrorCode SpectralDifferentiator::Impl::to_spectrum(Vec u) {
   PetscFunctionReturn(0);
 }
 
-// a_out = (s + i s_imag) uhat: with symbols whose backward transforms are real (symbol() makes them
-// so), the real and imaginary parts of the backward transform are then S u and S_imag u.
-void SpectralDifferentiator::Impl::multiply(const std::complex<PetscReal> *s, bool transpose, const std::complex<PetscReal> *uhat,
-                                            const std::complex<PetscReal> *s_imag) {
+void SpectralDifferentiator::Impl::multiply(const std::complex<PetscReal> *s, bool transpose) {
   const ptrdiff_t n = fout.count;
   PetscReal *a = &a_out[0][0];
-  const PetscReal *v = uhat ? reinterpret_cast<const PetscReal *>(uhat) : a, *f = reinterpret_cast<const PetscReal *>(s);
+  const PetscReal *f = reinterpret_cast<const PetscReal *>(s);
   const PetscReal c = transpose ? -1.0 : 1.0; // conj(s)
-  if (s_imag) {
-    const PetscReal *g = reinterpret_cast<const PetscReal *>(s_imag);
-    for (ptrdiff_t p = 0; p < n; ++p) { // f + i g, with c = 1
-      const PetscReal fr = f[2 * p] - g[2 * p + 1], fi = f[2 * p + 1] + g[2 * p], vr = v[2 * p], vi = v[2 * p + 1];
-      a[2 * p] = fr * vr - fi * vi;
-      a[2 * p + 1] = fr * vi + fi * vr;
-    }
-    return;
-  }
   for (ptrdiff_t p = 0; p < n; ++p) {
-    const PetscReal fr = f[2 * p], fi = c * f[2 * p + 1], vr = v[2 * p], vi = v[2 * p + 1];
+    const PetscReal fr = f[2 * p], fi = c * f[2 * p + 1], vr = a[2 * p], vi = a[2 * p + 1];
     a[2 * p] = fr * vr - fi * vi;
     a[2 * p + 1] = fr * vi + fi * vr;
   }
@@ -375,7 +362,7 @@ PetscErrorCode SpectralDifferentiator::apply(const Symbol &s, Vec u, Vec y, bool
   PetscCheck(s.size() == impl_->modes.size(), impl_->comm, PETSC_ERR_ARG_SIZ, "A spectral symbol of %zu modes for %zu", s.size(),
              impl_->modes.size());
   PetscCall(impl_->to_spectrum(u));
-  impl_->multiply(s.data(), transpose, nullptr);
+  impl_->multiply(s.data(), transpose);
   PetscCall(impl_->from_spectrum(y));
   PetscFunctionReturn(0);
 }
@@ -384,18 +371,82 @@ PetscErrorCode SpectralDifferentiator::apply_many(const std::vector<const Symbol
   Impl &im = *impl_;
   PetscFunctionBeginUser;
   PetscCheck(ss.size() == ys.size(), im.comm, PETSC_ERR_ARG_SIZ, "apply_many: %zu symbols for %zu outputs", ss.size(), ys.size());
-  PetscCall(im.to_spectrum(u));
-  im.uhat.resize((size_t)im.fout.count);
-  for (ptrdiff_t p = 0; p < im.fout.count; ++p) im.uhat[p] = std::complex<PetscReal>(im.a_out[p][0], im.a_out[p][1]);
-  for (size_t j = 0; j < ss.size(); ++j)
-    PetscCheck(ss[j]->size() == im.modes.size(), im.comm, PETSC_ERR_ARG_SIZ, "A spectral symbol of %zu modes for %zu",
-               ss[j]->size(), im.modes.size());
+  PetscCall(transform(u, im.uhat));
   for (size_t j = 0; j < ss.size(); j += 2) { // two outputs per backward transform (real, imaginary parts)
-    const bool pair = j + 1 < ss.size();
-    im.multiply(ss[j]->data(), false, im.uhat.data(), pair ? ss[j + 1]->data() : nullptr);
-    PetscCall(im.from_spectrum(ys[j], pair ? ys[j + 1] : nullptr));
+    if (j + 1 < ss.size()) PetscCall(backward_pair(*ss[j], im.uhat, ys[j], *ss[j + 1], im.uhat, ys[j + 1]));
+    else PetscCall(backward({{ss[j], &im.uhat}}, ys[j]));
   }
   PetscFunctionReturn(0);
+}
+
+PetscErrorCode SpectralDifferentiator::transform(Vec u, Spectrum &uhat) const {
+  Impl &im = *impl_;
+  PetscFunctionBeginUser;
+  PetscCall(im.to_spectrum(u));
+  uhat.resize(im.modes.size());
+  std::copy(&im.a_out[0][0], &im.a_out[0][0] + 2 * uhat.size(), reinterpret_cast<PetscReal *>(uhat.data()));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SpectralDifferentiator::backward(const std::vector<std::pair<const Symbol *, const Spectrum *>> &terms, Vec y) const {
+  Impl &im = *impl_;
+  const size_t n = im.modes.size();
+  PetscFunctionBeginUser;
+  for (const auto &t : terms)
+    PetscCheck(t.first->size() == n && t.second->size() == n, im.comm, PETSC_ERR_ARG_SIZ, "A spectral term of %zu and %zu modes for %zu",
+               t.first->size(), t.second->size(), n);
+  PetscReal *a = &im.a_out[0][0];
+  for (size_t j = 0; j < terms.size(); ++j) {
+    const PetscReal *f = reinterpret_cast<const PetscReal *>(terms[j].first->data()),
+                    *v = reinterpret_cast<const PetscReal *>(terms[j].second->data());
+    if (j == 0)
+      for (size_t p = 0; p < n; ++p) {
+        a[2 * p] = f[2 * p] * v[2 * p] - f[2 * p + 1] * v[2 * p + 1];
+        a[2 * p + 1] = f[2 * p] * v[2 * p + 1] + f[2 * p + 1] * v[2 * p];
+      }
+    else
+      for (size_t p = 0; p < n; ++p) {
+        a[2 * p] += f[2 * p] * v[2 * p] - f[2 * p + 1] * v[2 * p + 1];
+        a[2 * p + 1] += f[2 * p] * v[2 * p + 1] + f[2 * p + 1] * v[2 * p];
+      }
+  }
+  if (terms.empty()) std::fill(a, a + 2 * n, 0.0);
+  PetscCall(im.from_spectrum(y));
+  PetscFunctionReturn(0);
+}
+
+// s0 a + i s1 b: with both symbols' backward transforms real (symbol()), the real and imaginary parts
+// of the backward transform are S0 a and S1 b.
+PetscErrorCode SpectralDifferentiator::backward_pair(const Symbol &s0, const Spectrum &a, Vec y0, const Symbol &s1, const Spectrum &b,
+                                                     Vec y1) const {
+  Impl &im = *impl_;
+  const size_t n = im.modes.size();
+  PetscFunctionBeginUser;
+  PetscCheck(s0.size() == n && a.size() == n && s1.size() == n && b.size() == n, im.comm, PETSC_ERR_ARG_SIZ,
+             "backward_pair: symbols or spectra of the wrong size (%zu modes here)", n);
+  PetscReal *o = &im.a_out[0][0];
+  const PetscReal *f = reinterpret_cast<const PetscReal *>(s0.data()), *g = reinterpret_cast<const PetscReal *>(s1.data()),
+                  *u = reinterpret_cast<const PetscReal *>(a.data()), *v = reinterpret_cast<const PetscReal *>(b.data());
+  for (size_t p = 0; p < n; ++p) { // (f u) + i (g v)
+    const PetscReal re0 = f[2 * p] * u[2 * p] - f[2 * p + 1] * u[2 * p + 1], im0 = f[2 * p] * u[2 * p + 1] + f[2 * p + 1] * u[2 * p];
+    const PetscReal re1 = g[2 * p] * v[2 * p] - g[2 * p + 1] * v[2 * p + 1], im1 = g[2 * p] * v[2 * p + 1] + g[2 * p + 1] * v[2 * p];
+    o[2 * p] = re0 - im1;
+    o[2 * p + 1] = im0 + re1;
+  }
+  PetscCall(im.from_spectrum(y0, y1));
+  PetscFunctionReturn(0);
+}
+
+PetscReal SpectralDifferentiator::pairing(const Symbol &s, const Spectrum &a, const Spectrum &b) const {
+  const size_t n = std::min({s.size(), a.size(), b.size()});
+  const PetscReal *f = reinterpret_cast<const PetscReal *>(s.data()), *u = reinterpret_cast<const PetscReal *>(a.data()),
+                  *v = reinterpret_cast<const PetscReal *>(b.data());
+  PetscReal sum = 0;
+  for (size_t p = 0; p < n; ++p) { // Re (f u conj(v))
+    const PetscReal re = f[2 * p] * u[2 * p] - f[2 * p + 1] * u[2 * p + 1], im = f[2 * p] * u[2 * p + 1] + f[2 * p + 1] * u[2 * p];
+    sum += re * v[2 * p] + im * v[2 * p + 1];
+  }
+  return sum;
 }
 
 std::complex<PetscReal> SpectralDifferentiator::derivative_symbol(const FourierMode &k, PetscInt dir, PetscInt order) {
