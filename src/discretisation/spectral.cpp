@@ -50,6 +50,10 @@ struct SpectralDifferentiator::Impl {
   // imaginary parts.
   PetscErrorCode to_spectrum(Vec u);
   void multiply(const std::complex<PetscReal> *s, bool transpose);
+  // a_out = sum_j s_j v_j; a_out = s0 u + i s1 v (symbols and spectra as interleaved reals; a spectrum
+  // may be a_out itself).
+  void sum_products(const std::vector<std::pair<const PetscReal *, const PetscReal *>> &terms);
+  void pair_products(const PetscReal *s0, const PetscReal *u, const PetscReal *s1, const PetscReal *v);
   PetscErrorCode from_spectrum(Vec y, Vec y_imag = nullptr);
 
   ~Impl() {
@@ -367,14 +371,54 @@ PetscErrorCode SpectralDifferentiator::apply(const Symbol &s, Vec u, Vec y, bool
   PetscFunctionReturn(0);
 }
 
+// a_out = sum_j s_j v_j (v_j: a spectrum, or a_out itself: each mode is read before it is written).
+void SpectralDifferentiator::Impl::sum_products(const std::vector<std::pair<const PetscReal *, const PetscReal *>> &terms) {
+  const size_t n = modes.size();
+  PetscReal *a = &a_out[0][0];
+  if (terms.empty()) std::fill(a, a + 2 * n, 0.0);
+  for (size_t j = 0; j < terms.size(); ++j) {
+    const PetscReal *f = terms[j].first, *v = terms[j].second;
+    for (size_t p = 0; p < n; ++p) {
+      const PetscReal re = f[2 * p] * v[2 * p] - f[2 * p + 1] * v[2 * p + 1], im = f[2 * p] * v[2 * p + 1] + f[2 * p + 1] * v[2 * p];
+      a[2 * p] = j ? a[2 * p] + re : re; // (j = 0: whatever a_out held is not read, unless it is v)
+      a[2 * p + 1] = j ? a[2 * p + 1] + im : im;
+    }
+  }
+}
+
+// a_out = f u + i g v (u, v: spectra, or a_out itself). With both symbols' backward transforms real
+// (symbol() makes them so), the real and imaginary parts of the backward transform are F u and G v.
+void SpectralDifferentiator::Impl::pair_products(const PetscReal *f, const PetscReal *u, const PetscReal *g, const PetscReal *v) {
+  const size_t n = modes.size();
+  PetscReal *o = &a_out[0][0];
+  for (size_t p = 0; p < n; ++p) {
+    const PetscReal re0 = f[2 * p] * u[2 * p] - f[2 * p + 1] * u[2 * p + 1], im0 = f[2 * p] * u[2 * p + 1] + f[2 * p + 1] * u[2 * p];
+    const PetscReal re1 = g[2 * p] * v[2 * p] - g[2 * p + 1] * v[2 * p + 1], im1 = g[2 * p] * v[2 * p + 1] + g[2 * p + 1] * v[2 * p];
+    o[2 * p] = re0 - im1;
+    o[2 * p + 1] = im0 + re1;
+  }
+}
+
+namespace {
+const PetscReal *reals(const std::vector<std::complex<PetscReal>> &v) { return reinterpret_cast<const PetscReal *>(v.data()); }
+} // namespace
+
 PetscErrorCode SpectralDifferentiator::apply_many(const std::vector<const Symbol *> &ss, Vec u, const std::vector<Vec> &ys) const {
   Impl &im = *impl_;
   PetscFunctionBeginUser;
   PetscCheck(ss.size() == ys.size(), im.comm, PETSC_ERR_ARG_SIZ, "apply_many: %zu symbols for %zu outputs", ss.size(), ys.size());
-  PetscCall(transform(u, im.uhat));
+  for (const Symbol *q : ss)
+    PetscCheck(q->size() == im.modes.size(), im.comm, PETSC_ERR_ARG_SIZ, "A spectral symbol of %zu modes for %zu", q->size(), im.modes.size());
+  PetscCall(im.to_spectrum(u));
+  const PetscReal *in = &im.a_out[0][0];
+  if (ss.size() > 2) { // more than one backward transform: keep the spectrum
+    im.uhat.assign(reinterpret_cast<const std::complex<PetscReal> *>(in), reinterpret_cast<const std::complex<PetscReal> *>(in) + im.modes.size());
+    in = reals(im.uhat);
+  }
   for (size_t j = 0; j < ss.size(); j += 2) { // two outputs per backward transform (real, imaginary parts)
-    if (j + 1 < ss.size()) PetscCall(backward_pair(*ss[j], im.uhat, ys[j], *ss[j + 1], im.uhat, ys[j + 1]));
-    else PetscCall(backward({{ss[j], &im.uhat}}, ys[j]));
+    if (j + 1 < ss.size()) im.pair_products(reals(*ss[j]), in, reals(*ss[j + 1]), in);
+    else im.sum_products({{reals(*ss[j]), in}});
+    PetscCall(im.from_spectrum(ys[j], j + 1 < ss.size() ? ys[j + 1] : nullptr));
   }
   PetscFunctionReturn(0);
 }
@@ -391,32 +435,18 @@ PetscErrorCode SpectralDifferentiator::transform(Vec u, Spectrum &uhat) const {
 PetscErrorCode SpectralDifferentiator::backward(const std::vector<std::pair<const Symbol *, const Spectrum *>> &terms, Vec y) const {
   Impl &im = *impl_;
   const size_t n = im.modes.size();
+  std::vector<std::pair<const PetscReal *, const PetscReal *>> t;
   PetscFunctionBeginUser;
-  for (const auto &t : terms)
-    PetscCheck(t.first->size() == n && t.second->size() == n, im.comm, PETSC_ERR_ARG_SIZ, "A spectral term of %zu and %zu modes for %zu",
-               t.first->size(), t.second->size(), n);
-  PetscReal *a = &im.a_out[0][0];
-  for (size_t j = 0; j < terms.size(); ++j) {
-    const PetscReal *f = reinterpret_cast<const PetscReal *>(terms[j].first->data()),
-                    *v = reinterpret_cast<const PetscReal *>(terms[j].second->data());
-    if (j == 0)
-      for (size_t p = 0; p < n; ++p) {
-        a[2 * p] = f[2 * p] * v[2 * p] - f[2 * p + 1] * v[2 * p + 1];
-        a[2 * p + 1] = f[2 * p] * v[2 * p + 1] + f[2 * p + 1] * v[2 * p];
-      }
-    else
-      for (size_t p = 0; p < n; ++p) {
-        a[2 * p] += f[2 * p] * v[2 * p] - f[2 * p + 1] * v[2 * p + 1];
-        a[2 * p + 1] += f[2 * p] * v[2 * p + 1] + f[2 * p + 1] * v[2 * p];
-      }
+  for (const auto &q : terms) {
+    PetscCheck(q.first->size() == n && q.second->size() == n, im.comm, PETSC_ERR_ARG_SIZ, "A spectral term of %zu and %zu modes for %zu",
+               q.first->size(), q.second->size(), n);
+    t.push_back({reals(*q.first), reals(*q.second)});
   }
-  if (terms.empty()) std::fill(a, a + 2 * n, 0.0);
+  im.sum_products(t);
   PetscCall(im.from_spectrum(y));
   PetscFunctionReturn(0);
 }
 
-// s0 a + i s1 b: with both symbols' backward transforms real (symbol()), the real and imaginary parts
-// of the backward transform are S0 a and S1 b.
 PetscErrorCode SpectralDifferentiator::backward_pair(const Symbol &s0, const Spectrum &a, Vec y0, const Symbol &s1, const Spectrum &b,
                                                      Vec y1) const {
   Impl &im = *impl_;
@@ -424,15 +454,7 @@ PetscErrorCode SpectralDifferentiator::backward_pair(const Symbol &s0, const Spe
   PetscFunctionBeginUser;
   PetscCheck(s0.size() == n && a.size() == n && s1.size() == n && b.size() == n, im.comm, PETSC_ERR_ARG_SIZ,
              "backward_pair: symbols or spectra of the wrong size (%zu modes here)", n);
-  PetscReal *o = &im.a_out[0][0];
-  const PetscReal *f = reinterpret_cast<const PetscReal *>(s0.data()), *g = reinterpret_cast<const PetscReal *>(s1.data()),
-                  *u = reinterpret_cast<const PetscReal *>(a.data()), *v = reinterpret_cast<const PetscReal *>(b.data());
-  for (size_t p = 0; p < n; ++p) { // (f u) + i (g v)
-    const PetscReal re0 = f[2 * p] * u[2 * p] - f[2 * p + 1] * u[2 * p + 1], im0 = f[2 * p] * u[2 * p + 1] + f[2 * p + 1] * u[2 * p];
-    const PetscReal re1 = g[2 * p] * v[2 * p] - g[2 * p + 1] * v[2 * p + 1], im1 = g[2 * p] * v[2 * p + 1] + g[2 * p + 1] * v[2 * p];
-    o[2 * p] = re0 - im1;
-    o[2 * p + 1] = im0 + re1;
-  }
+  im.pair_products(reals(s0), reals(a), reals(s1), reals(b));
   PetscCall(im.from_spectrum(y0, y1));
   PetscFunctionReturn(0);
 }

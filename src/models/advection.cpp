@@ -1265,18 +1265,29 @@ private:
       out.push_back(work[j]);
     }
     PetscCall(spectral_.apply_many(ms, x, out)); // one forward transform of x for all of them
-    PetscCall(VecSet(y, 0.0));
-    for (size_t j = 0; j < out.size(); ++j) {
-      const PetscInt d = (PetscInt)j;
-      PetscCall(VecAXPY(y, d < nd ? vel_[d] : D_scalar_, out[j]));
-      if (mu) {
-        ConstArray v(out[j]), u(U);
-        PetscCall(v.error());
-        PetscCall(u.error());
-        PetscReal s = 0;
-        for (PetscInt il = 0; il < n; ++il) s += PetscRealPart(u[il]) * PetscRealPart(v[il]);
-        local[d] = s;
+    { // y = sum_j c_j out_j and the sums <u, out_j>, in one pass
+      const PetscInt m = (PetscInt)out.size();
+      PetscReal c[3];
+      const PetscScalar *v[3], *u = nullptr;
+      for (PetscInt j = 0; j < m; ++j) {
+        c[j] = j < nd ? vel_[j] : D_scalar_;
+        PetscCall(VecGetArrayRead(out[j], &v[j]));
       }
+      if (mu) PetscCall(VecGetArrayRead(U, &u));
+      {
+        Array Y(y);
+        PetscCall(Y.error());
+        PetscScalar *ya = Y.data();
+        for (PetscInt il = 0; il < n; ++il) {
+          PetscReal s = 0;
+          for (PetscInt j = 0; j < m; ++j) s += c[j] * PetscRealPart(v[j][il]);
+          ya[il] = s;
+        }
+      }
+      if (mu)
+        for (PetscInt j = 0; j < m; ++j) local[j] = dot4(reinterpret_cast<const PetscReal *>(v[j]), u, n);
+      if (mu) PetscCall(VecRestoreArrayRead(U, &u));
+      for (PetscInt j = 0; j < m; ++j) PetscCall(VecRestoreArrayRead(out[j], &v[j]));
     }
     if (mu) {
       for (PetscInt d = 0; d < nd; ++d) PetscCall(params_->add_local_sum(mu, vel_index_[d], local[d]));
