@@ -96,9 +96,13 @@ public:
     (void)t, (void)x, (void)y, (void)mu;
     SETERRQ(PetscObjectComm((PetscObject)U), PETSC_ERR_SUP, "Model %s has no fused RK adjoint stage", name());
   }
-  // Called once after an adjoint solve that used stage_adjoint, with its mu: a stage_adjoint may add
-  // sums to mu that still need a linear map common to every stage (applied here once, not per stage).
-  virtual PetscErrorCode finish_stage_adjoint(Vec mu) {
+  // Optional, around one adjoint solve (the Simulation calls begin_adjoint() before TSAdjointSolve and
+  // end_adjoint(mu) after it, also when the solve fails: mu null then): in between, the transposes of
+  // dG/dtheta (rhs_jacobian_p's MatMultTranspose, stage_adjoint) may leave out a final linear map that
+  // every one of their contributions to mu shares (e.g. the projection a field parameter goes through),
+  // for end_adjoint to apply to mu once. Outside, they apply it themselves.
+  virtual void begin_adjoint() {}
+  virtual PetscErrorCode end_adjoint(Vec mu) {
     (void)mu;
     return 0;
   }

@@ -714,16 +714,25 @@ PetscErrorCode Simulation::gradient(Vec p, PetscReal *J, Vec grad_p, Vec grad_u0
     // An -ts_adjoint_monitor sees a scalar's entry of mu without them until the end.
     // So does an explicit RK adjoint through Model::stage_adjoint, once per stage.
     const bool defer = mu && ((is_leapfrog(ts) && model_->has_second_order_adjoint() && fused_adjoint_) || rk_stage_fused_);
+    // The model's maps common to all its parameter sums are applied once, at the end (Model::begin_adjoint).
     struct Cancel { // an adjoint that fails leaves no deferral behind
       const Parameters *p;
-      ~Cancel() { if (p) p->defer_sums(nullptr); }
-    } cancel{defer ? params_ : nullptr};
+      Model *m;
+      ~Cancel() {
+        if (p) p->defer_sums(nullptr);
+        if (m) (void)m->end_adjoint(nullptr);
+      }
+    } cancel{defer ? params_ : nullptr, mu ? model_ : nullptr};
     if (defer) params_->defer_sums(mu);
+    if (mu) model_->begin_adjoint();
     t0 = MPI_Wtime();
     PetscCall(TSAdjointSolve(ts));
     stats_.adjoint_seconds = MPI_Wtime() - t0;
     if (defer) PetscCall(params_->flush_sums());
-    if (rk_stage_fused_ && mu) PetscCall(model_->finish_stage_adjoint(mu));
+    if (mu) {
+      cancel.m = nullptr;
+      PetscCall(model_->end_adjoint(mu));
+    }
   }
   PetscCall(check_finite(lambda_, "adjoint solve"));
   if (grad_p) {

@@ -1076,23 +1076,33 @@ private:
     PetscFunctionReturn(0);
   }
 
+  // The columns D_d U (and L U for a scalar D, or E_d U for a field D) from one forward transform of U
+  // and one backward transform per two of them.
   PetscErrorCode spectral_columns(Vec U) {
+    std::vector<const SpectralDifferentiator::Symbol *> ss;
+    std::vector<Vec> out;
+    Vec work[2] = {t1_, t2_};
     PetscFunctionBeginUser;
     for (PetscInt d = 0; d < dim_; ++d) {
-      PetscCall(spectral_.derivative(d, 1, U, t1_));
-      ConstArray a(t1_);
-      PetscCall(a.error());
-      for (PetscInt il = 0; il < grid_->local_points(); ++il) dGdv_[d][il] = PetscRealPart(a[il]);
+      ss.push_back(&parts_[d]);
+      out.push_back(work[d]);
       dGdv_scale_[d] = -1.0;
     }
-    if (!diffusion_) PetscFunctionReturn(0);
-    if (D_field_) {
-      for (PetscInt d = 0; d < dim_; ++d) PetscCall(spectral_.derivative(d, 1, U, w_[d], true));
-    } else {
-      PetscCall(spectral_.apply(parts_[dim_], U, t1_));
-      ConstArray a(t1_);
+    if (diffusion_ && D_field_)
+      for (PetscInt d = 0; d < dim_; ++d) {
+        ss.push_back(&dealiased_[d]);
+        out.push_back(w_[d]);
+      }
+    else if (diffusion_) {
+      ss.push_back(&parts_[dim_]);
+      out.push_back(t3_);
+    }
+    PetscCall(spectral_.apply_many(ss, U, out));
+    for (PetscInt d = 0; d < dim_ + (diffusion_ && !D_field_ ? 1 : 0); ++d) {
+      ConstArray a(out[d]);
       PetscCall(a.error());
-      for (PetscInt il = 0; il < grid_->local_points(); ++il) dGdD_[il] = PetscRealPart(a[il]);
+      std::vector<PetscReal> &col = d < dim_ ? dGdv_[d] : dGdD_;
+      for (PetscInt il = 0; il < grid_->local_points(); ++il) col[il] = PetscRealPart(a[il]);
     }
     PetscFunctionReturn(0);
   }
@@ -1188,14 +1198,18 @@ private:
     if (!field) PetscFunctionReturn(0);
     std::vector<PetscReal> &gD = m->gD_;
     std::fill(gD.begin(), gD.end(), 0.0);
-    if (m->scheme_ == SPECTRAL) { // sum_d P (E_d u .* E_d^T x)
-      PetscCall(VecSet(m->t3_, 0.0));
-      for (PetscInt d = 0; d < m->dim_; ++d) {
-        PetscCall(m->spectral_.derivative(d, 1, x, m->t1_, true, true));
-        PetscCall(VecPointwiseMult(m->t1_, m->t1_, m->w_[d]));
-        PetscCall(VecAXPY(m->t3_, 1.0, m->t1_));
+    if (m->scheme_ == SPECTRAL) { // sum_d P (E_d u .* E_d^T x) = -P sum_d E_d u .* E_d x
+      Vec ex[2] = {m->t1_, m->t2_};
+      PetscCall(m->spectral_.apply_many(m->dim_ == 2 ? std::vector<const SpectralDifferentiator::Symbol *>{&m->dealiased_[0], &m->dealiased_[1]}
+                                                     : std::vector<const SpectralDifferentiator::Symbol *>{&m->dealiased_[0]},
+                                        x, std::vector<Vec>(ex, ex + m->dim_)));
+      PetscCall(VecPointwiseMult(m->t3_, ex[0], m->w_[0]));
+      if (m->dim_ == 2) {
+        PetscCall(VecPointwiseMult(ex[1], ex[1], m->w_[1]));
+        PetscCall(VecAXPY(m->t3_, 1.0, ex[1]));
       }
-      PetscCall(m->spectral_.dealias(m->t3_, m->t3_));
+      PetscCall(VecScale(m->t3_, -1.0));
+      if (!m->defer_truncation_) PetscCall(m->spectral_.dealias(m->t3_, m->t3_)); // else end_adjoint
       ConstArray a(m->t3_);
       PetscCall(a.error());
       for (PetscInt il = 0; il < g.local_points(); ++il) gD[il] = PetscRealPart(a[il]);
@@ -1298,8 +1312,8 @@ private:
 
   // The spectral stage with a field D: y = A^T x = S^T x + sum_d E_d (D .* E_d x) (spectral_apply),
   // (dG/da_d)^T x = <u, D_d x> from the spectra of x and u (Parseval, no transform of its own), and
-  // (dG/dD)^T x = P g, g = -sum_d E_d u .* E_d x. g is added to mu as it is: P, a projection, is applied
-  // to mu's D once after the adjoint (finish_stage_adjoint), not at every stage. Transforms: x, u and
+  // (dG/dD)^T x = P g, g = -sum_d E_d u .* E_d x, P applied once after the adjoint (end_adjoint), not
+  // at every stage. Transforms: x, u and
   // D E_d x forward, E_d x with E_d u and the sum backward: 5 in 1D, 7 in 2D.
   PetscErrorCode spectral_field_stage_adjoint(PetscReal, Vec U, Vec x, Vec y, Vec mu) {
     const PetscInt n = grid_->local_points();
@@ -1322,18 +1336,26 @@ private:
         PetscCall(b.error());
         for (PetscInt il = 0; il < n; ++il) gD_[il] -= PetscRealPart(a[il]) * PetscRealPart(b[il]);
       }
+      if (!defer_truncation_) { // (an adjoint outside the Simulation's: truncate here)
+        PetscCall(VecPlaceArray(t3_, gD_.data()));
+        PetscCall(spectral_.dealias(t3_, t3_));
+        PetscCall(VecResetArray(t3_));
+      }
       PetscCall(params_->add_pointwise(mu, D_index_, gD_));
     }
     PetscCall(diffusion_sum(symbol_t_, ex, y));
     PetscFunctionReturn(0);
   }
 
-  // After an adjoint through stage_adjoint: mu's field D = P (its sums), P the 2/3-rule truncation.
-  // Whatever else reached mu's D came through the Jacobian's transposes, already truncated, and P is
-  // a projection, so applying it to all of mu's D is exact.
-  PetscErrorCode finish_stage_adjoint(Vec mu) override {
+  // Spectral field D: between begin_adjoint and end_adjoint the transposes add their field sums g to
+  // mu without the 2/3-rule truncation P (each would cost two transforms), and end_adjoint truncates
+  // mu's D once: P is linear and a projection, so P applied to the sum equals the sum of the P g.
+  void begin_adjoint() override { defer_truncation_ = scheme_ == SPECTRAL && diffusion_ && D_field_; }
+  PetscErrorCode end_adjoint(Vec mu) override {
     PetscFunctionBeginUser;
-    if (scheme_ != SPECTRAL || !diffusion_ || !D_field_ || !mu) PetscFunctionReturn(0);
+    const bool deferred = defer_truncation_;
+    defer_truncation_ = false;
+    if (!deferred || !mu) PetscFunctionReturn(0);
     PetscCall(params_->get_field(mu, D_index_, t3_));
     PetscCall(spectral_.dealias(t3_, t3_));
     PetscCall(params_->set_field(mu, D_index_, t3_));
@@ -1476,6 +1498,7 @@ private:
   std::vector<SpectralDifferentiator::Symbol> parts_; // spectral: i kappa_d (d < dim), then -|kappa|^2 (scalar D)
   SpectralDifferentiator::Symbol symbol_t_, dealiased_[2]; // conj(symbol_); a field D's E_d = P d/dx_d
   SpectralDifferentiator::Spectrum xhat_, uhat_, what_[2];  // spectra of x, u and D E_d x (field D)
+  bool defer_truncation_ = false; // spectral field D: P left to end_adjoint
   std::vector<PetscReal> face_D_;         // 1D field D: D at the faces (cache_face_diffusivity)
   std::vector<PetscReal> faces2_;       // 1D: stage_adjoint's second face array
   mutable std::vector<PetscReal> faces_; // 1D: one value per face the owned points touch (face kernels)
