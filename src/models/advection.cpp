@@ -386,7 +386,7 @@ public:
     if (lazy_) scratch_.assign(grid.local_points(), 0.0);
     faces_.assign((grid.xm() + 4) * (dim_ == 2 ? grid.ym() + 4 : 1), 0.0);
     faces2_.assign(grid.xm() + 4, 0.0);
-    stage_scratch_.assign(grid.local_points(), 0.0);
+    stage_scratch_.assign(std::max(grid.local_points(), 3 * grid.xm()), 0.0);
     if (diffusion_ && D_field_) gD_.assign(grid.local_points(), 0.0);
     PetscFunctionReturn(0);
   }
@@ -779,6 +779,73 @@ private:
         out[i] = s;
       }
     }
+  }
+  // An RK adjoint stage's sweep with the scalars' sums (finite differences, no field D in the taps):
+  // z_d = D_d^T x (times h_d), z_L = L x (LAP), y = sum_d c[d] z_d + c[2] z_L, and sums[m] += <z_m, u>,
+  // from one read of x; each row's z stays in L1 for its dot products (z: 3 rows of xm).
+  template <int R, int DIM, bool LAP>
+  __attribute__((optimize("tree-vectorize", "vect-cost-model=dynamic")))
+  static void sweep_sums_rows(const PetscScalar *__restrict l, const PetscReal *vxt, const PetscReal *vyt, const PetscReal *lxt,
+                              const PetscReal *lyt, const PetscReal *c, const PetscScalar *__restrict u, PetscScalar *__restrict out,
+                              PetscInt xm, PetscInt ym, PetscInt sy, PetscReal *__restrict z, PetscReal *sums) {
+    PetscReal vx[2 * R + 1], vy[2 * R + 1], lx[2 * R + 1], ly[2 * R + 1];
+    for (int k = -R; k <= R; ++k) {
+      vx[k + R] = vxt[k + 3];
+      vy[k + R] = DIM == 2 ? vyt[k + 3] : 0.0;
+      lx[k + R] = LAP ? lxt[k + 3] : 0.0;
+      ly[k + R] = LAP && DIM == 2 ? lyt[k + 3] : 0.0;
+    }
+    const PetscReal c0 = c[0], c1 = c[1], cl = c[2];
+    PetscReal *__restrict z0 = z, *__restrict z1 = z + xm, *__restrict z2 = z + 2 * xm;
+    for (PetscInt jl = 0; jl < ym; ++jl, l += sy, out += xm, u += xm) {
+      for (PetscInt i = 0; i < xm; ++i) {
+        PetscReal sx = 0, syv = 0, sl = 0;
+#pragma GCC unroll 8
+        for (int k = -R; k <= R; ++k) sx += vx[k + R] * PetscRealPart(l[i + k]);
+        if (DIM == 2) {
+#pragma GCC unroll 8
+          for (int k = -R; k <= R; ++k) syv += vy[k + R] * PetscRealPart(l[i + k * sy]);
+        }
+        if (LAP) {
+#pragma GCC unroll 8
+          for (int k = -R; k <= R; ++k) sl += lx[k + R] * PetscRealPart(l[i + k]);
+          if (DIM == 2) {
+#pragma GCC unroll 8
+            for (int k = -R; k <= R; ++k) sl += ly[k + R] * PetscRealPart(l[i + k * sy]);
+          }
+        }
+        out[i] = c0 * sx + c1 * syv + cl * sl;
+        z0[i] = sx;
+        if (DIM == 2) z1[i] = syv;
+        if (LAP) z2[i] = sl;
+      }
+      sums[0] += dot4(z0, u, xm);
+      if (DIM == 2) sums[1] += dot4(z1, u, xm);
+      if (LAP) sums[2] += dot4(z2, u, xm);
+    }
+  }
+  // y = A^T x without a field D's faces, and sums[d] = <D_d^T x, u> (times h_d), sums[2] = <L x, u>.
+  void sweep_sums(const PetscScalar *l, const PetscScalar *u, PetscScalar *out, PetscReal *sums) {
+    const PetscInt xm = grid_->xm(), ym = grid_->ym(), sy = stride_[1];
+    const bool lap = diffusion_ && !D_field_;
+    const PetscReal c[3] = {-vel_[0] / h_[0], dim_ == 2 ? -vel_[1] / h_[1] : 0.0, lap ? D_scalar_ : 0.0};
+    const PetscReal *vx = vel_taps_t_[0][0].data(), *vy = vel_taps_t_[1][1].data(), *lx = lap_taps_[0].data(),
+                    *ly = lap_taps_[1].data();
+    const PetscScalar *l0 = row(l, 0);
+    PetscReal *z = stage_scratch_.data();
+    sums[0] = sums[1] = sums[2] = 0;
+#define FLEXIPDE_SWEEP_SUMS(R, DIM)                                                                                    \
+  (lap ? sweep_sums_rows<R, DIM, true>(l0, vx, vy, lx, ly, c, u, out, xm, ym, sy, z, sums)                             \
+       : sweep_sums_rows<R, DIM, false>(l0, vx, vy, lx, ly, c, u, out, xm, ym, sy, z, sums))
+    switch (10 * (int)dim_ + (int)radius_) {
+    case 11: FLEXIPDE_SWEEP_SUMS(1, 1); break;
+    case 12: FLEXIPDE_SWEEP_SUMS(2, 1); break;
+    case 13: FLEXIPDE_SWEEP_SUMS(3, 1); break;
+    case 21: FLEXIPDE_SWEEP_SUMS(1, 2); break;
+    case 22: FLEXIPDE_SWEEP_SUMS(2, 2); break;
+    default: FLEXIPDE_SWEEP_SUMS(3, 2); break;
+    }
+#undef FLEXIPDE_SWEEP_SUMS
   }
   void sweep(const PetscScalar *l, const std::array<PetscReal, 7> *t, PetscReal *out) const {
     const PetscInt xm = grid_->xm(), ym = grid_->ym(), sy = stride_[1];
@@ -1426,20 +1493,15 @@ private:
           PetscCall(VecRestoreArrayRead(U_local_, &ul));
           field_done = true;
         }
+      } else if (mu) { // A^T x and the scalars' sums in one sweep
+        PetscReal sums[3];
+        sweep_sums(xl, u, ya, sums);
+        for (PetscInt d = 0; d < nd; ++d) local[d] = -1.0 / h_[d] * sums[d];
+        local[nd] = sums[2];
+        if (field) add_face_diffusion(D, xl, ya);
       } else {
         sweep(xl, at_taps_, ya);
         if (field) add_face_diffusion(D, xl, ya);
-        if (mu) {
-          PetscReal *z = stage_scratch_.data();
-          for (PetscInt d = 0; d < nd; ++d) {
-            sweep(xl, vel_taps_t_[d], z);
-            local[d] = -1.0 / h_[d] * dot4(z, u, n);
-          }
-          if (diffusion_ && !field) {
-            sweep(xl, lap_taps_, z);
-            local[nd] = dot4(z, u, n);
-          }
-        }
       }
     }
     PetscCall(VecRestoreArrayRead(U, &u));
