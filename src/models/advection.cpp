@@ -249,6 +249,53 @@ void faces_2d(PetscInt d, PetscInt xm, PetscInt ym, PetscInt sy, const PetscReal
   }
 }
 
+// A 2D field-D RK adjoint stage's face work along direction d (x0, u0 ghosted at the first owned
+// point, rows sy apart): with (B x)_f computed once per face, y += -s B^T (Df .* B x) (Df = I D at the
+// faces, cached: along x, row jl's faces at jl (xm + WD - 1) + k; along y, face row kf at kf xm + i) and,
+// unless g is null, g += -s I^T (B u .* B x) (the field D's gradient).
+template <int WD, bool G>
+void field_stage_faces_2d(PetscInt d, PetscInt xm, PetscInt ym, PetscInt sy, const PetscReal *__restrict Df,
+                          const PetscReal *__restrict gr, const PetscReal *__restrict ip, const PetscScalar *x0,
+                          const PetscScalar *u0, PetscReal s, PetscReal *__restrict F1, PetscReal *__restrict F2,
+                          PetscScalar *__restrict y, PetscScalar *__restrict g) {
+  if (d == 0) { // row by row, as in 1D (a = 1: y keeps its value)
+    for (PetscInt jl = 0; jl < ym; ++jl) {
+      const PetscInt base = jl * sy - (WD - 1);
+      field_stage_faces<WD, G>(xm, Df + jl * (xm + WD - 1), gr, ip, x0 + base, u0 + base, s, 1.0, F1, F2, y + jl * xm,
+                               G ? g + jl * xm : nullptr);
+    }
+    return;
+  }
+  for (PetscInt kf = 0; kf < ym + WD - 1; ++kf) { // face rows along y, vectorised along x
+    PetscReal *__restrict f1 = F1 + kf * xm, *__restrict f2 = F2 + kf * xm;
+    const PetscReal *__restrict df = Df + kf * xm;
+    for (PetscInt i = 0; i < xm; ++i) {
+      PetscReal bx = 0, bu = 0;
+#pragma GCC unroll 4
+      for (int m = 0; m < WD; ++m) {
+        const PetscInt q = (kf - (WD - 1) + m) * sy + i;
+        bx += gr[m] * PetscRealPart(x0[q]);
+        if (G) bu += gr[m] * PetscRealPart(u0[q]);
+      }
+      f1[i] = df[i] * bx;
+      if (G) f2[i] = bu * bx;
+    }
+  }
+  for (PetscInt jl = 0; jl < ym; ++jl) {
+    PetscScalar *__restrict yr = y + jl * xm, *__restrict gq = G ? g + jl * xm : nullptr;
+    for (PetscInt i = 0; i < xm; ++i) {
+      PetscReal v1 = 0, v2 = 0;
+#pragma GCC unroll 4
+      for (int q = 0; q < WD; ++q) {
+        v1 -= gr[q] * F1[(jl + WD - 1 - q) * xm + i] * s;
+        if (G) v2 -= ip[q] * F2[(jl + WD - 1 - q) * xm + i] * s;
+      }
+      yr[i] += v1;
+      if (G) gq[i] += v2;
+    }
+  }
+}
+
 class AdvectionModel final : public LinearModel {
 public:
   const char *name() const override { return "advection"; }
@@ -1434,18 +1481,48 @@ private:
   PetscErrorCode cache_face_diffusivity() {
     const PetscScalar *D;
     PetscFunctionBeginUser;
-    if (dim_ != 1) PetscFunctionReturn(0);
     const Grid &g = *grid_;
-    const PetscInt n = g.xm(), f0 = ghost_index(g.xs(), g.ys()) - (face_.width - 1);
-    face_D_.assign(n + face_.width - 1, 0.0);
+    const PetscInt WD = face_.width, xm = g.xm(), ym = g.ym(), sy = stride_[1];
     PetscCall(VecGetArrayRead(D_local_, &D));
-    for (PetscInt k = 0; k < n + face_.width - 1; ++k) {
+    auto at = [&](PetscInt first, PetscInt step) { // I D at the face whose first ghosted entry is `first`
       PetscReal v = 0;
-      for (PetscInt m = 0; m < face_.width; ++m) v += face_.interp[m] * PetscRealPart(D[f0 + k + m]);
-      face_D_[k] = v;
+      for (PetscInt m = 0; m < WD; ++m) v += face_.interp[m] * PetscRealPart(D[first + m * step]);
+      return v;
+    };
+    const PetscInt g0 = ghost_index(g.xs(), g.ys());
+    if (dim_ == 1) {
+      face_D_.resize(xm + WD - 1);
+      for (PetscInt k = 0; k < xm + WD - 1; ++k) face_D_[k] = at(g0 - (WD - 1) + k, 1);
+    } else { // along x: row jl's faces; along y: face rows (the layouts of field_stage_faces_2d)
+      face_D_.resize(ym * (xm + WD - 1));
+      for (PetscInt jl = 0; jl < ym; ++jl)
+        for (PetscInt k = 0; k < xm + WD - 1; ++k) face_D_[jl * (xm + WD - 1) + k] = at(g0 + jl * sy - (WD - 1) + k, 1);
+      face_D_y_.resize((ym + WD - 1) * xm);
+      for (PetscInt kf = 0; kf < ym + WD - 1; ++kf)
+        for (PetscInt i = 0; i < xm; ++i) face_D_y_[kf * xm + i] = at(g0 + (kf - (WD - 1)) * sy + i, sy);
+      const size_t need = (size_t)std::max((ym + WD - 1) * xm, xm + WD - 1);
+      if (faces_.size() < need) faces_.resize(need);
+      if (faces2_.size() < need) faces2_.resize(need);
     }
     PetscCall(VecRestoreArrayRead(D_local_, &D));
     PetscFunctionReturn(0);
+  }
+  // 2D field D: y += the diffusion transpose and, unless g is null, g += the field's gradient, from
+  // ghosted x and u (field_stage_faces_2d along x, then y).
+  void field_stage_2d(const PetscScalar *xl, const PetscScalar *ul, PetscScalar *y, PetscScalar *g) {
+    const Grid &gr = *grid_;
+    const PetscInt g0 = ghost_index(gr.xs(), gr.ys());
+    const PetscReal *grad = face_.grad.data(), *ip = face_.interp.data();
+    for (PetscInt d = 0; d < 2; ++d) {
+      const PetscReal sd = 1.0 / (h_[d] * h_[d]);
+      const PetscReal *Df = d == 0 ? face_D_.data() : face_D_y_.data();
+      const PetscScalar *u0 = ul ? ul + g0 : nullptr;
+#define FLEXIPDE_FS2(WD, G) \
+  field_stage_faces_2d<WD, G>(d, gr.xm(), gr.ym(), stride_[1], Df, grad, ip, xl + g0, u0, sd, faces_.data(), faces2_.data(), y, g)
+      if (face_.width == 2) g ? FLEXIPDE_FS2(2, true) : FLEXIPDE_FS2(2, false);
+      else g ? FLEXIPDE_FS2(4, true) : FLEXIPDE_FS2(4, false);
+#undef FLEXIPDE_FS2
+    }
   }
 
   // An explicit RK adjoint stage at state U (finite differences): y = A^T x and mu += (dG/dp)^T x in
@@ -1498,7 +1575,20 @@ private:
         sweep_sums(xl, u, ya, sums);
         for (PetscInt d = 0; d < nd; ++d) local[d] = -1.0 / h_[d] * sums[d];
         local[nd] = sums[2];
-        if (field) add_face_diffusion(D, xl, ya);
+        if (field && nd == 2) { // the diffusion transpose and D's gradient face by face, B x once per face
+          const PetscScalar *ul;
+          PetscScalar *g;
+          PetscCall(fill_ghosted(U, U_local_));
+          PetscCall(VecGetArrayRead(U_local_, &ul));
+          PetscCall(VecGetArray(mu, &g));
+          field_stage_2d(xl, ul, ya, g + params_->info(D_index_).local_offset);
+          PetscCall(VecRestoreArray(mu, &g));
+          PetscCall(VecRestoreArrayRead(U_local_, &ul));
+          field_done = true;
+        } else if (field) add_face_diffusion(D, xl, ya);
+      } else if (field && nd == 2) {
+        sweep(xl, at_taps_, ya);
+        field_stage_2d(xl, nullptr, ya, nullptr);
       } else {
         sweep(xl, at_taps_, ya);
         if (field) add_face_diffusion(D, xl, ya);
@@ -1561,7 +1651,7 @@ private:
   SpectralDifferentiator::Symbol symbol_t_, dealiased_[2]; // conj(symbol_); a field D's E_d = P d/dx_d
   SpectralDifferentiator::Spectrum xhat_, uhat_, what_[2];  // spectra of x, u and D E_d x (field D)
   bool defer_truncation_ = false; // spectral field D: P left to end_adjoint
-  std::vector<PetscReal> face_D_;         // 1D field D: D at the faces (cache_face_diffusivity)
+  std::vector<PetscReal> face_D_, face_D_y_; // field D: I D at the faces (cache_face_diffusivity; y: 2D only)
   std::vector<PetscReal> faces2_;       // 1D: stage_adjoint's second face array
   mutable std::vector<PetscReal> faces_; // 1D: one value per face the owned points touch (face kernels)
   PetscObjectId dx_id_ = -1;
