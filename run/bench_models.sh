@@ -1,20 +1,22 @@
 #!/usr/bin/env bash
-# Gradient / forward for every model and integrator flexipde offers (1 rank): the survey behind
+# Gradient / forward for every model and integrator flexipde offers (1 rank, or NP): the survey behind
 # issue 8's "gradient <= 2.5x forward for every model" (docs/performance.md, Session 5).
 #
 #   run/bench_models.sh              # markdown table on stdout
 #   REPS=3 run/bench_models.sh       # fewer repetitions
+#   NP=2 run/bench_models.sh         # on 2 ranks
 #
 # Each line is one process, `flexipde -task gradient -timing_repeats REPS`: one gradient, then REPS
 # forward solves and REPS gradients alternately in the same process, and their medians. A gradient is
 # the whole value + gradient (forward solve storing the trajectory, then the adjoint). The default
 # scenes have the data made at the same parameters, so J = 0 there; the work is the same as at any
 # other parameters (the adjoint runs in full).
-# Environment: FLEXIPDE (build/flexipde), REPS (7), MPIEXEC (mpiexec, --allow-run-as-root as root).
+# Environment: FLEXIPDE (build/flexipde), REPS (7), NP (1), MPIEXEC (mpiexec, --allow-run-as-root as root).
 set -euo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 FLEXIPDE=${FLEXIPDE:-$(dirname "$here")/build/flexipde}
 REPS=${REPS:-7}
+NP=${NP:-1}
 MPIEXEC=${MPIEXEC:-mpiexec}
 [ "$(id -u)" = 0 ] && MPIEXEC="$MPIEXEC --allow-run-as-root"
 
@@ -24,7 +26,7 @@ run() {
   local model=$1 ts=$2 label=$3
   shift 3
   local line
-  line=$($MPIEXEC -n 1 "$FLEXIPDE" "$@" -task gradient -timing_repeats "$REPS" 2>&1 | grep 'gradient/forward' || true)
+  line=$($MPIEXEC -n "$NP" "$FLEXIPDE" "$@" -task gradient -timing_repeats "$REPS" 2>&1 | grep 'gradient/forward' || true)
   if [ -z "$line" ]; then
     echo "| $model | $ts | $label | | | failed |"
     return
