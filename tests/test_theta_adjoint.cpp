@@ -1,12 +1,12 @@
 // The implicit theta adjoint step of theta_adjoint.hpp against PETSc's own TSAdjointStep_Theta
 // (-theta_direct_adjoint 0), on 1 and 2 ranks: the same J and gradient, for cn, backward Euler,
 // the midpoint theta method and an endpoint theta method; linear models with the factored shifted
-// operator (1 rank) and with PETSc's assembled path (2 ranks: MUMPS), a matrix-free spectral
-// operator (GMRES), the nonlinear Vlasov-Poisson model (GMRES on its Jacobian shell), field and
-// scalar parameters, and binomial checkpointing (forward steps re-run inside the adjoint); and full
-// storage (for the endpoint forms only the solutions) against PETSc's memory trajectory. Both
-// steps do the same arithmetic, so the tolerance is round-off; each gradient is checked to be
-// nonzero, so the comparison means something.
+// operator (sequential LU on 1 rank, redundant LU on 2), a matrix-free spectral operator (GMRES),
+// the nonlinear Vlasov-Poisson model (GMRES on its Jacobian shell), field and scalar parameters,
+// and binomial checkpointing (forward steps re-run inside the adjoint); and full storage (for the
+// endpoint forms only the solutions) against PETSc's memory trajectory. Both steps do the same
+// arithmetic, so the tolerance is round-off; each gradient is checked to be nonzero, so the
+// comparison means something.
 #include "flexipde/scene.hpp"
 #include "test_support.hpp"
 #include <string>

@@ -351,9 +351,24 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
       PetscCall(PCSetType(pc, PCNONE));
       PetscCall(KSPSetTolerances(ksp, 1e-13, 1e-50, PETSC_DEFAULT, 2000));
     } else {
+      // On several ranks: up to -sim_redundant_lu_max unknowns every rank factors the whole matrix
+      // (PCREDUNDANT, sequential LU; a solve is then one gather and a local solve), beyond that MUMPS.
+      // A distributed factorisation of a small operator is all communication: CN advection N = 512
+      // on 2 ranks took 0.9 ms a step with MUMPS (refactored every step), 8 us redundant and reused.
+      PetscInt nglobal, redundant_max = 200000;
+      PetscCall(MatGetSize(J_, &nglobal, nullptr));
+      PetscOptionsBegin(comm, nullptr, "Simulation: implicit solves", "Simulation");
+      PetscCall(PetscOptionsInt("-sim_redundant_lu_max", "On several ranks, factor dG/dU-shifted systems of up to this many "
+                                "unknowns whole on every rank (PCREDUNDANT LU); larger ones with MUMPS",
+                                "Simulation", redundant_max, &redundant_max, nullptr));
+      PetscOptionsEnd();
+      redundant_lu_ = size > 1 && nglobal <= redundant_max;
       PetscCall(KSPSetType(ksp, KSPPREONLY));
-      PetscCall(PCSetType(pc, PCLU));
-      if (size > 1) PetscCall(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
+      if (redundant_lu_) PetscCall(PCSetType(pc, PCREDUNDANT)); // its inner solver: LU
+      else {
+        PetscCall(PCSetType(pc, PCLU));
+        if (size > 1) PetscCall(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
+      }
     }
   }
   if (with_adjoint) {
@@ -406,9 +421,10 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
     PetscBool shell;
     PetscCall(PetscObjectTypeCompare((PetscObject)(Mat)J_, MATSHELL, &shell));
     const bool theta = !std::strcmp(type, TSTHETA) || !std::strcmp(type, TSCN) || !std::strcmp(type, TSBEULER);
-    // One rank only for now: on 2 ranks (MUMPS) the unit suite hung now and then inside
-    // MatSolve_MUMPS's first VecScatterCreate after switching between theta TSs; not understood yet.
-    if (theta && theta_reuse_ && size == 1 && model_->linear() && model_->jacobian_constant() && !shell)
+    // Not with MUMPS: on 2 ranks the unit suite hung now and then inside MatSolve_MUMPS's first
+    // VecScatterCreate after switching between theta TSs; not understood yet. The redundant LU
+    // (several ranks, small operators) and the sequential one reuse their factors.
+    if (theta && theta_reuse_ && (size == 1 || redundant_lu_) && model_->linear() && model_->jacobian_constant() && !shell)
       PetscCall(use_shifted_operator(ts));
   }
   if (leapfrog) {
