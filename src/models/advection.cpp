@@ -418,6 +418,7 @@ public:
       // own rows around; otherwise the Halo communicates them.
       wrap_ = grid.xm() == grid.n() && (dim_ == 1 || grid.ym() == grid.ny());
       if (!wrap_) PetscCall(halo_.setup(grid, dm_, 0, radius_));
+      if (!wrap_) PetscCall(halo2_.setup(grid, dm_, 0, radius_));
     }
     if (diffusion_) {
       PetscCall(DMCreateGlobalVector(grid.dm(), D_.out()));
@@ -739,10 +740,32 @@ private:
   // here is a star) of the ghosted local array L from the global X. Replaces DMGlobalToLocal, whose
   // scatter costs more than the sweeps themselves on small grids.
   PetscErrorCode fill_ghosted(Vec X, Vec L) {
+    PetscFunctionBeginUser;
+    if (!wrap_) PetscCall(halo_.begin(X));
+    PetscCall(fill_interior(X, L));
+    if (!wrap_) PetscCall(fill_halo(halo_, X, L));
+    PetscFunctionReturn(0);
+  }
+  // Both at once: on several ranks the two halo exchanges are in flight together (one latency).
+  PetscErrorCode fill_ghosted_pair(Vec X, Vec L, Vec X2, Vec L2) {
+    PetscFunctionBeginUser;
+    if (!wrap_) {
+      PetscCall(halo_.begin(X));
+      PetscCall(halo2_.begin(X2));
+    }
+    PetscCall(fill_interior(X, L));
+    PetscCall(fill_interior(X2, L2));
+    if (!wrap_) {
+      PetscCall(fill_halo(halo_, X, L));
+      PetscCall(fill_halo(halo2_, X2, L2));
+    }
+    PetscFunctionReturn(0);
+  }
+  // The owned rows of L from X, and, on one rank holding everything (wrap_), the periodic ghosts.
+  PetscErrorCode fill_interior(Vec X, Vec L) {
     const PetscInt xm = grid_->xm(), ym = grid_->ym(), r = radius_, sy = stride_[1];
     PetscScalar *l;
     PetscFunctionBeginUser;
-    if (!wrap_) PetscCall(halo_.begin(X));
     PetscCall(VecGetArray(L, &l));
     {
       ConstArray x(X);
@@ -762,22 +785,30 @@ private:
           std::copy(row(l, ym - k), row(l, ym - k) + xm, row(l, 0) - k * sy);
           std::copy(row(l, k - 1), row(l, k - 1) + xm, row(l, ym - 1) + k * sy);
         }
-    } else {
-      PetscCall(halo_.end(X));
-      for (PetscInt jl = 0; jl < ym; ++jl) {
-        PetscScalar *rw = row(l, jl);
-        for (PetscInt k = 1; k <= r; ++k) {
-          rw[-k] = halo_(-k, jl);
-          rw[xm - 1 + k] = halo_(xm - 1 + k, jl);
-        }
-      }
-      if (dim_ == 2)
-        for (PetscInt k = 1; k <= r; ++k)
-          for (PetscInt il = 0; il < xm; ++il) {
-            row(l, 0)[il - k * sy] = halo_(il, -k);
-            row(l, ym - 1)[il + k * sy] = halo_(il, ym - 1 + k);
-          }
     }
+    PetscCall(VecRestoreArray(L, &l));
+    PetscFunctionReturn(0);
+  }
+  // The ghosts of L from a Halo whose exchange of X was begun.
+  PetscErrorCode fill_halo(Halo &h, Vec X, Vec L) {
+    const PetscInt xm = grid_->xm(), ym = grid_->ym(), r = radius_, sy = stride_[1];
+    PetscScalar *l;
+    PetscFunctionBeginUser;
+    PetscCall(h.end(X));
+    PetscCall(VecGetArray(L, &l));
+    for (PetscInt jl = 0; jl < ym; ++jl) {
+      PetscScalar *rw = row(l, jl);
+      for (PetscInt k = 1; k <= r; ++k) {
+        rw[-k] = h(-k, jl);
+        rw[xm - 1 + k] = h(xm - 1 + k, jl);
+      }
+    }
+    if (dim_ == 2)
+      for (PetscInt k = 1; k <= r; ++k)
+        for (PetscInt il = 0; il < xm; ++il) {
+          row(l, 0)[il - k * sy] = h(il, -k);
+          row(l, ym - 1)[il + k * sy] = h(il, ym - 1 + k);
+        }
     PetscCall(VecRestoreArray(L, &l));
     PetscFunctionReturn(0);
   }
@@ -1537,7 +1568,8 @@ private:
     bool field_done = false; // the field D's gradient added already (1D)
     const PetscInt n = grid_->local_points(), nd = dim_;
     PetscFunctionBeginUser;
-    PetscCall(fill_ghosted(x, X_local_));
+    if (field) PetscCall(fill_ghosted_pair(x, X_local_, U, U_local_)); // the faces read u's ghosts too
+    else PetscCall(fill_ghosted(x, X_local_));
     PetscCall(VecGetArrayRead(X_local_, &xl));
     PetscCall(VecGetArrayRead(U, &u));
     if (field) PetscCall(VecGetArrayRead(D_local_, &D));
@@ -1554,7 +1586,6 @@ private:
         else { // the scaling, the faces: J^T's diffusion (cached face D) and, with mu, D's gradient
           const PetscScalar *ul;
           PetscScalar *g = nullptr;
-          PetscCall(fill_ghosted(U, U_local_));
           PetscCall(VecGetArrayRead(U_local_, &ul));
           if (mu) PetscCall(VecGetArray(mu, &g));
           PetscScalar *gD = g ? g + params_->info(D_index_).local_offset : nullptr;
@@ -1578,7 +1609,6 @@ private:
         if (field && nd == 2) { // the diffusion transpose and D's gradient face by face, B x once per face
           const PetscScalar *ul;
           PetscScalar *g;
-          PetscCall(fill_ghosted(U, U_local_));
           PetscCall(VecGetArrayRead(U_local_, &ul));
           PetscCall(VecGetArray(mu, &g));
           field_stage_2d(xl, ul, ya, g + params_->info(D_index_).local_offset);
@@ -1601,7 +1631,6 @@ private:
       if (diffusion_ && !field) PetscCall(params_->add_local_sum(mu, D_index_, local[nd]));
       if (field && !field_done) {
         const PetscScalar *ul;
-        PetscCall(fill_ghosted(U, U_local_));
         PetscCall(VecGetArrayRead(U_local_, &ul));
         field_D_gradient(ul, xl, gD_.data());
         PetscCall(VecRestoreArrayRead(U_local_, &ul));
@@ -1664,7 +1693,7 @@ private:
   PetscReal dGdv_scale_[2] = {-1, -1};
   PetscInt radius_ = 1;
   bool wrap_ = false;
-  Halo halo_;
+  Halo halo_, halo2_; // halo2_: a second exchange in flight with halo_'s (fill_ghosted_pair)
   PetscObjectId jp_id_ = -1;
   PetscObjectState jp_state_ = -1;
 };
