@@ -131,7 +131,6 @@ private:
   CheckpointStats checkpoint_stats_;
   // Full-storage trajectory ("store"): kept between gradients, so it is allocated once.
   StateBuffer trajectory_buffer_;
-  bool redundant_lu_ = false; // implicit steps on several ranks factor the whole operator on each (PCREDUNDANT)
 };
 
 } // namespace flexipde

@@ -362,9 +362,8 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
                                 "unknowns whole on every rank (PCREDUNDANT LU); larger ones with MUMPS",
                                 "Simulation", redundant_max, &redundant_max, nullptr));
       PetscOptionsEnd();
-      redundant_lu_ = size > 1 && nglobal <= redundant_max;
       PetscCall(KSPSetType(ksp, KSPPREONLY));
-      if (redundant_lu_) PetscCall(PCSetType(pc, PCREDUNDANT)); // its inner solver: LU
+      if (size > 1 && nglobal <= redundant_max) PetscCall(PCSetType(pc, PCREDUNDANT)); // its inner solver: LU
       else {
         PetscCall(PCSetType(pc, PCLU));
         if (size > 1) PetscCall(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS));
@@ -424,7 +423,17 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
     // Not with MUMPS: on 2 ranks the unit suite hung now and then inside MatSolve_MUMPS's first
     // VecScatterCreate after switching between theta TSs; not understood yet. The redundant LU
     // (several ranks, small operators) and the sequential one reuse their factors.
-    if (theta && theta_reuse_ && (size == 1 || redundant_lu_) && model_->linear() && model_->jacobian_constant() && !shell)
+    PetscBool redundant = PETSC_FALSE; // (what the options left: -pc_type may have replaced it)
+    if (theta && size > 1) {
+      SNES snes;
+      KSP ksp;
+      PC pc;
+      PetscCall(TSGetSNES(ts, &snes));
+      PetscCall(SNESGetKSP(snes, &ksp));
+      PetscCall(KSPGetPC(ksp, &pc));
+      PetscCall(PetscObjectTypeCompare((PetscObject)pc, PCREDUNDANT, &redundant));
+    }
+    if (theta && theta_reuse_ && (size == 1 || redundant) && model_->linear() && model_->jacobian_constant() && !shell)
       PetscCall(use_shifted_operator(ts));
   }
   if (leapfrog) {
