@@ -3,7 +3,8 @@
 //     filter and the derivative MatShell, in 1D, 2D and x-only on a 2D grid with a non-periodic y,
 //   - accuracy: round-off by N = 64 for smooth periodic functions (exponential convergence),
 //   - odd-derivative skew-symmetry, and refusal of odd N and non-periodic directions,
-//   - apply_many (two real outputs per backward transform) against apply, one output at a time.
+//   - apply_many and apply_pair (two real outputs per backward transform), transform/backward/pairing
+//     against apply, one output at a time.
 // Grids live on PETSC_COMM_WORLD, so every case runs distributed on 2 ranks too.
 #include "flexipde/spectral.hpp"
 #include "test_support.hpp"
@@ -123,6 +124,12 @@ TEST_P(SpectralTranspose, ApplyManyMatchesApply) {
     EXPECT_LE(flexipde_test::norm(r, NORM_INFINITY), 1e-13 * scale) << c.name << " output " << j;
   }
   PETSC_ASSERT_OK(s.derivative(0, 1, x, r));
+  EXPECT_LE(rel_diff(r, y1), 1e-13) << c.name;
+  // A packed pair: S0 x and S1 x from one product per mode.
+  PETSC_ASSERT_OK(s.apply_pair(s.pack(s0, s1), x, y0, y1));
+  PETSC_ASSERT_OK(s.apply(s0, x, r));
+  EXPECT_LE(rel_diff(r, y0), 1e-13) << c.name;
+  PETSC_ASSERT_OK(s.apply(s1, x, r));
   EXPECT_LE(rel_diff(r, y1), 1e-13) << c.name;
   // The separate steps: y = S0 x + S2 u from two spectra and one backward transform, a pair of
   // outputs from two different spectra, and <u, S0 x> by Parseval (summed over the ranks).

@@ -68,6 +68,10 @@ public:
   // outputs: (S_j + i S_{j+1}) u^ transforms back to S_j u + i S_{j+1} u, both real. Equal to
   // apply(*ss[j], u, ys[j]) to round-off. No y may be u.
   PetscErrorCode apply_many(const std::vector<const Symbol *> &ss, Vec u, const std::vector<Vec> &ys) const;
+  // pack(s0, s1) = s0 + i s1: apply_pair with it gives y0 = S0 u and y1 = S1 u from one transform
+  // pair and one multiplication per mode (apply_many's pair takes two).
+  Symbol pack(const Symbol &s0, const Symbol &s1) const;
+  PetscErrorCode apply_pair(const Symbol &packed, Vec u, Vec y0, Vec y1) const;
 
   // The transforms as separate steps, for operators built from several products (a field
   // coefficient between two derivatives, an adjoint's sums): a Spectrum is this rank's modes of F u.

@@ -423,6 +423,22 @@ PetscErrorCode SpectralDifferentiator::apply_many(const std::vector<const Symbol
   PetscFunctionReturn(0);
 }
 
+SpectralDifferentiator::Symbol SpectralDifferentiator::pack(const Symbol &s0, const Symbol &s1) const {
+  Symbol h(std::min(s0.size(), s1.size()));
+  for (size_t p = 0; p < h.size(); ++p) h[p] = s0[p] + std::complex<PetscReal>(0, 1) * s1[p];
+  return h;
+}
+
+PetscErrorCode SpectralDifferentiator::apply_pair(const Symbol &packed, Vec u, Vec y0, Vec y1) const {
+  PetscFunctionBeginUser;
+  PetscCheck(packed.size() == impl_->modes.size(), impl_->comm, PETSC_ERR_ARG_SIZ, "A spectral symbol of %zu modes for %zu",
+             packed.size(), impl_->modes.size());
+  PetscCall(impl_->to_spectrum(u));
+  impl_->multiply(packed.data(), false);
+  PetscCall(impl_->from_spectrum(y0, y1));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode SpectralDifferentiator::transform(Vec u, Spectrum &uhat) const {
   Impl &im = *impl_;
   PetscFunctionBeginUser;

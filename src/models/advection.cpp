@@ -1112,6 +1112,7 @@ private:
     for (PetscInt d = 0; d < dim_; ++d)
       parts_.push_back(spectral_.symbol([d](const FourierMode &k) { return SpectralDifferentiator::derivative_symbol(k, d, 1); }));
     if (diffusion_ && !D_field_) parts_.push_back(spectral_.symbol([](const FourierMode &k) { return cplx(-(k.wx * k.wx + k.wy * k.wy)); }));
+    if (parts_.size() == 2) packed_parts_ = spectral_.pack(parts_[0], parts_[1]); // the stage adjoint's pair
     if (diffusion_ && D_field_)
       for (PetscInt d = 0; d < dim_; ++d)
         dealiased_[d] = spectral_.symbol([d](const FourierMode &k) {
@@ -1423,7 +1424,8 @@ private:
       ms.push_back(&parts_[j]);
       out.push_back(work[j]);
     }
-    PetscCall(spectral_.apply_many(ms, x, out)); // one forward transform of x for all of them
+    if (out.size() == 2) PetscCall(spectral_.apply_pair(packed_parts_, x, out[0], out[1])); // one product per mode
+    else PetscCall(spectral_.apply_many(ms, x, out)); // one forward transform of x for all of them
     { // y = sum_j c_j out_j and the sums <u, out_j>, in one pass
       const PetscInt m = (PetscInt)out.size();
       PetscReal c[3];
@@ -1678,6 +1680,7 @@ private:
   SpectralDifferentiator::Symbol symbol_; // spectral: the constant-coefficient operator's symbol
   std::vector<SpectralDifferentiator::Symbol> parts_; // spectral: i kappa_d (d < dim), then -|kappa|^2 (scalar D)
   SpectralDifferentiator::Symbol symbol_t_, dealiased_[2]; // conj(symbol_); a field D's E_d = P d/dx_d
+  SpectralDifferentiator::Symbol packed_parts_;           // parts_[0] + i parts_[1] when there are two
   SpectralDifferentiator::Spectrum xhat_, uhat_, what_[2];  // spectra of x, u and D E_d x (field D)
   bool defer_truncation_ = false; // spectral field D: P left to end_adjoint
   std::vector<PetscReal> face_D_, face_D_y_; // field D: I D at the faces (cache_face_diffusivity; y: 2D only)
