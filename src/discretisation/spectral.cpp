@@ -20,6 +20,13 @@
 namespace flexipde {
 
 namespace {
+// Complex numbers stored as interleaved pairs of reals (FFTW's buffers, Symbols, Spectra).
+inline void cmul(PetscReal fr, PetscReal fi, PetscReal vr, PetscReal vi, PetscReal &re, PetscReal &im) {
+  re = fr * vr - fi * vi;
+  im = fr * vi + fi * vr;
+}
+inline const PetscReal *reals(const std::vector<std::complex<PetscReal>> &v) { return reinterpret_cast<const PetscReal *>(v.data()); }
+
 struct Layout {
   ptrdiff_t start = 0, count = 0; // complex entries, natural ordering
   bool operator==(const Layout &o) const { return start == o.start && count == o.count; }
@@ -379,7 +386,8 @@ void SpectralDifferentiator::Impl::sum_products(const std::vector<std::pair<cons
   for (size_t j = 0; j < terms.size(); ++j) {
     const PetscReal *f = terms[j].first, *v = terms[j].second;
     for (size_t p = 0; p < n; ++p) {
-      const PetscReal re = f[2 * p] * v[2 * p] - f[2 * p + 1] * v[2 * p + 1], im = f[2 * p] * v[2 * p + 1] + f[2 * p + 1] * v[2 * p];
+      PetscReal re, im;
+      cmul(f[2 * p], f[2 * p + 1], v[2 * p], v[2 * p + 1], re, im);
       a[2 * p] = j ? a[2 * p] + re : re; // (j = 0: whatever a_out held is not read, unless it is v)
       a[2 * p + 1] = j ? a[2 * p + 1] + im : im;
     }
@@ -392,16 +400,13 @@ void SpectralDifferentiator::Impl::pair_products(const PetscReal *f, const Petsc
   const size_t n = modes.size();
   PetscReal *o = &a_out[0][0];
   for (size_t p = 0; p < n; ++p) {
-    const PetscReal re0 = f[2 * p] * u[2 * p] - f[2 * p + 1] * u[2 * p + 1], im0 = f[2 * p] * u[2 * p + 1] + f[2 * p + 1] * u[2 * p];
-    const PetscReal re1 = g[2 * p] * v[2 * p] - g[2 * p + 1] * v[2 * p + 1], im1 = g[2 * p] * v[2 * p + 1] + g[2 * p + 1] * v[2 * p];
+    PetscReal re0, im0, re1, im1;
+    cmul(f[2 * p], f[2 * p + 1], u[2 * p], u[2 * p + 1], re0, im0);
+    cmul(g[2 * p], g[2 * p + 1], v[2 * p], v[2 * p + 1], re1, im1);
     o[2 * p] = re0 - im1;
     o[2 * p + 1] = im0 + re1;
   }
 }
-
-namespace {
-const PetscReal *reals(const std::vector<std::complex<PetscReal>> &v) { return reinterpret_cast<const PetscReal *>(v.data()); }
-} // namespace
 
 PetscErrorCode SpectralDifferentiator::apply_many(const std::vector<const Symbol *> &ss, Vec u, const std::vector<Vec> &ys) const {
   Impl &im = *impl_;
@@ -409,12 +414,11 @@ PetscErrorCode SpectralDifferentiator::apply_many(const std::vector<const Symbol
   PetscCheck(ss.size() == ys.size(), im.comm, PETSC_ERR_ARG_SIZ, "apply_many: %zu symbols for %zu outputs", ss.size(), ys.size());
   for (const Symbol *q : ss)
     PetscCheck(q->size() == im.modes.size(), im.comm, PETSC_ERR_ARG_SIZ, "A spectral symbol of %zu modes for %zu", q->size(), im.modes.size());
-  PetscCall(im.to_spectrum(u));
-  const PetscReal *in = &im.a_out[0][0];
-  if (ss.size() > 2) { // more than one backward transform: keep the spectrum
-    im.uhat.assign(reinterpret_cast<const std::complex<PetscReal> *>(in), reinterpret_cast<const std::complex<PetscReal> *>(in) + im.modes.size());
+  const PetscReal *in = &im.a_out[0][0]; // one backward transform: multiply in place
+  if (ss.size() > 2) { // more than one: keep the spectrum
+    PetscCall(transform(u, im.uhat));
     in = reals(im.uhat);
-  }
+  } else PetscCall(im.to_spectrum(u));
   for (size_t j = 0; j < ss.size(); j += 2) { // two outputs per backward transform (real, imaginary parts)
     if (j + 1 < ss.size()) im.pair_products(reals(*ss[j]), in, reals(*ss[j + 1]), in);
     else im.sum_products({{reals(*ss[j]), in}});
@@ -443,8 +447,8 @@ PetscErrorCode SpectralDifferentiator::transform(Vec u, Spectrum &uhat) const {
   Impl &im = *impl_;
   PetscFunctionBeginUser;
   PetscCall(im.to_spectrum(u));
-  uhat.resize(im.modes.size());
-  std::copy(&im.a_out[0][0], &im.a_out[0][0] + 2 * uhat.size(), reinterpret_cast<PetscReal *>(uhat.data()));
+  const auto *out = reinterpret_cast<const std::complex<PetscReal> *>(im.a_out);
+  uhat.assign(out, out + im.modes.size());
   PetscFunctionReturn(0);
 }
 
@@ -477,11 +481,11 @@ PetscErrorCode SpectralDifferentiator::backward_pair(const Symbol &s0, const Spe
 
 PetscReal SpectralDifferentiator::pairing(const Symbol &s, const Spectrum &a, const Spectrum &b) const {
   const size_t n = std::min({s.size(), a.size(), b.size()});
-  const PetscReal *f = reinterpret_cast<const PetscReal *>(s.data()), *u = reinterpret_cast<const PetscReal *>(a.data()),
-                  *v = reinterpret_cast<const PetscReal *>(b.data());
+  const PetscReal *f = reals(s), *u = reals(a), *v = reals(b);
   PetscReal sum = 0;
   for (size_t p = 0; p < n; ++p) { // Re (f u conj(v))
-    const PetscReal re = f[2 * p] * u[2 * p] - f[2 * p + 1] * u[2 * p + 1], im = f[2 * p] * u[2 * p + 1] + f[2 * p + 1] * u[2 * p];
+    PetscReal re, im;
+    cmul(f[2 * p], f[2 * p + 1], u[2 * p], u[2 * p + 1], re, im);
     sum += re * v[2 * p] + im * v[2 * p + 1];
   }
   return sum;

@@ -671,30 +671,24 @@ private:
   // variable-coefficient diffusion face by face, used with (c, w) = (D, x) for dG/dU^T and
   // (dD, u) for the field-D column of dG/dp.
   void add_face_diffusion(const PetscScalar *c, const PetscScalar *w, PetscScalar *y) const {
+    face_sweeps(face_.interp.data(), face_.grad.data(), face_.grad.data(), c, w, false, y);
+  }
+  // Each face once per direction (faces_2d; a 1D grid is its one row): F = (sum_m pa[m] a)
+  // (sum_m pb[m] b) at every face the owned points touch, then out (+)= -sum_q w[q] F / h_d^2, added
+  // unless `assign` (the first direction then writes out). a, b ghosted (the face stencil's offset
+  // cancels: see face_products).
+  template <class Y>
+  void face_sweeps(const PetscReal *pa, const PetscReal *pb, const PetscReal *w, const PetscScalar *a, const PetscScalar *b,
+                   bool assign, Y *out) const {
     const Grid &g = *grid_;
-    if (dim_ == 1) { // each face once: F_f = (I c)_f (B w)_f, then y -= B^T F / h^2
-      const PetscInt n = g.xm(), f0 = ghost_index(g.xs(), g.ys()) - (face_.offset + face_.width - 1) + face_.offset;
-      PetscReal *F = faces_.data();
-      const PetscReal s = 1.0 / (h_[0] * h_[0]);
-      if (face_.width == 2) {
-        face_products<2>(n, face_.interp.data(), face_.grad.data(), c + f0, w + f0, F);
-        gather_faces<2, true>(n, face_.grad.data(), s, F, y);
-      } else {
-        face_products<4>(n, face_.interp.data(), face_.grad.data(), c + f0, w + f0, F);
-        gather_faces<4, true>(n, face_.grad.data(), s, F, y);
-      }
-      return;
-    }
-    if (dim_ == 2) { // each face once per direction: y -= sum_d B_d^T diag(I_d c) B_d w / h_d^2
-      const PetscInt g0 = ghost_index(g.xs(), g.ys());
-      for (PetscInt d = 0; d < 2; ++d) {
-        const PetscReal sd = 1.0 / (h_[d] * h_[d]);
-        const PetscReal *ip = face_.interp.data(), *gr = face_.grad.data();
-        const PetscScalar *a0 = c + g0, *b0 = w + g0; // (the face stencil's offset cancels: see face_products)
-        if (face_.width == 2) faces_2d<2, true>(d, g.xm(), g.ym(), stride_[1], ip, gr, gr, a0, b0, sd, faces_.data(), y);
-        else faces_2d<4, true>(d, g.xm(), g.ym(), stride_[1], ip, gr, gr, a0, b0, sd, faces_.data(), y);
-      }
-      return;
+    const PetscInt g0 = ghost_index(g.xs(), g.ys()), xm = g.xm(), ym = g.ym(), sy = stride_[1];
+    for (PetscInt d = 0; d < dim_; ++d) {
+      const PetscReal sd = 1.0 / (h_[d] * h_[d]);
+      const bool add = !(assign && d == 0);
+      if (face_.width == 2 && add) faces_2d<2, true>(d, xm, ym, sy, pa, pb, w, a + g0, b + g0, sd, faces_.data(), out);
+      else if (face_.width == 2) faces_2d<2, false>(d, xm, ym, sy, pa, pb, w, a + g0, b + g0, sd, faces_.data(), out);
+      else if (add) faces_2d<4, true>(d, xm, ym, sy, pa, pb, w, a + g0, b + g0, sd, faces_.data(), out);
+      else faces_2d<4, false>(d, xm, ym, sy, pa, pb, w, a + g0, b + g0, sd, faces_.data(), out);
     }
   }
 
@@ -1373,42 +1367,15 @@ private:
   }
 
   // g = (dG/dD)^T x for a field D (finite differences), from ghosted u and x: -sum_d I_d^T (B_d u .* B_d x)
-  // / h_d^2 at every owned point; in 1D each face once (face kernels).
+  // / h_d^2 at every owned point, each face once.
   void field_D_gradient(const PetscScalar *u, const PetscScalar *xl, PetscReal *gD) const {
-    const Grid &g = *grid_;
-    if (dim_ == 1) {
-      const FaceStencil &fs = face_;
-      const PetscInt n = g.xm(), f0 = ghost_index(g.xs(), g.ys()) - (fs.width - 1);
-      PetscReal *F = faces_.data();
-      const PetscReal s = 1.0 / (h_[0] * h_[0]);
-      if (fs.width == 2) {
-        face_products<2>(n, fs.grad.data(), fs.grad.data(), u + f0, xl + f0, F);
-        gather_faces<2, false>(n, fs.interp.data(), s, F, gD);
-      } else {
-        face_products<4>(n, fs.grad.data(), fs.grad.data(), u + f0, xl + f0, F);
-        gather_faces<4, false>(n, fs.interp.data(), s, F, gD);
-      }
-      return;
-    }
-    if (dim_ == 2) {
-      const PetscInt g0 = ghost_index(g.xs(), g.ys());
-      const PetscReal *ip = face_.interp.data(), *gr = face_.grad.data();
-      for (PetscInt d = 0; d < 2; ++d) {
-        const PetscReal sd = 1.0 / (h_[d] * h_[d]);
-        if (face_.width == 2 && d == 0) faces_2d<2, false>(d, g.xm(), g.ym(), stride_[1], gr, gr, ip, u + g0, xl + g0, sd, faces_.data(), gD);
-        else if (face_.width == 2) faces_2d<2, true>(d, g.xm(), g.ym(), stride_[1], gr, gr, ip, u + g0, xl + g0, sd, faces_.data(), gD);
-        else if (d == 0) faces_2d<4, false>(d, g.xm(), g.ym(), stride_[1], gr, gr, ip, u + g0, xl + g0, sd, faces_.data(), gD);
-        else faces_2d<4, true>(d, g.xm(), g.ym(), stride_[1], gr, gr, ip, u + g0, xl + g0, sd, faces_.data(), gD);
-      }
-      return;
-    }
+    face_sweeps(face_.grad.data(), face_.grad.data(), face_.interp.data(), u, xl, true, gD);
   }
-
 
   // The spectral stage (scalar coefficients): with D_d skew and the Laplacian L symmetric,
   // A^T x = sum_d a_d D_d x + D L x, and (dG/da_d)^T x = <-D_d u, x> = <u, D_d x>, (dG/dD)^T x = <u, L x>:
-  // one forward transform of x and one backward transform per two derivatives (apply_many) give the
-  // product and the parameters' sums together (the Jacobian path transforms u as well at every stage).
+  // one forward transform of x and one backward transform per two derivatives (apply_pair, apply_many)
+  // give the product and the parameters' sums together (the Jacobian path transforms u as well at every stage).
   PetscErrorCode spectral_stage_adjoint(PetscReal t, Vec U, Vec x, Vec y, Vec mu) {
     PetscReal local[3] = {0, 0, 0};
     const PetscInt n = grid_->local_points(), nd = dim_;
@@ -1417,15 +1384,14 @@ private:
       PetscCall(spectral_field_stage_adjoint(t, U, x, y, mu));
       PetscFunctionReturn(0);
     }
-    std::vector<const SpectralDifferentiator::Symbol *> ms;
-    std::vector<Vec> out;
     Vec work[3] = {t1_, t2_, t3_};
-    for (size_t j = 0; j < parts_.size(); ++j) {
-      ms.push_back(&parts_[j]);
-      out.push_back(work[j]);
-    }
+    const std::vector<Vec> out(work, work + parts_.size());
     if (out.size() == 2) PetscCall(spectral_.apply_pair(packed_parts_, x, out[0], out[1])); // one product per mode
-    else PetscCall(spectral_.apply_many(ms, x, out)); // one forward transform of x for all of them
+    else { // one forward transform of x for all of them
+      std::vector<const SpectralDifferentiator::Symbol *> ms;
+      for (const auto &q : parts_) ms.push_back(&q);
+      PetscCall(spectral_.apply_many(ms, x, out));
+    }
     { // y = sum_j c_j out_j and the sums <u, out_j>, in one pass
       const PetscInt m = (PetscInt)out.size();
       PetscReal c[3];
@@ -1460,8 +1426,8 @@ private:
   // The spectral stage with a field D: y = A^T x = S^T x + sum_d E_d (D .* E_d x) (spectral_apply),
   // (dG/da_d)^T x = <u, D_d x> from the spectra of x and u (Parseval, no transform of its own), and
   // (dG/dD)^T x = P g, g = -sum_d E_d u .* E_d x, P applied once after the adjoint (end_adjoint), not
-  // at every stage. Transforms: x, u and
-  // D E_d x forward, E_d x with E_d u and the sum backward: 5 in 1D, 7 in 2D.
+  // at every stage. Transforms: x, u and D E_d x forward, E_d x with E_d u and the sum backward: 5 in
+  // 1D, 7 in 2D.
   PetscErrorCode spectral_field_stage_adjoint(PetscReal, Vec U, Vec x, Vec y, Vec mu) {
     const PetscInt n = grid_->local_points();
     Vec ex[2] = {t1_, t2_}, eu[2] = {w_[0], w_[1]};
@@ -1509,8 +1475,9 @@ private:
     PetscFunctionReturn(0);
   }
 
-  // 1D field D: (I D)_f at the faces the owned points touch (as face_products indexes them), for
-  // stage_adjoint's diffusion transpose: D changes only with the parameters.
+  // Field D: (I D)_f at the faces the owned points touch (1D: as face_products indexes them; 2D: as
+  // field_stage_faces_2d does), for stage_adjoint's diffusion transpose: D changes only with the
+  // parameters.
   PetscErrorCode cache_face_diffusivity() {
     const PetscScalar *D;
     PetscFunctionBeginUser;
@@ -1567,7 +1534,7 @@ private:
     const PetscScalar *xl, *u, *D = nullptr;
     PetscReal local[3] = {0, 0, 0};
     const bool field = diffusion_ && D_field_;
-    bool field_done = false; // the field D's gradient added already (1D)
+    bool field_done = false; // the field D's gradient added already (face kernels of the stage)
     const PetscInt n = grid_->local_points(), nd = dim_;
     PetscFunctionBeginUser;
     if (field) PetscCall(fill_ghosted_pair(x, X_local_, U, U_local_)); // the faces read u's ghosts too
