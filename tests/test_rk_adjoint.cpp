@@ -113,6 +113,23 @@ TEST_P(RkAdjoint, SameGradientAsPetscRk) {
 
 INSTANTIATE_TEST_SUITE_P(Models, RkAdjoint, ::testing::ValuesIn(rk_cases()), rk_name);
 
+// Finite-difference advection forms a stage's h W_i straight into the ghosted copy its sweeps read
+// (Model::stage_adjoint_combination; on several ranks also into the scratch Vec whose halo is
+// exchanged): bitwise the gradient of forming it first (-advection_stage_combination 0), for tableaux
+// whose stages combine 0 to 2 later stages' dLambda (rk4, rk3, rk2a).
+TEST(RkStageCombination, AdvectionSameGradientBitwise) {
+  const std::pair<const char *, const char *> tableaux[] = {{"4", "fd2"}, {"3", "fd4"}, {"2a", "upwind"}};
+  for (const auto &[rk, scheme] : tableaux)
+    for (const char *dim : {"1", "2"}) {
+      SCOPED_TRACE(std::string("-ts_rk_type ") + rk + ", dim " + dim);
+      RkScene s;
+      s.set_up({{"-model", "advection"}, {"-advection_dim", dim}, {"-advection_scheme", scheme}, {"-grid_periodic", "1"}, {"-da_grid_x", "24"},
+                {"-da_grid_y", "12"}, {"-advection_D", "0.02"}, {"-advection_D_field", "1"}, {"-advection_b", "-0.6"},
+                {"-advection_ic_amplitude_param", "1"}, {"-ts_rk_type", rk}, {"-ts_dt", "1e-3"}});
+      flexipde_test::expect_same_gradient_other_setup(s.scene, s.p, {}, {{"-advection_stage_combination", "0"}}, 1e-300);
+    }
+}
+
 // A second-order model's stages enter its adjoint through their positions alone
 // (Model::stage_adjoint_positions): full storage then keeps only those, half the memory of whole
 // stages, with the same gradient bitwise; and the fused stage products give the gradient of the

@@ -7,6 +7,7 @@
 #pragma once
 #include "flexipde/grid.hpp"
 #include "flexipde/parameters.hpp"
+#include "flexipde/rk_adjoint.hpp"
 #include <complex>
 #include <functional>
 #include <map>
@@ -95,6 +96,14 @@ public:
   virtual PetscErrorCode stage_adjoint(PetscReal t, Vec U, Vec x, Vec y, Vec mu) {
     (void)t, (void)x, (void)y, (void)mu;
     SETERRQ(PetscObjectComm((PetscObject)U), PETSC_ERR_SUP, "Model %s has no fused RK adjoint stage", name());
+  }
+  // The same stage with x given as its combination (what the RK adjoint calls): by default x is formed
+  // into the combination's scratch Vec first; a model that copies x anyway forms it in that copy.
+  virtual PetscErrorCode stage_adjoint_combination(PetscReal t, Vec U, const StageCombination &x, Vec y, Vec mu) {
+    PetscFunctionBeginUser;
+    PetscCall(x.form(x.scratch));
+    PetscCall(stage_adjoint(t, U, x.scratch, y, mu));
+    PetscFunctionReturn(0);
   }
   // Optional, around one adjoint solve (the Simulation calls begin_adjoint() before TSAdjointSolve and
   // end_adjoint(mu) after it, also when the solve fails: mu null then): in between, the transposes of

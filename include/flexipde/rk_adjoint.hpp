@@ -21,9 +21,27 @@
 
 namespace flexipde {
 
+// The vector x = h W_i of an adjoint stage, handed to a stage hook unformed: x = c0 x0 + sum_{j<m} c[j] X[j]
+// (for the classical RK4, one term besides x0). A model that copies x anyway (into a ghosted array,
+// say) forms it there in the same pass; any other calls form() into `scratch` (a Vec like x0, free for
+// the hook's use) first.
+struct StageCombination {
+  PetscScalar c0 = 0;
+  Vec x0 = nullptr;
+  PetscInt m = 0;
+  const PetscScalar *c = nullptr;
+  const Vec *X = nullptr;
+  Vec scratch = nullptr;
+  // w = the combination, in one pass (w may be scratch).
+  PetscErrorCode form(Vec w) const;
+  // The same on raw local arrays: out[k] = c0 a0[k] + sum_j c[j] a[j][k], k < n (m <= 3 in one pass).
+  static void form_local(PetscInt n, PetscScalar c0, const PetscScalar *a0, PetscInt m, const PetscScalar *c,
+                         const PetscScalar *const *a, PetscScalar *out);
+};
+
 // A stage's products in one call, at stage state U: y = (dG/dU)^T x and, unless mu is null,
-// mu += (dG/dp)^T x (Model::stage_adjoint).
-typedef PetscErrorCode (*RkStageAdjoint)(void *ctx, PetscReal t, Vec U, Vec x, Vec y, Vec mu);
+// mu += (dG/dp)^T x (Model::stage_adjoint), with x given as its combination.
+typedef PetscErrorCode (*RkStageAdjoint)(void *ctx, PetscReal t, Vec U, const StageCombination &x, Vec y, Vec mu);
 
 // After the TS's type is final: if it is TSRK, its adjoint step becomes the one above (idempotent).
 // With a stage hook, each stage calls it instead of evaluating and applying the two Jacobians.

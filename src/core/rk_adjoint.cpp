@@ -51,25 +51,7 @@ PetscErrorCode combine(Vec w, PetscScalar c0, Vec x0, PetscInt m, const PetscSca
   PetscCall(VecGetArrayWrite(w, &wa));
   PetscCall(VecGetArrayRead(x0, &a0));
   for (PetscInt j = 0; j < m; ++j) PetscCall(VecGetArrayRead(X[j], &a[j]));
-  PetscScalar *__restrict o = wa;
-  const PetscScalar *__restrict p0 = a0;
-  switch (m) {
-  case 0:
-    for (PetscInt k = 0; k < n; ++k) o[k] = c0 * p0[k];
-    break;
-  case 1: {
-    const PetscScalar *__restrict p1 = a[0];
-    for (PetscInt k = 0; k < n; ++k) o[k] = c0 * p0[k] + c[0] * p1[k];
-  } break;
-  case 2: {
-    const PetscScalar *__restrict p1 = a[0], *__restrict p2 = a[1];
-    for (PetscInt k = 0; k < n; ++k) o[k] = c0 * p0[k] + c[0] * p1[k] + c[1] * p2[k];
-  } break;
-  default: {
-    const PetscScalar *__restrict p1 = a[0], *__restrict p2 = a[1], *__restrict p3 = a[2];
-    for (PetscInt k = 0; k < n; ++k) o[k] = c0 * p0[k] + c[0] * p1[k] + c[1] * p2[k] + c[2] * p3[k];
-  } break;
-  }
+  StageCombination::form_local(n, c0, a0, m, c, a, wa);
   for (PetscInt j = 0; j < m; ++j) PetscCall(VecRestoreArrayRead(X[j], &a[j]));
   PetscCall(VecRestoreArrayRead(x0, &a0));
   PetscCall(VecRestoreArrayWrite(w, &wa));
@@ -124,12 +106,19 @@ PetscErrorCode adjoint_step(TS ts) {
       PetscInt m = 0;
       for (PetscInt j = i + 1; j < s; ++j)
         if (A[j * s + i] != 0) coef[m] = -h * A[j * s + i], terms[m++] = dl[j];
-      PetscCall(combine(ctx->W, -h * b[i], ts->vecs_sensi[k], m, coef.data(), terms.data())); // dt W_i
-      if (ctx->stage) {
-        PetscCall(ctx->stage(ctx->stage_ctx, stage_time, ctx->q_placed ? ctx->Q[i] : Y[i], ctx->W, dl[i],
+      if (ctx->stage) { // the hook forms h W_i where it reads it
+        StageCombination x;
+        x.c0 = -h * b[i];
+        x.x0 = ts->vecs_sensi[k];
+        x.m = m;
+        x.c = coef.data();
+        x.X = terms.data();
+        x.scratch = ctx->W;
+        PetscCall(ctx->stage(ctx->stage_ctx, stage_time, ctx->q_placed ? ctx->Q[i] : Y[i], x, dl[i],
                              ts->vecs_sensip ? ts->vecs_sensip[k] : nullptr));
         continue;
       }
+      PetscCall(combine(ctx->W, -h * b[i], ts->vecs_sensi[k], m, coef.data(), terms.data())); // dt W_i
       PetscCall(MatMultTranspose(J, ctx->W, dl[i]));
       if (ts->vecs_sensip) {
         PetscCall(MatMultTranspose(ts->Jacprhs, ctx->W, ctx->dmu));
@@ -150,6 +139,31 @@ PetscErrorCode installed(TS ts, RkAdjoint **ctx) {
 }
 
 } // namespace
+
+void StageCombination::form_local(PetscInt n, PetscScalar c0, const PetscScalar *a0, PetscInt m, const PetscScalar *c,
+                                  const PetscScalar *const *a, PetscScalar *out) {
+  PetscScalar *__restrict o = out;
+  const PetscScalar *__restrict p0 = a0;
+  switch (m) {
+  case 0:
+    for (PetscInt k = 0; k < n; ++k) o[k] = c0 * p0[k];
+    break;
+  case 1: {
+    const PetscScalar *__restrict p1 = a[0];
+    for (PetscInt k = 0; k < n; ++k) o[k] = c0 * p0[k] + c[0] * p1[k];
+  } break;
+  case 2: {
+    const PetscScalar *__restrict p1 = a[0], *__restrict p2 = a[1];
+    for (PetscInt k = 0; k < n; ++k) o[k] = c0 * p0[k] + c[0] * p1[k] + c[1] * p2[k];
+  } break;
+  default: {
+    const PetscScalar *__restrict p1 = a[0], *__restrict p2 = a[1], *__restrict p3 = a[2];
+    for (PetscInt k = 0; k < n; ++k) o[k] = c0 * p0[k] + c[0] * p1[k] + c[1] * p2[k] + c[2] * p3[k];
+  } break;
+  }
+}
+
+PetscErrorCode StageCombination::form(Vec w) const { return combine(w, c0, x0, m, c, X); }
 
 PetscErrorCode rk_adjoint_install(TS ts, RkStageAdjoint stage, void *stage_ctx, PetscInt position_pairs) {
   PetscBool rk;

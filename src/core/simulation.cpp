@@ -220,10 +220,10 @@ PetscErrorCode Simulation::adjoint_kick_cb(void *ctx, PetscReal t, Vec U, Vec la
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode Simulation::stage_adjoint_cb(void *ctx, PetscReal t, Vec U, Vec x, Vec y, Vec mu) {
+PetscErrorCode Simulation::stage_adjoint_cb(void *ctx, PetscReal t, Vec U, const StageCombination &x, Vec y, Vec mu) {
   auto *sim = static_cast<Simulation *>(ctx);
   PetscFunctionBeginUser;
-  PetscCall(sim->model_->stage_adjoint(t, U, x, y, mu));
+  PetscCall(sim->model_->stage_adjoint_combination(t, U, x, y, mu));
   PetscFunctionReturn(0);
 }
 

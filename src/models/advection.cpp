@@ -366,6 +366,10 @@ public:
                                "Finite differences: the transpose of dG/dU also forms the dG/dp transpose of the same "
                                "vector at the recorded stage (RK adjoint stages apply both), else each is applied alone",
                                "Advection", fuse_adjoint_, &fuse_adjoint_, nullptr));
+    PetscCall(PetscOptionsBool("-advection_stage_combination",
+                               "Finite differences, explicit RK adjoint: a stage's vector h W_i is formed straight into "
+                               "the ghosted copy the sweeps read (else formed first, then copied)",
+                               "Advection", fuse_combination_, &fuse_combination_, nullptr));
     PetscCall(PetscOptionsReal("-advection_ic_width", "gaussian: width w of exp(-(d/w)^2); square: full width", "Advection",
                                width_, &width_, nullptr));
     PetscOptionsEnd();
@@ -757,7 +761,7 @@ private:
   }
   // The owned rows of L from X, and, on one rank holding everything (wrap_), the periodic ghosts.
   PetscErrorCode fill_interior(Vec X, Vec L) {
-    const PetscInt xm = grid_->xm(), ym = grid_->ym(), r = radius_, sy = stride_[1];
+    const PetscInt xm = grid_->xm(), ym = grid_->ym();
     PetscScalar *l;
     PetscFunctionBeginUser;
     PetscCall(VecGetArray(L, &l));
@@ -766,6 +770,39 @@ private:
       PetscCall(x.error());
       for (PetscInt jl = 0; jl < ym; ++jl) std::copy(x.data() + jl * xm, x.data() + (jl + 1) * xm, row(l, jl));
     }
+    wrap_ghosts(l);
+    PetscCall(VecRestoreArray(L, &l));
+    PetscFunctionReturn(0);
+  }
+  // The same with X an RK adjoint stage's combination (m <= 3), formed row by row straight into L (and
+  // copied into W, unless null, for a halo exchange): no separate pass forming it.
+  PetscErrorCode fill_interior(const StageCombination &x, Vec L, Vec W) {
+    const PetscInt xm = grid_->xm(), ym = grid_->ym();
+    const PetscScalar *a0, *a[3];
+    PetscScalar *l, *w = nullptr;
+    PetscFunctionBeginUser;
+    PetscCheck(x.m <= 3, PETSC_COMM_SELF, PETSC_ERR_PLIB, "fill_interior: %" PetscInt_FMT " terms", x.m);
+    PetscCall(VecGetArray(L, &l));
+    PetscCall(VecGetArrayRead(x.x0, &a0));
+    for (PetscInt j = 0; j < x.m; ++j) PetscCall(VecGetArrayRead(x.X[j], &a[j]));
+    if (W) PetscCall(VecGetArrayWrite(W, &w));
+    for (PetscInt jl = 0; jl < ym; ++jl) {
+      const PetscScalar *aj[3];
+      for (PetscInt j = 0; j < x.m; ++j) aj[j] = a[j] + jl * xm;
+      PetscScalar *rw = row(l, jl);
+      StageCombination::form_local(xm, x.c0, a0 + jl * xm, x.m, x.c, aj, rw);
+      if (w) std::copy(rw, rw + xm, w + jl * xm);
+    }
+    if (W) PetscCall(VecRestoreArrayWrite(W, &w));
+    for (PetscInt j = 0; j < x.m; ++j) PetscCall(VecRestoreArrayRead(x.X[j], &a[j]));
+    PetscCall(VecRestoreArrayRead(x.x0, &a0));
+    wrap_ghosts(l);
+    PetscCall(VecRestoreArray(L, &l));
+    PetscFunctionReturn(0);
+  }
+  // On one rank holding everything (wrap_), the periodic ghosts of the ghosted array l from its owned rows.
+  void wrap_ghosts(PetscScalar *l) const {
+    const PetscInt xm = grid_->xm(), ym = grid_->ym(), r = radius_, sy = stride_[1];
     if (wrap_) {
       for (PetscInt jl = 0; jl < ym; ++jl) {
         PetscScalar *rw = row(l, jl);
@@ -780,8 +817,6 @@ private:
           std::copy(row(l, k - 1), row(l, k - 1) + xm, row(l, ym - 1) + k * sy);
         }
     }
-    PetscCall(VecRestoreArray(L, &l));
-    PetscFunctionReturn(0);
   }
   // The ghosts of L from a Halo whose exchange of X was begun.
   PetscErrorCode fill_halo(Halo &h, Vec X, Vec L) {
@@ -1531,14 +1566,45 @@ private:
   bool has_stage_adjoint() const override { return fuse_adjoint_; }
   PetscErrorCode stage_adjoint(PetscReal t, Vec U, Vec x, Vec y, Vec mu) override {
     if (scheme_ == SPECTRAL) return spectral_stage_adjoint(t, U, x, y, mu);
+    PetscFunctionBeginUser;
+    if (diffusion_ && D_field_) PetscCall(fill_ghosted_pair(x, X_local_, U, U_local_)); // the faces read u's ghosts too
+    else PetscCall(fill_ghosted(x, X_local_));
+    PetscCall(fd_stage_adjoint(U, y, mu));
+    PetscFunctionReturn(0);
+  }
+  // Finite differences copy x into the ghosted X_local_ anyway: the combination is formed there, in
+  // the same pass (on several ranks also into its scratch Vec, whose halo is exchanged).
+  PetscErrorCode stage_adjoint_combination(PetscReal t, Vec U, const StageCombination &x, Vec y, Vec mu) override {
+    const bool field = diffusion_ && D_field_;
+    PetscFunctionBeginUser;
+    if (scheme_ == SPECTRAL || x.m > 3 || !fuse_combination_) {
+      PetscCall(LinearModel::stage_adjoint_combination(t, U, x, y, mu));
+      PetscFunctionReturn(0);
+    }
+    if (wrap_) {
+      PetscCall(fill_interior(x, X_local_, nullptr));
+      if (field) PetscCall(fill_interior(U, U_local_));
+    } else {
+      PetscCall(fill_interior(x, X_local_, x.scratch));
+      PetscCall(halo_.begin(x.scratch));
+      if (field) {
+        PetscCall(halo2_.begin(U));
+        PetscCall(fill_interior(U, U_local_));
+      }
+      PetscCall(fill_halo(halo_, x.scratch, X_local_));
+      if (field) PetscCall(fill_halo(halo2_, U, U_local_));
+    }
+    PetscCall(fd_stage_adjoint(U, y, mu));
+    PetscFunctionReturn(0);
+  }
+  // The finite-difference stage from the ghosted X_local_ (and, with a field D, U_local_).
+  PetscErrorCode fd_stage_adjoint(Vec U, Vec y, Vec mu) {
     const PetscScalar *xl, *u, *D = nullptr;
     PetscReal local[3] = {0, 0, 0};
     const bool field = diffusion_ && D_field_;
     bool field_done = false; // the field D's gradient added already (face kernels of the stage)
     const PetscInt n = grid_->local_points(), nd = dim_;
     PetscFunctionBeginUser;
-    if (field) PetscCall(fill_ghosted_pair(x, X_local_, U, U_local_)); // the faces read u's ghosts too
-    else PetscCall(fill_ghosted(x, X_local_));
     PetscCall(VecGetArrayRead(X_local_, &xl));
     PetscCall(VecGetArrayRead(U, &u));
     if (field) PetscCall(VecGetArrayRead(D_local_, &D));
@@ -1639,6 +1705,7 @@ private:
   // products (-advection_fused_adjoint) and its work array.
   bool lazy_ = false;
   PetscBool fuse_adjoint_ = PETSC_TRUE;
+  PetscBool fuse_combination_ = PETSC_TRUE; // -advection_stage_combination
   RecordedStage stage_;
   unsigned long columns_serial_ = 0;
   FusedProducts fused_;
