@@ -232,43 +232,6 @@ TEST(CheckpointGradient, ScalarParameterAndShortRuns) {
   }
 }
 
-// Full storage lays a planned trajectory out in reverse (the adjoint then reads the buffer upwards):
-// the same numbers as the forward layout, bit for bit, in every way the store keeps a step: the
-// leapfrog's positions, an explicit RK's stage positions (wave), its whole stages as slot = stages
-// (compact) or next to the state, an endpoint theta method's solutions, and solutions alone with
-// re-run steps. A slot or a stage read from the wrong place changes the gradient.
-TEST(CheckpointGradient, ReversedLayoutSameGradient) {
-  using Opts = std::vector<std::pair<std::string, std::string>>;
-  const Opts base = {{"-da_grid_x", "81"}, {"-ts_max_time", "0.1"}, {"-wave_c_field", "1"}, {"-wave_c", "0.9"},
-                     {"-true_wave_c", "1.0"}};
-  const std::vector<Opts> ways = {
-      {{"-ts_type", "leapfrog"}, {"-ts_dt", "2e-3"}},
-      {{"-ts_type", "leapfrog"}, {"-ts_dt", "2e-3"}, {"-checkpoint_positions_only", "0"}},
-      {{"-ts_type", "rk"}, {"-ts_rk_type", "4"}, {"-ts_dt", "2e-3"}},
-      {{"-ts_type", "rk"}, {"-ts_rk_type", "4"}, {"-ts_dt", "2e-3"}, {"-checkpoint_positions_only", "0"}},
-      {{"-ts_type", "rk"}, {"-ts_rk_type", "4"}, {"-ts_dt", "2e-3"}, {"-checkpoint_positions_only", "0"},
-       {"-checkpoint_rk_compact", "0"}},
-      {{"-ts_type", "rk"}, {"-ts_rk_type", "4"}, {"-ts_dt", "2e-3"}, {"-checkpoint_keep_stages", "0"}},
-      {{"-ts_type", "cn"}, {"-ts_dt", "5e-3"}},
-      {{"-ts_type", "theta"}, {"-ts_theta_theta", "0.7"}, {"-ts_dt", "5e-3"}}};
-  for (const Opts &way : ways) {
-    Opts on = base, off = base;
-    on.insert(on.end(), way.begin(), way.end());
-    off.insert(off.end(), way.begin(), way.end());
-    off.push_back({"-checkpoint_reverse_layout", "0"});
-    Result r, f;
-    PETSC_ASSERT_OK(run_gradient(on, r));
-    PETSC_ASSERT_OK(run_gradient(off, f));
-    std::string name;
-    for (auto &o : way) name += o.first + " " + o.second + " ";
-    EXPECT_EQ(r.J, f.J) << name;
-    EXPECT_EQ(rel_diff(r.g, f.g), 0.0) << name;
-    EXPECT_EQ(rel_diff(r.gu0, f.gu0), 0.0) << name;
-    EXPECT_GT(flexipde_test::norm(r.g), 0.0) << name;
-    EXPECT_GT(r.stats.steps, 10) << name;
-  }
-}
-
 // Full storage with an FSAL method (3bs) keeps the stages: PETSc's solution-only memory trajectory
 // would re-run steps without restarting the FSAL derivative (3e-5 relative error here). The
 // gradient agrees with central differences, with and without a budget.
