@@ -28,24 +28,46 @@ public:
     PetscCall(end(X));
     PetscFunctionReturn(0);
   }
-  // Ghost value at (il, jl): exactly one of il in [-w, 0) or [xm, xm + w), jl in [-w, 0) or
-  // [ym, ym + w) (jl = 0 in 1D), the other inside the owned block.
-  PetscScalar operator()(PetscInt il, PetscInt jl) const {
-    if (il < 0) return buf_[left_ + jl * w_ + (il + w_)];
-    if (il >= xm_) return buf_[right_ + jl * w_ + (il - xm_)];
-    if (jl < 0) return buf_[bottom_ + (jl + wy_) * xm_ + il];
-    return buf_[top_ + (jl - ym_) * xm_ + il];
+
+  // Packed mode: the ghosts of `nfields` arrays in one exchange (one message per neighbour for all of
+  // them, where separate Halos send one each). Each rank packs the values its neighbours read, the
+  // strips within `width` of its block's edges, of every array, and only those move.
+  PetscErrorCode setup_packed(const Grid &grid, PetscInt width, PetscInt nfields);
+  // One array laid out over the owned block: the value at (il, jl) is a[jl * sy + il * sx].
+  struct Strided {
+    const PetscScalar *a;
+    PetscInt sx, sy;
+  };
+  // Packs the nfields arrays' strips and starts the exchange / finishes it (collective).
+  PetscErrorCode begin(const Strided *fields);
+  PetscErrorCode end();
+
+  // Ghost value at (il, jl) (of field f in packed mode): exactly one of il in [-w, 0) or [xm, xm + w),
+  // jl in [-w, 0) or [ym, ym + w) (jl = 0 in 1D), the other inside the owned block.
+  PetscScalar operator()(PetscInt il, PetscInt jl, PetscInt f = 0) const {
+    const PetscScalar *b = buf_.data() + f * nghost_;
+    if (il < 0) return b[left_ + jl * w_ + (il + w_)];
+    if (il >= xm_) return b[right_ + jl * w_ + (il - xm_)];
+    if (jl < 0) return b[bottom_ + (jl + wy_) * xm_ + il];
+    return b[top_ + (jl - ym_) * xm_ + il];
   }
   PetscInt width() const { return w_; }
   PetscInt xm() const { return xm_; }
   PetscInt ym() const { return ym_; }
 
+  // Whether any rank has a ghost to receive (else begin/end do nothing).
+  bool communicates() const { return scatter_ != nullptr; }
+
 private:
+  // The ghost points' layout (left_ .. top_, nghost_ per field) and, for each, the global index of
+  // its point in grid.dm() (-1 beyond a wall).
+  PetscErrorCode layout(const Grid &grid, DM dm, PetscInt comp, PetscInt width, std::vector<PetscInt> &global);
   PetscInt w_ = 0, wy_ = 0, xm_ = 0, ym_ = 0;
-  PetscInt left_ = 0, right_ = 0, bottom_ = 0, top_ = 0;
+  PetscInt left_ = 0, right_ = 0, bottom_ = 0, top_ = 0, nghost_ = 0, nfields_ = 1;
   std::vector<PetscScalar> buf_;
   OwnedVec seq_;        // wraps buf_
   OwnedScatter scatter_; // null when no rank has a ghost
+  OwnedVec pack_;       // packed mode: this rank's strips of every field (the scatter's source)
 };
 
 } // namespace flexipde

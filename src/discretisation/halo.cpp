@@ -1,8 +1,9 @@
 #include "flexipde/halo.hpp"
+#include <algorithm>
 
 namespace flexipde {
 
-PetscErrorCode Halo::setup(const Grid &grid, DM dm, PetscInt comp, PetscInt width) {
+PetscErrorCode Halo::layout(const Grid &grid, DM dm, PetscInt comp, PetscInt width, std::vector<PetscInt> &global) {
   PetscInt dof, sw, gxs, gys, gxm, gym;
   ISLocalToGlobalMapping ltog;
   PetscFunctionBeginUser;
@@ -22,10 +23,9 @@ PetscErrorCode Halo::setup(const Grid &grid, DM dm, PetscInt comp, PetscInt widt
   right_ = left_ + ym_ * w_;
   bottom_ = right_ + ym_ * w_;
   top_ = bottom_ + wy_ * xm_;
-  const PetscInt n = top_ + wy_ * xm_;
-  buf_.assign(n, 0.0);
+  nghost_ = top_ + wy_ * xm_;
   // local (ghosted) index of every halo point, -1 beyond a wall
-  std::vector<PetscInt> local(n, -1);
+  std::vector<PetscInt> local(nghost_, -1);
   auto index = [&](PetscInt il, PetscInt jl) -> PetscInt {
     const PetscInt i = grid.xs() + il, j = grid.ys() + jl;
     if (i < gxs || i >= gxs + gxm || j < gys || j >= gys + gym) return -1;
@@ -42,10 +42,20 @@ PetscErrorCode Halo::setup(const Grid &grid, DM dm, PetscInt comp, PetscInt widt
       local[top_ + k * xm_ + il] = index(il, ym_ + k);
     }
   // ghosts beyond a DM_BOUNDARY_GHOSTED wall are in the ghosted box but map to -1
-  std::vector<PetscInt> global(n, -1), from, to;
-  for (PetscInt k = 0; k < n; ++k)
+  global.assign(nghost_, -1);
+  for (PetscInt k = 0; k < nghost_; ++k)
     if (local[k] >= 0) PetscCall(ISLocalToGlobalMappingApply(ltog, 1, &local[k], &global[k]));
-  for (PetscInt k = 0; k < n; ++k)
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Halo::setup(const Grid &grid, DM dm, PetscInt comp, PetscInt width) {
+  std::vector<PetscInt> global, from, to;
+  PetscFunctionBeginUser;
+  PetscCall(layout(grid, dm, comp, width, global));
+  nfields_ = 1;
+  pack_.reset();
+  buf_.assign(nghost_, 0.0);
+  for (PetscInt k = 0; k < nghost_; ++k)
     if (global[k] >= 0) {
       from.push_back(global[k]);
       to.push_back(k);
@@ -55,7 +65,7 @@ PetscErrorCode Halo::setup(const Grid &grid, DM dm, PetscInt comp, PetscInt widt
   scatter_.reset();
   seq_.reset();
   if (count == 0) PetscFunctionReturn(0);
-  PetscCall(VecCreateSeqWithArray(PETSC_COMM_SELF, 1, n, buf_.data(), seq_.out()));
+  PetscCall(VecCreateSeqWithArray(PETSC_COMM_SELF, 1, nghost_, buf_.data(), seq_.out()));
   OwnedIS isf, ist;
   PetscCall(ISCreateGeneral(PETSC_COMM_SELF, (PetscInt)from.size(), from.data(), PETSC_COPY_VALUES, isf.out()));
   PetscCall(ISCreateGeneral(PETSC_COMM_SELF, (PetscInt)to.size(), to.data(), PETSC_COPY_VALUES, ist.out()));
@@ -66,8 +76,110 @@ PetscErrorCode Halo::setup(const Grid &grid, DM dm, PetscInt comp, PetscInt widt
   PetscFunctionReturn(0);
 }
 
+namespace {
+
+// The packed strips of a block of xm x ym points (w wide along x, wy along y): left (il < w), right
+// (il >= xm - w), bottom (jl < wy), top (jl >= ym - wy), in that order; a corner point sits in two.
+PetscInt strips_size(PetscInt xm, PetscInt ym, PetscInt w, PetscInt wy) { return 2 * ym * w + 2 * wy * xm; }
+
+// Where owned point (il, jl) of such a block is packed (one of its places).
+PetscInt strip_index(PetscInt il, PetscInt jl, PetscInt xm, PetscInt ym, PetscInt w, PetscInt wy) {
+  if (il < w) return jl * w + il;
+  if (il >= xm - w) return ym * w + jl * w + (il - (xm - w));
+  if (jl < wy) return 2 * ym * w + jl * xm + il;
+  return 2 * ym * w + wy * xm + (jl - (ym - wy)) * xm + il;
+}
+
+} // namespace
+
+PetscErrorCode Halo::setup_packed(const Grid &grid, PetscInt width, PetscInt nfields) {
+  std::vector<PetscInt> global, from, to;
+  PetscInt px, py;
+  const PetscInt *lx, *ly;
+  PetscMPIInt size;
+  PetscFunctionBeginUser;
+  PetscCheck(nfields >= 1, grid.comm(), PETSC_ERR_ARG_OUTOFRANGE, "Halo: %" PetscInt_FMT " fields", nfields);
+  PetscCall(layout(grid, grid.dm(), 0, width, global));
+  nfields_ = nfields;
+  buf_.assign((size_t)nfields * nghost_, 0.0);
+  scatter_.reset();
+  seq_.reset();
+  pack_.reset();
+  PetscCheck(xm_ >= w_ && ym_ >= wy_, grid.comm(), PETSC_ERR_ARG_OUTOFRANGE,
+             "Halo: the owned block (%" PetscInt_FMT " x %" PetscInt_FMT ") is narrower than the halo width %" PetscInt_FMT,
+             xm_, ym_, w_);
+  // Every rank's block (DMDA ranks run along x first), its strips' size and where they start in the
+  // packed Vec; the owner of a point from its index in the PETSc ordering (the owners' ranges in turn).
+  PetscCallMPI(MPI_Comm_size(grid.comm(), &size));
+  PetscCall(DMDAGetInfo(grid.dm(), nullptr, nullptr, nullptr, nullptr, &px, &py, nullptr, nullptr, nullptr, nullptr,
+                        nullptr, nullptr, nullptr));
+  PetscCall(DMDAGetOwnershipRanges(grid.dm(), &lx, grid.dim() == 2 ? &ly : nullptr, nullptr));
+  std::vector<PetscInt> bxm(size), bym(size), first(size + 1, 0), poff(size + 1, 0);
+  for (PetscMPIInt r = 0; r < size; ++r) {
+    bxm[r] = lx[r % px];
+    bym[r] = grid.dim() == 2 ? ly[r / px] : 1;
+    first[r + 1] = first[r] + bxm[r] * bym[r];
+    poff[r + 1] = poff[r] + nfields * strips_size(bxm[r], bym[r], w_, wy_);
+  }
+  for (PetscInt k = 0; k < nghost_; ++k) {
+    const PetscInt g = global[k];
+    if (g < 0) continue;
+    const PetscInt r = (PetscInt)(std::upper_bound(first.begin(), first.end(), g) - first.begin()) - 1;
+    const PetscInt lo = g - first[r], S = strips_size(bxm[r], bym[r], w_, wy_);
+    const PetscInt s = strip_index(lo % bxm[r], lo / bxm[r], bxm[r], bym[r], w_, wy_);
+    for (PetscInt f = 0; f < nfields; ++f) {
+      from.push_back(poff[r] + f * S + s);
+      to.push_back(f * nghost_ + k);
+    }
+  }
+  PetscInt count = (PetscInt)from.size();
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &count, 1, MPIU_INT, MPI_SUM, grid.comm()));
+  if (count == 0) PetscFunctionReturn(0);
+  PetscCall(VecCreateMPI(grid.comm(), nfields * strips_size(xm_, ym_, w_, wy_), PETSC_DETERMINE, pack_.out()));
+  PetscCall(VecCreateSeqWithArray(PETSC_COMM_SELF, 1, nfields * nghost_, buf_.data(), seq_.out()));
+  OwnedIS isf, ist;
+  PetscCall(ISCreateGeneral(PETSC_COMM_SELF, (PetscInt)from.size(), from.data(), PETSC_COPY_VALUES, isf.out()));
+  PetscCall(ISCreateGeneral(PETSC_COMM_SELF, (PetscInt)to.size(), to.data(), PETSC_COPY_VALUES, ist.out()));
+  PetscCall(VecScatterCreate(pack_, isf, seq_, ist, scatter_.out()));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Halo::begin(const Strided *fields) {
+  PetscFunctionBeginUser;
+  if (!scatter_) PetscFunctionReturn(0);
+  PetscCheck(pack_, PETSC_COMM_SELF, PETSC_ERR_ORDER, "Halo: begin(fields) needs setup_packed");
+  PetscScalar *p;
+  PetscCall(VecGetArrayWrite(pack_, &p));
+  const PetscInt S = strips_size(xm_, ym_, w_, wy_);
+  for (PetscInt f = 0; f < nfields_; ++f) {
+    const Strided &F = fields[f];
+    PetscScalar *q = p + f * S;
+    auto at = [&](PetscInt il, PetscInt jl) { return F.a[jl * F.sy + il * F.sx]; };
+    for (PetscInt jl = 0; jl < ym_; ++jl)
+      for (PetscInt k = 0; k < w_; ++k) {
+        q[jl * w_ + k] = at(k, jl);
+        q[ym_ * w_ + jl * w_ + k] = at(xm_ - w_ + k, jl);
+      }
+    for (PetscInt k = 0; k < wy_; ++k)
+      for (PetscInt il = 0; il < xm_; ++il) {
+        q[2 * ym_ * w_ + k * xm_ + il] = at(il, k);
+        q[2 * ym_ * w_ + wy_ * xm_ + k * xm_ + il] = at(il, ym_ - wy_ + k);
+      }
+  }
+  PetscCall(VecRestoreArrayWrite(pack_, &p));
+  PetscCall(VecScatterBegin(scatter_, pack_, seq_, INSERT_VALUES, SCATTER_FORWARD));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Halo::end() {
+  PetscFunctionBeginUser;
+  if (scatter_) PetscCall(VecScatterEnd(scatter_, pack_, seq_, INSERT_VALUES, SCATTER_FORWARD));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode Halo::begin(Vec X) {
   PetscFunctionBeginUser;
+  PetscCheck(!pack_, PETSC_COMM_SELF, PETSC_ERR_ORDER, "Halo: a packed Halo exchanges arrays (begin(fields))");
   if (scatter_) PetscCall(VecScatterBegin(scatter_, X, seq_, INSERT_VALUES, SCATTER_FORWARD));
   PetscFunctionReturn(0);
 }
