@@ -249,46 +249,66 @@ void faces_2d(PetscInt d, PetscInt xm, PetscInt ym, PetscInt sy, const PetscReal
   }
 }
 
-// A 2D field-D RK adjoint stage's face work along direction d (x0, u0 ghosted at the first owned
-// point, rows sy apart): with (B x)_f computed once per face, y += -s B^T (Df .* B x) (Df = I D at the
-// faces, cached: along x, row jl's faces at jl (xm + WD - 1) + k; along y, face row kf at kf xm + i) and,
-// unless g is null, g += -s I^T (B u .* B x) (the field D's gradient).
+// One face row along y (x, u at its first row of WD, rows sy apart): f1 = df .* B x, f2 = B u .* B x.
 template <int WD, bool G>
-void field_stage_faces_2d(PetscInt d, PetscInt xm, PetscInt ym, PetscInt sy, const PetscReal *__restrict Df,
-                          const PetscReal *__restrict gr, const PetscReal *__restrict ip, const PetscScalar *x0,
-                          const PetscScalar *u0, PetscReal s, PetscReal *__restrict F1, PetscReal *__restrict F2,
-                          PetscScalar *__restrict y, PetscScalar *__restrict g) {
-  if (d == 0) { // row by row, as in 1D (a = 1: y keeps its value)
-    for (PetscInt jl = 0; jl < ym; ++jl) {
-      const PetscInt base = jl * sy - (WD - 1);
-      field_stage_faces<WD, G>(xm, Df + jl * (xm + WD - 1), gr, ip, x0 + base, u0 + base, s, 1.0, F1, F2, y + jl * xm,
-                               G ? g + jl * xm : nullptr);
-    }
-    return;
-  }
-  for (PetscInt kf = 0; kf < ym + WD - 1; ++kf) { // face rows along y, vectorised along x
-    PetscReal *__restrict f1 = F1 + kf * xm, *__restrict f2 = F2 + kf * xm;
-    const PetscReal *__restrict df = Df + kf * xm;
-    for (PetscInt i = 0; i < xm; ++i) {
-      PetscReal bx = 0, bu = 0;
+void face_row_2d(PetscInt xm, PetscInt sy, const PetscReal *__restrict df, const PetscReal *__restrict gr,
+                 const PetscScalar *__restrict x, const PetscScalar *__restrict u, PetscReal *__restrict f1,
+                 PetscReal *__restrict f2) {
+  for (PetscInt i = 0; i < xm; ++i) {
+    PetscReal bx = 0, bu = 0;
 #pragma GCC unroll 4
-      for (int m = 0; m < WD; ++m) {
-        const PetscInt q = (kf - (WD - 1) + m) * sy + i;
-        bx += gr[m] * PetscRealPart(x0[q]);
-        if (G) bu += gr[m] * PetscRealPart(u0[q]);
-      }
-      f1[i] = df[i] * bx;
-      if (G) f2[i] = bu * bx;
+    for (int m = 0; m < WD; ++m) {
+      bx += gr[m] * PetscRealPart(x[m * sy + i]);
+      if (G) bu += gr[m] * PetscRealPart(u[m * sy + i]);
     }
+    f1[i] = df[i] * bx;
+    if (G) f2[i] = bu * bx;
   }
+}
+
+// A 2D field-D RK adjoint stage's face work (x0, u0 ghosted at the first owned point, rows sy apart):
+// with (B x)_f computed once per face, y += -s_d B_d^T (Df_d .* B_d x) (Df = I D at the faces, cached:
+// along x, row jl's faces at jl (xm + WD - 1) + k; along y, face row kf at kf xm + i) and, unless g is
+// null, g += -s_d I_d^T (B_d u .* B_d x) (the field D's gradient), d = x, y.
+// Both directions in one pass over the rows: for row jl, its x faces (as in 1D,
+// row buffers F1, F2 of xm + WD - 1), then its y faces from a ring R1, R2 of the WD face rows below and
+// above it (WD x xm each): each face row is formed once, as the rows reach it, and applied while in L1,
+// instead of both directions' full face arrays being written and read back. The same arithmetic as the
+// two passes: y += x part, then y += y part, term by term in the same order.
+template <int WD, bool G>
+void field_stage_faces_2d_rows(PetscInt xm, PetscInt ym, PetscInt sy, const PetscReal *__restrict Dfx,
+                               const PetscReal *__restrict Dfy, const PetscReal *__restrict gr,
+                               const PetscReal *__restrict ip, const PetscScalar *x0, const PetscScalar *u0,
+                               PetscReal sx, PetscReal syy, PetscReal *__restrict F1, PetscReal *__restrict F2,
+                               PetscReal *__restrict R1, PetscReal *__restrict R2, PetscScalar *__restrict y,
+                               PetscScalar *__restrict g) {
+  // face row kf (between ghosted rows kf - WD and kf - 1) into ring slot kf % WD
+  auto face_row = [&](PetscInt kf) {
+    face_row_2d<WD, G>(xm, sy, Dfy + kf * xm, gr, x0 + (kf - (WD - 1)) * sy, u0 + (kf - (WD - 1)) * sy,
+                       R1 + (kf % WD) * xm, R2 + (kf % WD) * xm);
+  };
+  for (PetscInt kf = 0; kf < WD - 1; ++kf) face_row(kf);
   for (PetscInt jl = 0; jl < ym; ++jl) {
+    const PetscInt base = jl * sy - (WD - 1);
     PetscScalar *__restrict yr = y + jl * xm, *__restrict gq = G ? g + jl * xm : nullptr;
+    field_stage_faces<WD, G>(xm, Dfx + jl * (xm + WD - 1), gr, ip, x0 + base, u0 + base, sx, 1.0, F1, F2, yr, gq);
+    face_row(jl + WD - 1);
+    // the ring slots of face rows jl + WD - 1 - q, q = 0 .. WD - 1 (WD is 2 or 4)
+    const PetscReal *__restrict a0 = R1 + ((jl + WD - 1) % WD) * xm, *__restrict a1 = R1 + ((jl + WD - 2) % WD) * xm;
+    const PetscReal *__restrict a2 = R1 + ((jl + 2 * WD - 3) % WD) * xm, *__restrict a3 = R1 + ((jl + 2 * WD - 4) % WD) * xm;
+    const PetscReal *__restrict b0 = R2 + ((jl + WD - 1) % WD) * xm, *__restrict b1 = R2 + ((jl + WD - 2) % WD) * xm;
+    const PetscReal *__restrict b2 = R2 + ((jl + 2 * WD - 3) % WD) * xm, *__restrict b3 = R2 + ((jl + 2 * WD - 4) % WD) * xm;
     for (PetscInt i = 0; i < xm; ++i) {
       PetscReal v1 = 0, v2 = 0;
-#pragma GCC unroll 4
-      for (int q = 0; q < WD; ++q) {
-        v1 -= gr[q] * F1[(jl + WD - 1 - q) * xm + i] * s;
-        if (G) v2 -= ip[q] * F2[(jl + WD - 1 - q) * xm + i] * s;
+      v1 -= gr[0] * a0[i] * syy;
+      if (G) v2 -= ip[0] * b0[i] * syy;
+      v1 -= gr[1] * a1[i] * syy;
+      if (G) v2 -= ip[1] * b1[i] * syy;
+      if (WD == 4) {
+        v1 -= gr[2] * a2[i] * syy;
+        if (G) v2 -= ip[2] * b2[i] * syy;
+        v1 -= gr[3] * a3[i] * syy;
+        if (G) v2 -= ip[3] * b3[i] * syy;
       }
       yr[i] += v1;
       if (G) gq[i] += v2;
@@ -1557,7 +1577,7 @@ private:
   }
 
   // Field D: (I D)_f at the faces the owned points touch (1D: as face_products indexes them; 2D: as
-  // field_stage_faces_2d does), for stage_adjoint's diffusion transpose: D changes only with the
+  // field_stage_faces_2d_rows does), for stage_adjoint's diffusion transpose: D changes only with the
   // parameters.
   PetscErrorCode cache_face_diffusivity() {
     const PetscScalar *D;
@@ -1574,36 +1594,37 @@ private:
     if (dim_ == 1) {
       face_D_.resize(xm + WD - 1);
       for (PetscInt k = 0; k < xm + WD - 1; ++k) face_D_[k] = at(g0 - (WD - 1) + k, 1);
-    } else { // along x: row jl's faces; along y: face rows (the layouts of field_stage_faces_2d)
+    } else { // along x: row jl's faces; along y: face rows (the layouts of field_stage_faces_2d_rows)
       face_D_.resize(ym * (xm + WD - 1));
       for (PetscInt jl = 0; jl < ym; ++jl)
         for (PetscInt k = 0; k < xm + WD - 1; ++k) face_D_[jl * (xm + WD - 1) + k] = at(g0 + jl * sy - (WD - 1) + k, 1);
       face_D_y_.resize((ym + WD - 1) * xm);
       for (PetscInt kf = 0; kf < ym + WD - 1; ++kf)
         for (PetscInt i = 0; i < xm; ++i) face_D_y_[kf * xm + i] = at(g0 + (kf - (WD - 1)) * sy + i, sy);
-      const size_t need = (size_t)std::max((ym + WD - 1) * xm, xm + WD - 1);
+      const size_t need = (size_t)std::max((ym + WD - 1) * xm, xm + WD - 1); // faces_2d's y faces
       if (faces_.size() < need) faces_.resize(need);
-      if (faces2_.size() < need) faces2_.resize(need);
+      if (faces2_.size() < (size_t)(xm + WD - 1)) faces2_.resize(xm + WD - 1); // a row's x faces
     }
     PetscCall(VecRestoreArrayRead(D_local_, &D));
     PetscFunctionReturn(0);
   }
   // 2D field D: y += the diffusion transpose and, unless g is null, g += the field's gradient, from
-  // ghosted x and u (field_stage_faces_2d along x, then y).
+  // ghosted x and u, in one pass over the rows (field_stage_faces_2d_rows; without u, x stands in for it:
+  // read, never used).
   void field_stage_2d(const PetscScalar *xl, const PetscScalar *ul, PetscScalar *y, PetscScalar *g) {
     const Grid &gr = *grid_;
-    const PetscInt g0 = ghost_index(gr.xs(), gr.ys());
+    const PetscInt g0 = ghost_index(gr.xs(), gr.ys()), xm = gr.xm(), WD = face_.width;
     const PetscReal *grad = face_.grad.data(), *ip = face_.interp.data();
-    for (PetscInt d = 0; d < 2; ++d) {
-      const PetscReal sd = 1.0 / (h_[d] * h_[d]);
-      const PetscReal *Df = d == 0 ? face_D_.data() : face_D_y_.data();
-      const PetscScalar *u0 = ul ? ul + g0 : nullptr;
-#define FLEXIPDE_FS2(WD, G) \
-  field_stage_faces_2d<WD, G>(d, gr.xm(), gr.ym(), stride_[1], Df, grad, ip, xl + g0, u0, sd, faces_.data(), faces2_.data(), y, g)
-      if (face_.width == 2) g ? FLEXIPDE_FS2(2, true) : FLEXIPDE_FS2(2, false);
-      else g ? FLEXIPDE_FS2(4, true) : FLEXIPDE_FS2(4, false);
+    const PetscReal sx = 1.0 / (h_[0] * h_[0]), sy = 1.0 / (h_[1] * h_[1]);
+    const PetscScalar *u0 = (ul ? ul : xl) + g0;
+    if (ring_.size() < (size_t)(2 * WD * xm)) ring_.resize(2 * WD * xm);
+    PetscReal *R1 = ring_.data(), *R2 = R1 + WD * xm;
+#define FLEXIPDE_FS2(WD, G)                                                                                          \
+  field_stage_faces_2d_rows<WD, G>(xm, gr.ym(), stride_[1], face_D_.data(), face_D_y_.data(), grad, ip, xl + g0, u0, sx, \
+                                   sy, faces_.data(), faces2_.data(), R1, R2, y, g)
+    if (WD == 2) g ? FLEXIPDE_FS2(2, true) : FLEXIPDE_FS2(2, false);
+    else g ? FLEXIPDE_FS2(4, true) : FLEXIPDE_FS2(4, false);
 #undef FLEXIPDE_FS2
-    }
   }
 
   // An explicit RK adjoint stage at state U (finite differences): y = A^T x and mu += (dG/dp)^T x in
@@ -1784,6 +1805,7 @@ private:
   // where the two separate ones do not; the rendezvous then cost more than the message saved (adjoint
   // 0.071 -> 0.076 s).
   Halo packed_;
+  std::vector<PetscReal> ring_; // field_stage_2d's rings of y face rows
   PetscObjectId jp_id_ = -1;
   PetscObjectState jp_state_ = -1;
 };
