@@ -55,6 +55,11 @@ public:
   PetscInt xm() const { return xm_; }
   PetscInt ym() const { return ym_; }
 
+  // Ghost row jl (2D: jl in [-w, 0) or [ym, ym + w)): its xm values, contiguous (of field f).
+  const PetscScalar *ghost_row(PetscInt jl, PetscInt f = 0) const {
+    const PetscScalar *b = buf_.data() + f * nghost_;
+    return jl < 0 ? b + bottom_ + (jl + wy_) * xm_ : b + top_ + (jl - ym_) * xm_;
+  }
   // Whether any rank has a ghost to receive (else begin/end do nothing).
   bool communicates() const { return scatter_ != nullptr; }
 

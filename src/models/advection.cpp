@@ -249,17 +249,47 @@ void faces_2d(PetscInt d, PetscInt xm, PetscInt ym, PetscInt sy, const PetscReal
   }
 }
 
-// One face row along y (x, u at its first row of WD, rows sy apart): f1 = df .* B x, f2 = B u .* B x.
+// A 2D stage's u for the face kernels, read in place: owned rows from U's array (xm apart), ghost rows
+// and the ghosts at either end of a row from a Halo (null: one rank holding everything, periodic).
+struct URows {
+  const PetscScalar *u;
+  PetscInt xm, ym;
+  const Halo *h;
+  const PetscScalar *row(PetscInt j) const {
+    if (j >= 0 && j < ym) return u + j * xm;
+    if (h) return h->ghost_row(j);
+    return u + ((j % ym + ym) % ym) * xm;
+  }
+  // Row jl with its w ghosts on either side, into b (xm + 2 w entries, b[w] = (0, jl)).
+  void ghosted_row(PetscInt jl, PetscInt w, PetscScalar *b) const {
+    const PetscScalar *r = u + jl * xm;
+    for (PetscInt k = 1; k <= w; ++k) {
+      b[w - k] = h ? (*h)(-k, jl) : r[xm - k];
+      b[w + xm - 1 + k] = h ? (*h)(xm - 1 + k, jl) : r[k - 1];
+    }
+    std::copy(r, r + xm, b + w);
+  }
+};
+
+// One face row along y (x at its first row of WD, rows sy apart; u's WD rows ur): f1 = df .* B x,
+// f2 = B u .* B x.
 template <int WD, bool G>
 void face_row_2d(PetscInt xm, PetscInt sy, const PetscReal *__restrict df, const PetscReal *__restrict gr,
-                 const PetscScalar *__restrict x, const PetscScalar *__restrict u, PetscReal *__restrict f1,
+                 const PetscScalar *__restrict x, const PetscScalar *const *ur, PetscReal *__restrict f1,
                  PetscReal *__restrict f2) {
+  const PetscScalar *__restrict u0 = ur[0], *__restrict u1 = ur[1];
+  const PetscScalar *__restrict u2 = WD == 4 ? ur[2] : ur[0], *__restrict u3 = WD == 4 ? ur[3] : ur[0];
   for (PetscInt i = 0; i < xm; ++i) {
     PetscReal bx = 0, bu = 0;
 #pragma GCC unroll 4
-    for (int m = 0; m < WD; ++m) {
-      bx += gr[m] * PetscRealPart(x[m * sy + i]);
-      if (G) bu += gr[m] * PetscRealPart(u[m * sy + i]);
+    for (int m = 0; m < WD; ++m) bx += gr[m] * PetscRealPart(x[m * sy + i]);
+    if (G) {
+      bu += gr[0] * PetscRealPart(u0[i]);
+      bu += gr[1] * PetscRealPart(u1[i]);
+      if (WD == 4) {
+        bu += gr[2] * PetscRealPart(u2[i]);
+        bu += gr[3] * PetscRealPart(u3[i]);
+      }
     }
     f1[i] = df[i] * bx;
     if (G) f2[i] = bu * bx;
@@ -278,20 +308,23 @@ void face_row_2d(PetscInt xm, PetscInt sy, const PetscReal *__restrict df, const
 template <int WD, bool G>
 void field_stage_faces_2d_rows(PetscInt xm, PetscInt ym, PetscInt sy, const PetscReal *__restrict Dfx,
                                const PetscReal *__restrict Dfy, const PetscReal *__restrict gr,
-                               const PetscReal *__restrict ip, const PetscScalar *x0, const PetscScalar *u0,
+                               const PetscReal *__restrict ip, const PetscScalar *x0, const URows &U,
                                PetscReal sx, PetscReal syy, PetscReal *__restrict F1, PetscReal *__restrict F2,
-                               PetscReal *__restrict R1, PetscReal *__restrict R2, PetscScalar *__restrict y,
-                               PetscScalar *__restrict g) {
+                               PetscReal *__restrict R1, PetscReal *__restrict R2, PetscScalar *__restrict ub,
+                               PetscScalar *__restrict y, PetscScalar *__restrict g) {
   // face row kf (between ghosted rows kf - WD and kf - 1) into ring slot kf % WD
   auto face_row = [&](PetscInt kf) {
-    face_row_2d<WD, G>(xm, sy, Dfy + kf * xm, gr, x0 + (kf - (WD - 1)) * sy, u0 + (kf - (WD - 1)) * sy,
-                       R1 + (kf % WD) * xm, R2 + (kf % WD) * xm);
+    const PetscScalar *ur[WD];
+    for (int m = 0; m < WD; ++m) ur[m] = G ? U.row(kf - (WD - 1) + m) : nullptr;
+    face_row_2d<WD, G>(xm, sy, Dfy + kf * xm, gr, x0 + (kf - (WD - 1)) * sy, ur, R1 + (kf % WD) * xm, R2 + (kf % WD) * xm);
   };
   for (PetscInt kf = 0; kf < WD - 1; ++kf) face_row(kf);
   for (PetscInt jl = 0; jl < ym; ++jl) {
     const PetscInt base = jl * sy - (WD - 1);
     PetscScalar *__restrict yr = y + jl * xm, *__restrict gq = G ? g + jl * xm : nullptr;
-    field_stage_faces<WD, G>(xm, Dfx + jl * (xm + WD - 1), gr, ip, x0 + base, u0 + base, sx, 1.0, F1, F2, yr, gq);
+    if (G) U.ghosted_row(jl, WD - 1, ub); // (without a gradient u is not used: x stands in)
+    field_stage_faces<WD, G>(xm, Dfx + jl * (xm + WD - 1), gr, ip, x0 + base, G ? ub : x0 + base, sx, 1.0, F1, F2, yr,
+                             gq);
     face_row(jl + WD - 1);
     // the ring slots of face rows jl + WD - 1 - q, q = 0 .. WD - 1 (WD is 2 or 4)
     const PetscReal *__restrict a0 = R1 + ((jl + WD - 1) % WD) * xm, *__restrict a1 = R1 + ((jl + WD - 2) % WD) * xm;
@@ -1609,19 +1642,20 @@ private:
     PetscFunctionReturn(0);
   }
   // 2D field D: y += the diffusion transpose and, unless g is null, g += the field's gradient, from
-  // ghosted x and u, in one pass over the rows (field_stage_faces_2d_rows; without u, x stands in for it:
-  // read, never used).
-  void field_stage_2d(const PetscScalar *xl, const PetscScalar *ul, PetscScalar *y, PetscScalar *g) {
+  // ghosted x and the stage's u read in place (u: its owned array; ghosts from halo2_, exchanged
+  // already, or wrapped on one rank), in one pass over the rows (field_stage_faces_2d_rows).
+  void field_stage_2d(const PetscScalar *xl, const PetscScalar *u, PetscScalar *y, PetscScalar *g) {
     const Grid &gr = *grid_;
     const PetscInt g0 = ghost_index(gr.xs(), gr.ys()), xm = gr.xm(), WD = face_.width;
     const PetscReal *grad = face_.grad.data(), *ip = face_.interp.data();
     const PetscReal sx = 1.0 / (h_[0] * h_[0]), sy = 1.0 / (h_[1] * h_[1]);
-    const PetscScalar *u0 = (ul ? ul : xl) + g0;
+    const URows U{u, xm, gr.ym(), wrap_ ? nullptr : &halo2_};
     if (ring_.size() < (size_t)(2 * WD * xm)) ring_.resize(2 * WD * xm);
+    if (urow_.size() < (size_t)(xm + 2 * WD)) urow_.resize(xm + 2 * WD);
     PetscReal *R1 = ring_.data(), *R2 = R1 + WD * xm;
 #define FLEXIPDE_FS2(WD, G)                                                                                          \
-  field_stage_faces_2d_rows<WD, G>(xm, gr.ym(), stride_[1], face_D_.data(), face_D_y_.data(), grad, ip, xl + g0, u0, sx, \
-                                   sy, faces_.data(), faces2_.data(), R1, R2, y, g)
+  field_stage_faces_2d_rows<WD, G>(xm, gr.ym(), stride_[1], face_D_.data(), face_D_y_.data(), grad, ip, xl + g0, U, sx, \
+                                   sy, faces_.data(), faces2_.data(), R1, R2, urow_.data(), y, g)
     if (WD == 2) g ? FLEXIPDE_FS2(2, true) : FLEXIPDE_FS2(2, false);
     else g ? FLEXIPDE_FS2(4, true) : FLEXIPDE_FS2(4, false);
 #undef FLEXIPDE_FS2
@@ -1650,17 +1684,14 @@ private:
     }
     if (wrap_) {
       PetscCall(fill_interior(x, X_local_, Part::All));
-      if (field) PetscCall(fill_interior(U, U_local_));
+      if (field && dim_ == 1) PetscCall(fill_interior(U, U_local_)); // (2D reads u in place)
     } else if (dim_ == 1) PetscCall(fill_ghosted_packed(x, field ? U : nullptr)); // x's and u's ghosts in one exchange
-    else { // 2D: rows of ghosts, exchanged by two Halos in flight together (see packed_)
+    else { // 2D: rows of ghosts, exchanged by two Halos in flight together (see packed_); u is read in place
+      if (field) PetscCall(halo2_.begin(U));
       PetscCall(fill_interior(x, X_local_, Part::All, x.scratch));
       PetscCall(halo_.begin(x.scratch));
-      if (field) {
-        PetscCall(halo2_.begin(U));
-        PetscCall(fill_interior(U, U_local_));
-      }
       PetscCall(fill_halo(halo_, x.scratch, X_local_));
-      if (field) PetscCall(fill_halo(halo2_, U, U_local_));
+      if (field) PetscCall(halo2_.end(U));
     }
     PetscCall(fd_stage_adjoint(U, y, mu));
     PetscFunctionReturn(0);
@@ -1710,13 +1741,10 @@ private:
         for (PetscInt d = 0; d < nd; ++d) local[d] = -1.0 / h_[d] * sums[d];
         local[nd] = sums[2];
         if (field && nd == 2) { // the diffusion transpose and D's gradient face by face, B x once per face
-          const PetscScalar *ul;
           PetscScalar *g;
-          PetscCall(VecGetArrayRead(U_local_, &ul));
           PetscCall(VecGetArray(mu, &g));
-          field_stage_2d(xl, ul, ya, g + params_->info(D_index_).local_offset);
+          field_stage_2d(xl, u, ya, g + params_->info(D_index_).local_offset);
           PetscCall(VecRestoreArray(mu, &g));
-          PetscCall(VecRestoreArrayRead(U_local_, &ul));
           field_done = true;
         } else if (field) add_face_diffusion(D, xl, ya);
       } else if (field && nd == 2) {
@@ -1805,7 +1833,8 @@ private:
   // where the two separate ones do not; the rendezvous then cost more than the message saved (adjoint
   // 0.071 -> 0.076 s).
   Halo packed_;
-  std::vector<PetscReal> ring_; // field_stage_2d's rings of y face rows
+  std::vector<PetscReal> ring_;      // field_stage_2d's rings of y face rows
+  std::vector<PetscScalar> urow_;    // ... and its row of u with ghosts
   PetscObjectId jp_id_ = -1;
   PetscObjectState jp_state_ = -1;
 };
