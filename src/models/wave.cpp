@@ -141,8 +141,8 @@ public:
     fused_.g.assign(grid.xm(), 0.0);
     hw_ = d2_.half_width();
     PetscCall(halo_u_.setup(grid, dm_, 0, hw_));
-    PetscCall(halo_q_.setup(grid, grid.dm(), 0, hw_));
     PetscCall(halo_v_.setup(grid, dm_, 1, hw_));
+    PetscCall(pair_.setup_packed(grid, hw_, 2));
     PetscCall(halo_c_.setup(grid, grid.dm(), 0, hw_));
     // Owned points whose D2 row is the plain centred stencil with every point it reads owned and off
     // the walls: swept without any test; the few others (walls, next to them, next to another rank)
@@ -176,17 +176,14 @@ public:
     const ParamInfo &pi = params_->info(c_index_);
     PetscReal local[4] = {0, 0, 0, 0}; // four partial sums: no single dependency chain through the sweep
     PetscInt su = 2;
-    Halo *hu = &halo_u_;
     PetscFunctionBeginUser;
-    PetscCall(u_layout(U, &su, &hu));
-    Halo &halo_u = *hu;
-    PetscCall(halo_u.begin(U));
-    PetscCall(halo_v_.begin(lambda));
+    PetscCall(u_layout(U, &su));
     {
       ConstArray u(U);
       Array l(lambda);
       PetscCall(u.error());
       PetscCall(l.error());
+      PetscCall(begin_pair(u.data(), su, l.data())); // lambda_v does not change in the sweep
       PetscScalar *g = nullptr;
       if (mu && c_field_) PetscCall(VecGetArray(mu, &g));
       const PetscReal *c2 = c2_.data(), *dg = two_c_.data();
@@ -204,11 +201,10 @@ public:
       else kick_interior<2>(ua, L, c2, dg, out, w, g != nullptr);
       if (!g)
         sum4(out, lo_, hi_, local);
-      PetscCall(halo_u.end(U));
-      PetscCall(halo_v_.end(lambda));
+      PetscCall(pair_.end());
       for_edge_points([&](PetscInt il, const std::array<StencilEntry, 5> &st, PetscInt m) {
         PetscReal du, dz;
-        edge_sums(st, m, ua, su, halo_u, L, &du, &dz);
+        edge_sums(st, m, ua, su, L, &du, &dz);
         body(il, du, dz);
       });
       if (g) PetscCall(VecRestoreArray(mu, &g));
@@ -241,12 +237,8 @@ public:
   // pointwise terms' sum (four partial sums).
   PetscErrorCode transpose_sweep(Vec U, Vec x, Vec y, PetscReal *g, bool add, PetscReal *local) {
     PetscInt su = 2;
-    Halo *hu = &halo_u_;
     PetscFunctionBeginUser;
-    PetscCall(u_layout(U, &su, &hu));
-    Halo &halo_u = *hu;
-    PetscCall(halo_u.begin(U));
-    PetscCall(halo_v_.begin(x));
+    PetscCall(u_layout(U, &su));
     {
       ConstArray xa(x), ua(U);
       Array ya(y);
@@ -254,6 +246,7 @@ public:
       PetscCall(ua.error());
       PetscCall(ya.error());
       const PetscScalar *X = xa.data(), *u = ua.data();
+      PetscCall(begin_pair(u, su, X));
       PetscScalar *Y = ya.data();
       const PetscInt xm = grid_->xm();
       for (PetscInt il : {(PetscInt)0, xm - 1}) // the walls (no gradient there: 2c = 0)
@@ -267,11 +260,10 @@ public:
       else if (su == 1) stage_interior<false, 1>(X, u, c2, dg, Y, g);
       else stage_interior<false, 2>(X, u, c2, dg, Y, g);
       if (local) sum4(g, lo_, hi_, local);
-      PetscCall(halo_u.end(U));
-      PetscCall(halo_v_.end(x));
+      PetscCall(pair_.end());
       for_edge_points([&](PetscInt il, const std::array<StencilEntry, 5> &st, PetscInt m) {
         PetscReal du, dz;
-        edge_sums(st, m, u, su, halo_u, X, &du, &dz);
+        edge_sums(st, m, u, su, X, &du, &dz);
         Y[2 * il] = dz;
         Y[2 * il + 1] = X[2 * il];
         const PetscReal gi = two_c_[il] * du * PetscRealPart(X[2 * il + 1]);
@@ -425,26 +417,33 @@ private:
     else if (add) fused_kick_interior<2, true, SU>(lo_, hi_, wt_, ua, L, c2, dg, out, w);
     else fused_kick_interior<2, false, SU>(lo_, hi_, wt_, ua, L, c2, dg, out, w);
   }
-  // At an edge point with stencil st (m entries): du = (D2 u) (u at stride su in a whole state or the
-  // positions alone, ghosts from halo_u) and dz = D2 (c^2 z_v) (z an interleaved (u, v) array, ghosts
-  // of z_v from halo_v_).
+  // The adjoint sweeps' ghosts of u (stride su: a whole state or the positions alone) and of z_v (z an
+  // interleaved (u, v) array) in one exchange, one message per neighbour (pair_: fields 0 and 1).
+  PetscErrorCode begin_pair(const PetscScalar *u, PetscInt su, const PetscScalar *z) {
+    const Halo::Strided f[2] = {{u, su, 0}, {z + 1, 2, 0}};
+    PetscFunctionBeginUser;
+    PetscCall(pair_.begin(f));
+    PetscFunctionReturn(0);
+  }
+  // At an edge point with stencil st (m entries): du = (D2 u) (u at stride su) and dz = D2 (c^2 z_v),
+  // ghosts from pair_ (begin_pair, ended).
   void edge_sums(const std::array<StencilEntry, 5> &st, PetscInt m, const PetscScalar *u, PetscInt su,
-                 const Halo &halo_u, const PetscScalar *z, PetscReal *du, PetscReal *dz) const {
+                 const PetscScalar *z, PetscReal *du, PetscReal *dz) const {
     *du = 0;
     *dz = 0;
     for (PetscInt q = 0; q < m; ++q) {
       const PetscInt jl = local_offset(st[q].j);
-      *du += st[q].weight * PetscRealPart(jl >= 0 && jl < grid_->xm() ? u[su * jl] : halo_u(jl, 0));
-      *dz += st[q].weight * c2_at(jl) * value(z, halo_v_, 1, jl);
+      const bool owned = jl >= 0 && jl < grid_->xm();
+      *du += st[q].weight * PetscRealPart(owned ? u[su * jl] : pair_(jl, 0, 0));
+      *dz += st[q].weight * c2_at(jl) * PetscRealPart(owned ? z[2 * jl + 1] : pair_(jl, 0, 1));
     }
   }
-  // U is a whole (u, v) state or u alone: the stride of u in it, and the Halo for its ghosts.
-  PetscErrorCode u_layout(Vec U, PetscInt *su, Halo **halo) {
+  // U is a whole (u, v) state or u alone: the stride of u in it.
+  PetscErrorCode u_layout(Vec U, PetscInt *su) {
     PetscInt nu;
     PetscFunctionBeginUser;
     PetscCall(VecGetLocalSize(U, &nu));
     *su = nu == grid_->xm() ? 1 : 2;
-    *halo = *su == 1 ? &halo_q_ : &halo_u_;
     PetscFunctionReturn(0);
   }
   // Local offset (i - xs) of global point j as the stencils see it: periodic neighbours of the
@@ -665,7 +664,7 @@ private:
   OwnedVec c_;
   std::vector<PetscReal> dgdc_, c2_, two_c_, gbuf_; // 2 c D2 u at the last state; c^2; 2c (0 at walls); work
   Halo halo_u_, halo_v_, halo_c_; // ghosts of u, of lambda_v (adjoint) and of c
-  Halo halo_q_;                   // ghosts of u given alone (the stored positions, in the leapfrog's adjoint)
+  Halo pair_; // the adjoint sweeps' ghosts of u and lambda_v in one exchange (begin_pair)
   PetscInt hw_ = 1, lo_ = 0, hi_ = 0; // stencil half-width; owned points [lo_, hi_) take the plain sweep
   PetscReal wt_[5] = {0, 0, 0, 0, 0}; // the centred weights / h^2
   // The state recorded by rhs_jacobian_p, the record dgdc_ was formed at, and J^T's fused dG/dc
