@@ -113,6 +113,22 @@ TEST_P(RkAdjoint, SameGradientAsPetscRk) {
 
 INSTANTIATE_TEST_SUITE_P(Models, RkAdjoint, ::testing::ValuesIn(rk_cases()), rk_name);
 
+// A scalar c's gradient from the wave's fused sweeps: its pointwise terms accumulated over the whole
+// adjoint and summed once (the default) or summed at every kick or stage (-wave_scalar_sum_once 0):
+// the same sum in another order, so equal to round-off, for the RK stage and the leapfrog kick, both
+// stencil orders, walls and periodic.
+TEST(WaveScalarSum, OnceEqualsPerStage) {
+  for (const char *ts : {"rk", "leapfrog"})
+    for (const char *order : {"2", "4"})
+      for (const char *periodic : {"0", "1"}) {
+        SCOPED_TRACE(std::string(ts) + ", order " + order + ", periodic " + periodic);
+        RkScene s;
+        s.set_up({{"-da_grid_x", "41"}, {"-wave_c_field", "0"}, {"-fd_order", order}, {"-ts_type", ts},
+                  {"-ts_rk_type", "4"}, {"-grid_periodic", periodic}, {"-wave_ic", "rest"}});
+        flexipde_test::expect_same_gradient_other_setup(s.scene, s.p, {}, {{"-wave_scalar_sum_once", "0"}}, 1e-13);
+      }
+}
+
 // Finite-difference advection forms a stage's h W_i straight into the ghosted copy its sweeps read
 // (Model::stage_adjoint_combination; on several ranks also into the scratch Vec whose halo is
 // exchanged): bitwise the gradient of forming it first (-advection_stage_combination 0), for tableaux

@@ -126,6 +126,10 @@ public:
                                "The matrix-free transpose of dG/dU also forms the dG/dc transpose of the same vector at the "
                                "recorded stage (RK adjoint stages apply both), else each is applied alone",
                                "Wave", fuse_adjoint_, &fuse_adjoint_, nullptr));
+    PetscCall(PetscOptionsBool("-wave_scalar_sum_once",
+                               "A scalar c's gradient: the fused adjoint sweeps accumulate its pointwise terms over the "
+                               "whole adjoint and sum them once (else summed at every kick or stage)",
+                               "Wave", defer_scalar_, &defer_scalar_, nullptr));
     PetscCall(PetscOptionsReal("-wave_c_min", "Smallest admissible speed: optimisers never go below it", "Wave", c_min_,
                                &c_min_, nullptr));
     PetscOptionsEnd();
@@ -138,6 +142,7 @@ public:
     dgdc_.assign(grid.xm(), 0.0);
     c2_.assign(grid.xm(), 0.0);
     gbuf_.assign(grid.xm(), 0.0);
+    gacc_.assign(grid.xm(), 0.0);
     fused_.g.assign(grid.xm(), 0.0);
     hw_ = d2_.half_width();
     PetscCall(halo_u_.setup(grid, dm_, 0, hw_));
@@ -186,20 +191,23 @@ public:
       PetscCall(begin_pair(u.data(), su, l.data())); // lambda_v does not change in the sweep
       PetscScalar *g = nullptr;
       if (mu && c_field_) PetscCall(VecGetArray(mu, &g));
+      // where the pointwise terms accumulate: a field's gradient in place; a scalar's pointwise sums
+      // during an adjoint solve (summed once, end_adjoint); else none (a scalar's local sum, below)
+      PetscReal *acc = g ? g + pi.local_offset : mu && scalar_pointwise_ ? gacc_.data() : nullptr;
       const PetscReal *c2 = c2_.data(), *dg = two_c_.data();
       PetscScalar *L = l.data();
       const PetscScalar *ua = u.data();
       auto body = [&](PetscInt il, PetscReal du, PetscReal dz) {
         L[2 * il] += w * dz;
         const PetscReal gi = dg[il] * du * PetscRealPart(L[2 * il + 1]);
-        if (g) g[pi.local_offset + il] += w * gi;
+        if (acc) acc[il] += w * gi;
         else local[il & 3] += gi;
       };
-      // the interior: a field's gradient in place, a scalar's through the scratch array gbuf_
-      PetscReal *out = g ? g + pi.local_offset : gbuf_.data();
-      if (su == 1) kick_interior<1>(ua, L, c2, dg, out, w, g != nullptr);
-      else kick_interior<2>(ua, L, c2, dg, out, w, g != nullptr);
-      if (!g)
+      // the interior: added to acc, or through the scratch array gbuf_ into the local sums
+      PetscReal *out = acc ? acc : gbuf_.data();
+      if (su == 1) kick_interior<1>(ua, L, c2, dg, out, w, acc != nullptr);
+      else kick_interior<2>(ua, L, c2, dg, out, w, acc != nullptr);
+      if (!acc)
         sum4(out, lo_, hi_, local);
       PetscCall(pair_.end());
       for_edge_points([&](PetscInt il, const std::array<StencilEntry, 5> &st, PetscInt m) {
@@ -209,7 +217,26 @@ public:
       });
       if (g) PetscCall(VecRestoreArray(mu, &g));
     }
-    if (mu && !c_field_) PetscCall(params_->add_local_sum(mu, c_index_, w * (local[0] + local[1] + local[2] + local[3])));
+    if (mu && !c_field_ && !scalar_pointwise_)
+      PetscCall(params_->add_local_sum(mu, c_index_, w * (local[0] + local[1] + local[2] + local[3])));
+    PetscFunctionReturn(0);
+  }
+
+  // A scalar c during one adjoint solve: the kicks and RK stages add their pointwise terms to gacc_, as a
+  // field's gradient would be added to, and end_adjoint sums it once, instead of every kick or stage
+  // writing a scratch array and summing it (the sum is linear: the same gradient up to round-off).
+  void begin_adjoint() override {
+    scalar_pointwise_ = !c_field_ && defer_scalar_;
+    if (scalar_pointwise_) std::fill(gacc_.begin(), gacc_.end(), 0.0);
+  }
+  PetscErrorCode end_adjoint(Vec mu) override {
+    PetscFunctionBeginUser;
+    const bool pending = scalar_pointwise_;
+    scalar_pointwise_ = false;
+    if (!pending || !mu) PetscFunctionReturn(0);
+    PetscReal s[4] = {0, 0, 0, 0};
+    sum4(gacc_.data(), 0, grid_->xm(), s);
+    PetscCall(params_->add_local_sum(mu, c_index_, s[0] + s[1] + s[2] + s[3]));
     PetscFunctionReturn(0);
   }
 
@@ -227,8 +254,10 @@ public:
       PetscCall(VecGetArray(mu, &gm));
       PetscCall(transpose_sweep(U, x, y, gm + pi.local_offset, true, nullptr));
       PetscCall(VecRestoreArray(mu, &gm));
-    } else PetscCall(transpose_sweep(U, x, y, gbuf_.data(), false, mu ? local : nullptr));
-    if (mu && !c_field_) PetscCall(params_->add_local_sum(mu, c_index_, local[0] + local[1] + local[2] + local[3]));
+    } else if (mu && scalar_pointwise_) PetscCall(transpose_sweep(U, x, y, gacc_.data(), true, nullptr)); // begin_adjoint
+    else PetscCall(transpose_sweep(U, x, y, gbuf_.data(), false, mu ? local : nullptr));
+    if (mu && !c_field_ && !scalar_pointwise_)
+      PetscCall(params_->add_local_sum(mu, c_index_, local[0] + local[1] + local[2] + local[3]));
     PetscFunctionReturn(0);
   }
 
@@ -665,6 +694,9 @@ private:
   std::vector<PetscReal> dgdc_, c2_, two_c_, gbuf_; // 2 c D2 u at the last state; c^2; 2c (0 at walls); work
   Halo halo_u_, halo_v_, halo_c_; // ghosts of u, of lambda_v (adjoint) and of c
   Halo pair_; // the adjoint sweeps' ghosts of u and lambda_v in one exchange (begin_pair)
+  std::vector<PetscReal> gacc_;   // a scalar c's pointwise gradient terms during an adjoint (begin_adjoint)
+  bool scalar_pointwise_ = false; // ... being accumulated there
+  PetscBool defer_scalar_ = PETSC_TRUE; // -wave_scalar_sum_once
   PetscInt hw_ = 1, lo_ = 0, hi_ = 0; // stencil half-width; owned points [lo_, hi_) take the plain sweep
   PetscReal wt_[5] = {0, 0, 0, 0, 0}; // the centred weights / h^2
   // The state recorded by rhs_jacobian_p, the record dgdc_ was formed at, and J^T's fused dG/dc
