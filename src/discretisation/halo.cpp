@@ -105,7 +105,7 @@ PetscErrorCode Halo::setup_packed(const Grid &grid, PetscInt width, PetscInt nfi
   scatter_.reset();
   seq_.reset();
   pack_.reset();
-  PetscCheck(xm_ >= w_ && ym_ >= wy_, grid.comm(), PETSC_ERR_ARG_OUTOFRANGE,
+  PetscCheck(xm_ >= w_ && ym_ >= wy_, PETSC_COMM_SELF, PETSC_ERR_ARG_OUTOFRANGE, // (a rank's own condition)
              "Halo: the owned block (%" PetscInt_FMT " x %" PetscInt_FMT ") is narrower than the halo width %" PetscInt_FMT,
              xm_, ym_, w_);
   // Every rank's block (DMDA ranks run along x first), its strips' size and where they start in the
