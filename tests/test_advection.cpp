@@ -235,11 +235,7 @@ INSTANTIATE_TEST_SUITE_P(
 // ---------------------------------------------------------------------------------------------
 // Taylor tests of Simulation::gradient: r1 ~ eps (ratio 2), r2 ~ eps^2 (ratio 4).
 
-struct TaylorCase {
-  const char *name;
-  Options options;
-};
-std::ostream &operator<<(std::ostream &os, const TaylorCase &c) { return os << c.name; }
+using TaylorCase = flexipde_test::NamedOptions;
 
 class AdvectionTaylor : public ::testing::TestWithParam<TaylorCase> {};
 
@@ -317,7 +313,7 @@ INSTANTIATE_TEST_SUITE_P(
                     {"-advection_D", "0.05"},
                     {"-advection_a", "1.1"},
                     {"-true_advection_D", "0.08"}}}),
-    [](const ::testing::TestParamInfo<TaylorCase> &i) { return std::string(i.param.name); });
+    flexipde_test::CaseName());
 
 // ---------------------------------------------------------------------------------------------
 // Explicit stability: refused beyond the limit with PETSC_ERR_ARG_OUTOFRANGE, accepted below.

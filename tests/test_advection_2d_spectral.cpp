@@ -236,11 +236,7 @@ INSTANTIATE_TEST_SUITE_P(
 // gradient must still be truncated, for each integrator family (RK stage hook, RK Jacobian path,
 // theta), not only match Taylor tests whose smooth scenes barely reach the truncated modes.
 
-struct TruncationCase {
-  const char *name;
-  Options options;
-};
-std::ostream &operator<<(std::ostream &os, const TruncationCase &c) { return os << c.name; }
+using TruncationCase = flexipde_test::NamedOptions;
 
 class SpectralFieldD : public ::testing::TestWithParam<TruncationCase> {};
 
@@ -282,7 +278,7 @@ INSTANTIATE_TEST_SUITE_P(Advection, SpectralFieldD,
                          ::testing::Values(TruncationCase{"rk4_stage", {{"-ts_type", "rk"}, {"-ts_rk_type", "4"}}},
                                            TruncationCase{"rk4_jacobian", {{"-ts_type", "rk"}, {"-ts_rk_type", "4"}, {"-rk_stage_adjoint", "0"}}},
                                            TruncationCase{"cn", {{"-ts_type", "cn"}}}),
-                         [](const ::testing::TestParamInfo<TruncationCase> &i) { return std::string(i.param.name); });
+                         flexipde_test::CaseName());
 
 // ---------------------------------------------------------------------------------------------
 // Taylor tests of Simulation::gradient: r1 ~ eps (ratio 2), r2 ~ eps^2 (ratio 4).

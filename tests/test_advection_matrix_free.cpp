@@ -32,11 +32,7 @@ namespace {
 
 using Options = std::vector<std::pair<const char *, const char *>>;
 
-struct AdvMFCase {
-  const char *name;
-  Options opts;
-};
-std::ostream &operator<<(std::ostream &os, const AdvMFCase &c) { return os << c.name; }
+using AdvMFCase = flexipde_test::NamedOptions;
 
 std::vector<AdvMFCase> cases() {
   const Options dim2 = {{"-advection_dim", "2"}, {"-da_grid_x", "13"}, {"-da_grid_y", "11"}, {"-advection_b", "-0.6"},
@@ -73,7 +69,7 @@ protected:
     opts_.set("-ts_dt", "0.01");
     opts_.set("-advection_ic", "gaussian");
     opts_.set("-advection_ic_width", "0.8");
-    for (auto &o : GetParam().opts) opts_.set(o.first, o.second);
+    for (auto &o : GetParam().options) opts_.set(o.first, o.second);
     PETSC_ASSERT_OK(scene.setup(PETSC_COMM_WORLD));
     PETSC_ASSERT_OK(scene.params.create_vec(p.out()));
     PETSC_ASSERT_OK(scene.parameters_from_options("", p));
@@ -86,7 +82,7 @@ protected:
     PETSC_ASSERT_OK(scene.model->create_jacobian_p(Jp.out()));
   }
   bool spectral() const {
-    for (auto &o : GetParam().opts)
+    for (auto &o : GetParam().options)
       if (std::string(o.first) == "-advection_scheme" && std::string(o.second) == "spectral") return true;
     return false;
   }
@@ -96,7 +92,6 @@ protected:
   OwnedMat J, Jp;
 };
 
-std::string case_name(const ::testing::TestParamInfo<AdvMFCase> &i) { return i.param.name; }
 
 
 } // namespace
@@ -216,4 +211,4 @@ TEST_P(AdvectionMatrixFree, CnGradientUnchangedByStorage) {
   expect_same_gradient(scene, p, {{"-ts_type", "cn"}}, {{"-checkpoint_budget", "4"}}, 1e-11);
 }
 
-INSTANTIATE_TEST_SUITE_P(Advection, AdvectionMatrixFree, ::testing::ValuesIn(cases()), case_name);
+INSTANTIATE_TEST_SUITE_P(Advection, AdvectionMatrixFree, ::testing::ValuesIn(cases()), flexipde_test::CaseName());

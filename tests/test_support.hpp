@@ -192,6 +192,20 @@ inline void rough_diffusion_field(flexipde::Scene &scene, Vec p, PetscReal lo, P
 
 using OptionList = std::vector<std::pair<const char *, const char *>>;
 
+// A parameterised test's case that is a name and its options (suites that need nothing more share it),
+// and gtest's test-name generator for any case with a `name`.
+struct NamedOptions {
+  const char *name;
+  OptionList options;
+};
+inline std::ostream &operator<<(std::ostream &os, const NamedOptions &c) { return os << c.name; }
+struct CaseName {
+  template <class C>
+  std::string operator()(const ::testing::TestParamInfo<C> &i) const {
+    return i.param.name;
+  }
+};
+
 // Data from p_true = 1.05 p, then the scene's value *J and gradient g at p.
 inline void data_and_gradient(flexipde::Scene &scene, Vec p, flexipde::OwnedVec &p_true, flexipde::OwnedVec &g,
                               PetscReal *J) {

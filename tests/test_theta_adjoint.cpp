@@ -19,11 +19,7 @@ namespace {
 
 using Options = std::vector<std::pair<const char *, const char *>>;
 
-struct ThetaCase {
-  const char *name;
-  Options options;
-};
-std::ostream &operator<<(std::ostream &os, const ThetaCase &c) { return os << c.name; }
+using ThetaCase = flexipde_test::NamedOptions;
 
 const Options advection = {{"-model", "advection"},    {"-grid_periodic", "1"}, {"-grid_x0", "0"},
                            {"-grid_x1", "6.283185307179586"}, {"-da_grid_x", "64"}, {"-ts_max_time", "0.5"},
@@ -102,4 +98,4 @@ INSTANTIATE_TEST_SUITE_P(
         ThetaCase{"vlasov_landau_cn", with(vlasov, {{"-ts_type", "cn"}})},
         ThetaCase{"vlasov_landau_beuler", with(vlasov, {{"-ts_type", "beuler"}})},
         ThetaCase{"advection_cn_checkpointed", with(advection, {{"-ts_type", "cn"}, {"-checkpoint_budget", "4"}})}),
-    [](const ::testing::TestParamInfo<ThetaCase> &i) { return std::string(i.param.name); });
+    flexipde_test::CaseName());
