@@ -1668,8 +1668,12 @@ private:
   PetscErrorCode stage_adjoint(PetscReal t, Vec U, Vec x, Vec y, Vec mu) override {
     if (scheme_ == SPECTRAL) return spectral_stage_adjoint(t, U, x, y, mu);
     PetscFunctionBeginUser;
-    if (diffusion_ && D_field_) PetscCall(fill_ghosted_pair(x, X_local_, U, U_local_)); // the faces read u's ghosts too
-    else PetscCall(fill_ghosted(x, X_local_));
+    if (diffusion_ && D_field_ && dim_ == 1) PetscCall(fill_ghosted_pair(x, X_local_, U, U_local_)); // the faces read u's ghosts too
+    else if (diffusion_ && D_field_ && !wrap_) { // 2D reads u in place: its ghosts only
+      PetscCall(halo2_.begin(U));
+      PetscCall(fill_ghosted(x, X_local_));
+      PetscCall(halo2_.end(U));
+    } else PetscCall(fill_ghosted(x, X_local_));
     PetscCall(fd_stage_adjoint(U, y, mu));
     PetscFunctionReturn(0);
   }
@@ -1696,17 +1700,17 @@ private:
     PetscCall(fd_stage_adjoint(U, y, mu));
     PetscFunctionReturn(0);
   }
-  // The finite-difference stage from the ghosted X_local_ (and, with a field D, U_local_).
+  // The finite-difference stage from the ghosted X_local_ (and, with a field D: in 1D U_local_, in 2D U
+  // with halo2_'s ghosts). A field D's diffusion transpose and gradient come from the face kernels
+  // (1D: with the sweep; 2D: field_stage_2d), with the cached face D.
   PetscErrorCode fd_stage_adjoint(Vec U, Vec y, Vec mu) {
-    const PetscScalar *xl, *u, *D = nullptr;
+    const PetscScalar *xl, *u;
     PetscReal local[3] = {0, 0, 0};
     const bool field = diffusion_ && D_field_;
-    bool field_done = false; // the field D's gradient added already (face kernels of the stage)
     const PetscInt n = grid_->local_points(), nd = dim_;
     PetscFunctionBeginUser;
     PetscCall(VecGetArrayRead(X_local_, &xl));
     PetscCall(VecGetArrayRead(U, &u));
-    if (field) PetscCall(VecGetArrayRead(D_local_, &D));
     {
       Array Y(y);
       PetscCall(Y.error());
@@ -1733,7 +1737,6 @@ private:
           else field_stage_faces<4, false>(n, Df, gr, ip, xl + f0, ul + f0, ih2, s, F1, F2, ya, gD);
           if (g) PetscCall(VecRestoreArray(mu, &g));
           PetscCall(VecRestoreArrayRead(U_local_, &ul));
-          field_done = true;
         }
       } else if (mu) { // A^T x and the scalars' sums in one sweep
         PetscReal sums[3];
@@ -1745,32 +1748,16 @@ private:
           PetscCall(VecGetArray(mu, &g));
           field_stage_2d(xl, u, ya, g + params_->info(D_index_).local_offset);
           PetscCall(VecRestoreArray(mu, &g));
-          field_done = true;
-        } else if (field) add_face_diffusion(D, xl, ya);
-      } else if (field && nd == 2) {
-        sweep(xl, at_taps_, ya);
-        field_stage_2d(xl, nullptr, ya, nullptr);
+        }
       } else {
         sweep(xl, at_taps_, ya);
-        if (field) add_face_diffusion(D, xl, ya);
+        if (field) field_stage_2d(xl, nullptr, ya, nullptr); // (a 1D field D took the first branch)
       }
     }
     PetscCall(VecRestoreArrayRead(U, &u));
-    if (field) PetscCall(VecRestoreArrayRead(D_local_, &D));
     if (mu) {
       for (PetscInt d = 0; d < nd; ++d) PetscCall(params_->add_local_sum(mu, vel_index_[d], local[d]));
       if (diffusion_ && !field) PetscCall(params_->add_local_sum(mu, D_index_, local[nd]));
-      if (field && !field_done) {
-        const PetscScalar *ul;
-        PetscCall(VecGetArrayRead(U_local_, &ul));
-        field_D_gradient(ul, xl, gD_.data());
-        PetscCall(VecRestoreArrayRead(U_local_, &ul));
-        const ParamInfo &pi = params_->info(D_index_);
-        PetscScalar *g;
-        PetscCall(VecGetArray(mu, &g));
-        for (PetscInt il = 0; il < pi.local_size; ++il) g[pi.local_offset + il] += gD_[il];
-        PetscCall(VecRestoreArray(mu, &g));
-      }
     }
     PetscCall(VecRestoreArrayRead(X_local_, &xl));
     PetscFunctionReturn(0);
