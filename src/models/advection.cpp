@@ -305,13 +305,15 @@ void face_row_2d(PetscInt xm, PetscInt sy, const PetscReal *__restrict df, const
 // above it (WD x xm each): each face row is formed once, as the rows reach it, and applied while in L1,
 // instead of both directions' full face arrays being written and read back. The same arithmetic as the
 // two passes: y += x part, then y += y part, term by term in the same order.
-template <int WD, bool G>
+// First(jl) runs at the start of row jl, before its faces are added to y's row (the rest of the stage
+// writing that row: with y and x's rows in L1 when the faces come).
+template <int WD, bool G, class First>
 void field_stage_faces_2d_rows(PetscInt xm, PetscInt ym, PetscInt sy, const PetscReal *__restrict Dfx,
                                const PetscReal *__restrict Dfy, const PetscReal *__restrict gr,
                                const PetscReal *__restrict ip, const PetscScalar *x0, const URows &U,
                                PetscReal sx, PetscReal syy, PetscReal *__restrict F1, PetscReal *__restrict F2,
                                PetscReal *__restrict R1, PetscReal *__restrict R2, PetscScalar *__restrict ub,
-                               PetscScalar *__restrict y, PetscScalar *__restrict g) {
+                               PetscScalar *__restrict y, PetscScalar *__restrict g, const First &first) {
   // face row kf (between ghosted rows kf - WD and kf - 1) into ring slot kf % WD
   auto face_row = [&](PetscInt kf) {
     const PetscScalar *ur[WD];
@@ -322,6 +324,7 @@ void field_stage_faces_2d_rows(PetscInt xm, PetscInt ym, PetscInt sy, const Pets
   for (PetscInt jl = 0; jl < ym; ++jl) {
     const PetscInt base = jl * sy - (WD - 1);
     PetscScalar *__restrict yr = y + jl * xm, *__restrict gq = G ? g + jl * xm : nullptr;
+    first(jl);
     if (G) U.ghosted_row(jl, WD - 1, ub); // (without a gradient u is not used: x stands in)
     field_stage_faces<WD, G>(xm, Dfx + jl * (xm + WD - 1), gr, ip, x0 + base, G ? ub : x0 + base, sx, 1.0, F1, F2, yr,
                              gq);
@@ -964,36 +967,41 @@ private:
     return (s0 + s1) + (s2 + s3);
   }
 
+  // One row of sweep_rows (l, out at the row's first owned point).
   template <int R, int DIM>
   __attribute__((optimize("tree-vectorize", "vect-cost-model=dynamic"))) // across points; each sum keeps its order
-  static void sweep_rows(const PetscScalar *__restrict l, const std::array<PetscReal, 7> *t, PetscReal *__restrict out,
-                         PetscInt xm, PetscInt ym, PetscInt sy) {
+  static void sweep_row(const PetscScalar *__restrict l, const std::array<PetscReal, 7> *t, PetscReal *__restrict out,
+                        PetscInt xm, PetscInt sy) {
     PetscReal tx[2 * R + 1], ty[2 * R + 1];
     for (int k = -R; k <= R; ++k) {
       tx[k + R] = t[0][k + 3];
       ty[k + R] = DIM == 2 ? t[1][k + 3] : 0.0;
     }
-    for (PetscInt jl = 0; jl < ym; ++jl, l += sy, out += xm) {
-      for (PetscInt i = 0; i < xm; ++i) {
-        PetscReal s = 0;
+    for (PetscInt i = 0; i < xm; ++i) {
+      PetscReal s = 0;
 #pragma GCC unroll 8
-        for (int k = -R; k <= R; ++k) s += tx[k + R] * PetscRealPart(l[i + k]);
-        if (DIM == 2) {
+      for (int k = -R; k <= R; ++k) s += tx[k + R] * PetscRealPart(l[i + k]);
+      if (DIM == 2) {
 #pragma GCC unroll 8
-          for (int k = -R; k <= R; ++k) s += ty[k + R] * PetscRealPart(l[i + k * sy]);
-        }
-        out[i] = s;
+        for (int k = -R; k <= R; ++k) s += ty[k + R] * PetscRealPart(l[i + k * sy]);
       }
+      out[i] = s;
     }
   }
-  // An RK adjoint stage's sweep with the scalars' sums (finite differences, no field D in the taps):
-  // z_d = D_d^T x (times h_d), z_L = L x (LAP), y = sum_d c[d] z_d + c[2] z_L, and sums[m] += <z_m, u>,
-  // from one read of x; each row's z stays in L1 for its dot products (z: 3 rows of xm).
+  template <int R, int DIM>
+  static void sweep_rows(const PetscScalar *l, const std::array<PetscReal, 7> *t, PetscReal *out, PetscInt xm, PetscInt ym,
+                         PetscInt sy) {
+    for (PetscInt jl = 0; jl < ym; ++jl, l += sy, out += xm) sweep_row<R, DIM>(l, t, out, xm, sy);
+  }
+  // An RK adjoint stage's sweep with the scalars' sums (finite differences, no field D in the taps), one
+  // row (l, u, out at its first owned point): z_d = D_d^T x (times h_d), z_L = L x (LAP),
+  // y = sum_d c[d] z_d + c[2] z_L, and sums[m] += <z_m, u>, from one read of x; the row's z stays in L1
+  // for its dot products (z: 3 rows of xm).
   template <int R, int DIM, bool LAP>
   __attribute__((optimize("tree-vectorize", "vect-cost-model=dynamic")))
-  static void sweep_sums_rows(const PetscScalar *__restrict l, const PetscReal *vxt, const PetscReal *vyt, const PetscReal *lxt,
-                              const PetscReal *lyt, const PetscReal *c, const PetscScalar *__restrict u, PetscScalar *__restrict out,
-                              PetscInt xm, PetscInt ym, PetscInt sy, PetscReal *__restrict z, PetscReal *sums) {
+  static void sweep_sums_row(const PetscScalar *__restrict l, const PetscReal *vxt, const PetscReal *vyt, const PetscReal *lxt,
+                             const PetscReal *lyt, const PetscReal *c, const PetscScalar *__restrict u, PetscScalar *__restrict out,
+                             PetscInt xm, PetscInt sy, PetscReal *__restrict z, PetscReal *sums) {
     PetscReal vx[2 * R + 1], vy[2 * R + 1], lx[2 * R + 1], ly[2 * R + 1];
     for (int k = -R; k <= R; ++k) {
       vx[k + R] = vxt[k + 3];
@@ -1003,32 +1011,37 @@ private:
     }
     const PetscReal c0 = c[0], c1 = c[1], cl = c[2];
     PetscReal *__restrict z0 = z, *__restrict z1 = z + xm, *__restrict z2 = z + 2 * xm;
-    for (PetscInt jl = 0; jl < ym; ++jl, l += sy, out += xm, u += xm) {
-      for (PetscInt i = 0; i < xm; ++i) {
-        PetscReal sx = 0, syv = 0, sl = 0;
+    for (PetscInt i = 0; i < xm; ++i) {
+      PetscReal sx = 0, syv = 0, sl = 0;
 #pragma GCC unroll 8
-        for (int k = -R; k <= R; ++k) sx += vx[k + R] * PetscRealPart(l[i + k]);
+      for (int k = -R; k <= R; ++k) sx += vx[k + R] * PetscRealPart(l[i + k]);
+      if (DIM == 2) {
+#pragma GCC unroll 8
+        for (int k = -R; k <= R; ++k) syv += vy[k + R] * PetscRealPart(l[i + k * sy]);
+      }
+      if (LAP) {
+#pragma GCC unroll 8
+        for (int k = -R; k <= R; ++k) sl += lx[k + R] * PetscRealPart(l[i + k]);
         if (DIM == 2) {
 #pragma GCC unroll 8
-          for (int k = -R; k <= R; ++k) syv += vy[k + R] * PetscRealPart(l[i + k * sy]);
+          for (int k = -R; k <= R; ++k) sl += ly[k + R] * PetscRealPart(l[i + k * sy]);
         }
-        if (LAP) {
-#pragma GCC unroll 8
-          for (int k = -R; k <= R; ++k) sl += lx[k + R] * PetscRealPart(l[i + k]);
-          if (DIM == 2) {
-#pragma GCC unroll 8
-            for (int k = -R; k <= R; ++k) sl += ly[k + R] * PetscRealPart(l[i + k * sy]);
-          }
-        }
-        out[i] = c0 * sx + c1 * syv + cl * sl;
-        z0[i] = sx;
-        if (DIM == 2) z1[i] = syv;
-        if (LAP) z2[i] = sl;
       }
-      sums[0] += dot4(z0, u, xm);
-      if (DIM == 2) sums[1] += dot4(z1, u, xm);
-      if (LAP) sums[2] += dot4(z2, u, xm);
+      out[i] = c0 * sx + c1 * syv + cl * sl;
+      z0[i] = sx;
+      if (DIM == 2) z1[i] = syv;
+      if (LAP) z2[i] = sl;
     }
+    sums[0] += dot4(z0, u, xm);
+    if (DIM == 2) sums[1] += dot4(z1, u, xm);
+    if (LAP) sums[2] += dot4(z2, u, xm);
+  }
+  template <int R, int DIM, bool LAP>
+  static void sweep_sums_rows(const PetscScalar *l, const PetscReal *vxt, const PetscReal *vyt, const PetscReal *lxt,
+                              const PetscReal *lyt, const PetscReal *c, const PetscScalar *u, PetscScalar *out, PetscInt xm,
+                              PetscInt ym, PetscInt sy, PetscReal *z, PetscReal *sums) {
+    for (PetscInt jl = 0; jl < ym; ++jl, l += sy, out += xm, u += xm)
+      sweep_sums_row<R, DIM, LAP>(l, vxt, vyt, lxt, lyt, c, u, out, xm, sy, z, sums);
   }
   // y = A^T x without a field D's faces, and sums[d] = <D_d^T x, u> (times h_d), sums[2] = <L x, u>.
   void sweep_sums(const PetscScalar *l, const PetscScalar *u, PetscScalar *out, PetscReal *sums) {
@@ -1644,7 +1657,9 @@ private:
   // 2D field D: y += the diffusion transpose and, unless g is null, g += the field's gradient, from
   // ghosted x and the stage's u read in place (u: its owned array; ghosts from halo2_, exchanged
   // already, or wrapped on one rank), in one pass over the rows (field_stage_faces_2d_rows).
-  void field_stage_2d(const PetscScalar *xl, const PetscScalar *u, PetscScalar *y, PetscScalar *g) {
+  // first(jl) writes row jl of y before its faces are added (fused_stage_2d).
+  template <class First>
+  void field_stage_2d(const PetscScalar *xl, const PetscScalar *u, PetscScalar *y, PetscScalar *g, const First &first) {
     const Grid &gr = *grid_;
     const PetscInt g0 = ghost_index(gr.xs(), gr.ys()), xm = gr.xm(), WD = face_.width;
     const PetscReal *grad = face_.grad.data(), *ip = face_.interp.data();
@@ -1655,10 +1670,39 @@ private:
     PetscReal *R1 = ring_.data(), *R2 = R1 + WD * xm;
 #define FLEXIPDE_FS2(WD, G)                                                                                          \
   field_stage_faces_2d_rows<WD, G>(xm, gr.ym(), stride_[1], face_D_.data(), face_D_y_.data(), grad, ip, xl + g0, U, sx, \
-                                   sy, faces_.data(), faces2_.data(), R1, R2, urow_.data(), y, g)
+                                   sy, faces_.data(), faces2_.data(), R1, R2, urow_.data(), y, g, first)
     if (WD == 2) g ? FLEXIPDE_FS2(2, true) : FLEXIPDE_FS2(2, false);
     else g ? FLEXIPDE_FS2(4, true) : FLEXIPDE_FS2(4, false);
 #undef FLEXIPDE_FS2
+  }
+
+  // A 2D field-D stage in one pass over the rows: each row of y gets the sweep (A^T x without the field's
+  // faces; with g, the scalars' sums as sweep_sums, into sums) and then its faces (field_stage_2d), so
+  // y, x and u are read once per row instead of once by the sweep and again by the faces. The same
+  // arithmetic in the same order as the two passes.
+  template <int R>
+  void fused_stage_2d(const PetscScalar *xl, const PetscScalar *u, PetscScalar *y, PetscScalar *g, PetscReal *sums) {
+    const PetscInt xm = grid_->xm(), sy = stride_[1];
+    const PetscScalar *l0 = row(xl, 0);
+    if (!g) {
+      const std::array<PetscReal, 7> *t = at_taps_;
+      field_stage_2d(xl, nullptr, y, nullptr, [&](PetscInt jl) { sweep_row<R, 2>(l0 + jl * sy, t, y + jl * xm, xm, sy); });
+      return;
+    }
+    const PetscReal c[3] = {-vel_[0] / h_[0], -vel_[1] / h_[1], 0.0};
+    const PetscReal *vx = vel_taps_t_[0][0].data(), *vy = vel_taps_t_[1][1].data();
+    PetscReal *z = stage_scratch_.data();
+    sums[0] = sums[1] = sums[2] = 0;
+    field_stage_2d(xl, u, y, g, [&](PetscInt jl) {
+      sweep_sums_row<R, 2, false>(l0 + jl * sy, vx, vy, nullptr, nullptr, c, u + jl * xm, y + jl * xm, xm, sy, z, sums);
+    });
+  }
+  void fused_stage_2d(const PetscScalar *xl, const PetscScalar *u, PetscScalar *y, PetscScalar *g, PetscReal *sums) {
+    switch (radius_) {
+    case 1: fused_stage_2d<1>(xl, u, y, g, sums); break;
+    case 2: fused_stage_2d<2>(xl, u, y, g, sums); break;
+    default: fused_stage_2d<3>(xl, u, y, g, sums); break;
+    }
   }
 
   // An explicit RK adjoint stage at state U (finite differences): y = A^T x and mu += (dG/dp)^T x in
@@ -1740,19 +1784,16 @@ private:
         }
       } else if (mu) { // A^T x and the scalars' sums in one sweep
         PetscReal sums[3];
-        sweep_sums(xl, u, ya, sums);
-        for (PetscInt d = 0; d < nd; ++d) local[d] = -1.0 / h_[d] * sums[d];
-        local[nd] = sums[2];
-        if (field && nd == 2) { // the diffusion transpose and D's gradient face by face, B x once per face
+        if (field) { // (2D: a 1D field D took the first branch) with the faces: B x once per face
           PetscScalar *g;
           PetscCall(VecGetArray(mu, &g));
-          field_stage_2d(xl, u, ya, g + params_->info(D_index_).local_offset);
+          fused_stage_2d(xl, u, ya, g + params_->info(D_index_).local_offset, sums);
           PetscCall(VecRestoreArray(mu, &g));
-        }
-      } else {
-        sweep(xl, at_taps_, ya);
-        if (field) field_stage_2d(xl, nullptr, ya, nullptr); // (a 1D field D took the first branch)
-      }
+        } else sweep_sums(xl, u, ya, sums);
+        for (PetscInt d = 0; d < nd; ++d) local[d] = -1.0 / h_[d] * sums[d];
+        local[nd] = sums[2];
+      } else if (field) fused_stage_2d(xl, nullptr, ya, nullptr, nullptr);
+      else sweep(xl, at_taps_, ya);
     }
     PetscCall(VecRestoreArrayRead(U, &u));
     if (mu) {
