@@ -97,5 +97,11 @@ INSTANTIATE_TEST_SUITE_P(
                   with(wave, {{"-ts_type", "theta"}, {"-ts_theta_theta", "0.7"}, {"-ts_theta_endpoint", "1"}})},
         ThetaCase{"vlasov_landau_cn", with(vlasov, {{"-ts_type", "cn"}})},
         ThetaCase{"vlasov_landau_beuler", with(vlasov, {{"-ts_type", "beuler"}})},
-        ThetaCase{"advection_cn_checkpointed", with(advection, {{"-ts_type", "cn"}, {"-checkpoint_budget", "4"}})}),
+        ThetaCase{"advection_cn_checkpointed", with(advection, {{"-ts_type", "cn"}, {"-checkpoint_budget", "4"}})},
+        // the transposed solves with P's own factors (the default factors P^T: theta_adjoint.hpp)
+        ThetaCase{"advection_fd4_D_field_cn_solve_transpose",
+                  with(advection, {{"-ts_type", "cn"}, {"-advection_scheme", "fd4"}, {"-advection_D_field", "1"},
+                                   {"-advection_D", "0.1"}, {"-true_advection_D", "0.15"},
+                                   {"-theta_adjoint_factor_transpose", "0"}})},
+        ThetaCase{"wave_cn_solve_transpose", with(wave, {{"-ts_type", "cn"}, {"-theta_adjoint_factor_transpose", "0"}})}),
     flexipde_test::CaseName());

@@ -29,7 +29,10 @@
 namespace flexipde {
 
 // After the TS's type is final: if it is a theta type (theta, cn, beuler), its adjoint step becomes
-// the one above (idempotent).
-PetscErrorCode theta_adjoint_install(TS ts);
+// the one above (idempotent). transposed_factor: when the forward solves with one sequential LU of
+// PETSc's own (one rank, or PCREDUNDANT), the transposed solves use a factorisation of P^T (KSPSolve
+// with MatSolve's row-oriented sweeps) instead of KSPSolveTranspose on P's factors; options prefix
+// -theta_adjoint_ for that KSP.
+PetscErrorCode theta_adjoint_install(TS ts, bool transposed_factor = true);
 
 } // namespace flexipde

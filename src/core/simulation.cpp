@@ -384,7 +384,7 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
     PetscCall(TSGetTrajectory(ts, &tj));
     PetscCall(store_trajectory_use_buffer(tj, &trajectory_buffer_));
   }
-  PetscBool rk_fused = PETSC_TRUE, rk_stage = PETSC_TRUE, theta_direct = PETSC_TRUE;
+  PetscBool rk_fused = PETSC_TRUE, rk_stage = PETSC_TRUE, theta_direct = PETSC_TRUE, theta_factor_t = PETSC_TRUE;
   PetscOptionsBegin(comm, nullptr, "Simulation", "Simulation");
   PetscCall(PetscOptionsBool("-sim_stability_check", "Refuse explicit steps beyond the stability limit", "Simulation",
                              stability_check, &stability_check, nullptr));
@@ -403,6 +403,10 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
   PetscCall(PetscOptionsBool("-theta_direct_adjoint", "Implicit theta/cn/beuler adjoint evaluating the IJacobian "
                              "directly, not through SNESComputeJacobian (theta_adjoint.hpp; else TSTHETA's own)",
                              "Simulation", theta_direct, &theta_direct, nullptr));
+  PetscCall(PetscOptionsBool("-theta_adjoint_factor_transpose", "That adjoint's transposed solves, when the forward's "
+                             "are one sequential LU (1 rank, or redundant): factor P^T (prefix -theta_adjoint_) "
+                             "instead of solving with P's factors transposed", "Simulation", theta_factor_t,
+                             &theta_factor_t, nullptr));
   PetscCall(PetscOptionsBool("-rk_stage_adjoint", "That adjoint calls the model's fused stage products when it has them "
                              "(Model::stage_adjoint; else its Jacobians)", "Simulation", rk_stage, &rk_stage, nullptr));
   PetscOptionsEnd();
@@ -457,7 +461,7 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
     PetscCall(SNESSetLagJacobian(snes, -2));
     PetscCall(SNESSetLagJacobianPersists(snes, PETSC_TRUE));
   }
-  if (with_adjoint && theta_direct) PetscCall(theta_adjoint_install(ts)); // only theta types
+  if (with_adjoint && theta_direct) PetscCall(theta_adjoint_install(ts, theta_factor_t)); // only theta types
   rk_stage_fused_ = with_adjoint && rk_fused && rk_stage && !std::strcmp(type, TSRK) && model_->has_stage_adjoint();
   if (with_adjoint && rk_fused && !std::strcmp(type, TSRK))
     PetscCall(rk_adjoint_install(ts, rk_stage_fused_ ? stage_adjoint_cb : nullptr, this,
