@@ -2,6 +2,7 @@
 #include "flexipde/theta_adjoint.hpp"
 #include <petsc/private/kspimpl.h> // the forward KSP's pre-solve hook
 #include <petsc/private/tsimpl.h>
+#include <algorithm>
 #include <cstring>
 #include <vector>
 
@@ -20,7 +21,8 @@ struct ThetaAdjoint {
   // P^T (built from P_from, a reference, in its state p_state), and a KSP of the forward's kind on it.
   bool transposed_factor = true;
   Mat PT = nullptr, P_from = nullptr;
-  PetscObjectState p_state = -1;
+  PetscObjectState p_state = -1, p_nonzeros = -1;
+  bool pt_usable = false; // P_from's pattern is symmetric (see structurally_symmetric)
   KSP kspT = nullptr;
   ~ThetaAdjoint() {
     release();
@@ -92,29 +94,62 @@ PetscErrorCode sequential_lu(KSP ksp, PCType *type) {
   PetscFunctionReturn(0);
 }
 
+// Whether P and P^T have the same nonzero pattern, on every rank. PETSc's orderings (nd, rcm, qmd)
+// read a matrix's graph from its lower triangle alone (MatGetRowIJ's symmetric form), which for a
+// one-sided stencil's P^T, 2D upwind advection, holds little more than the periodic wrap: its LU
+// then filled 44x the matrix against 5.6x for P (-ksp_view), and a solve took 2.1 ms against 0.42.
+// Such a P keeps KSPSolveTranspose.
+PetscErrorCode structurally_symmetric(Mat P, Mat PT, bool *same) {
+  PetscInt r0, r1;
+  int ok = 1;
+  PetscFunctionBegin;
+  PetscCall(MatGetOwnershipRange(P, &r0, &r1));
+  for (PetscInt r = r0; r < r1 && ok; ++r) {
+    PetscInt na, nb;
+    const PetscInt *ca, *cb;
+    PetscCall(MatGetRow(P, r, &na, &ca, nullptr));
+    PetscCall(MatGetRow(PT, r, &nb, &cb, nullptr));
+    ok = na == nb && std::equal(ca, ca + na, cb);
+    PetscCall(MatRestoreRow(PT, r, &nb, &cb, nullptr));
+    PetscCall(MatRestoreRow(P, r, &na, &ca, nullptr));
+  }
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &ok, 1, MPI_INT, MPI_MIN, PetscObjectComm((PetscObject)P)));
+  *same = ok;
+  PetscFunctionReturn(0);
+}
+
 // nu_k = P^T \ rhs_k through a factorisation of P^T: P^T built again (MatTranspose) whenever P
 // changes, and factored by a KSP of the forward's kind (options prefix -theta_adjoint_). PETSc's
 // sequential MatSolveTranspose walks the factors column by column (scattered updates of the
 // solution): 0.60 ms against MatSolve's 0.42 ms for 2D advection at 128^2 (-log_view), and slower
 // still when another process shares the memory system. For linear models P is built once per
 // gradient, so P^T costs one more factorisation per gradient.
-PetscErrorCode solve_factored_transpose(TS ts, KSP ksp, PCType type, ThetaAdjoint &c) {
+// *done = false (nothing solved) when P's pattern is not symmetric.
+PetscErrorCode solve_factored_transpose(TS ts, KSP ksp, PCType type, ThetaAdjoint &c, bool *done) {
   Mat A, P;
   PetscObjectState state;
   PetscFunctionBegin;
+  *done = false;
   // what KSPSolveTranspose would run first (the Simulation rebuilds a stale shifted P there)
   if (ksp->presolve) PetscCall((*ksp->presolve)(ksp, c.rhs[0], c.nu[0], ksp->prectx));
   PetscCall(KSPGetOperators(ksp, &A, &P));
+  PetscObjectState nonzeros;
   PetscCall(PetscObjectStateGet((PetscObject)P, &state));
-  if (P != c.P_from) {
+  PetscCall(MatGetNonzeroState(P, &nonzeros));
+  if (P != c.P_from || nonzeros != c.p_nonzeros) { // (a new pattern: P^T built anew)
     PetscCall(MatDestroy(&c.PT));
     PetscCall(MatTranspose(P, MAT_INITIAL_MATRIX, &c.PT));
     PetscCall(PetscObjectReference((PetscObject)P));
     PetscCall(MatDestroy(&c.P_from));
     c.P_from = P;
     c.p_state = state;
-    if (c.kspT) PetscCall(KSPSetOperators(c.kspT, c.PT, c.PT));
-  } else if (state != c.p_state) {
+    c.p_nonzeros = nonzeros;
+    PetscCall(structurally_symmetric(P, c.PT, &c.pt_usable));
+    if (!c.pt_usable) PetscCall(MatDestroy(&c.PT));
+    else if (c.kspT) PetscCall(KSPSetOperators(c.kspT, c.PT, c.PT));
+  }
+  if (!c.pt_usable) PetscFunctionReturn(0);
+  if (state != c.p_state) {
     PetscCall(MatTranspose(P, MAT_REUSE_MATRIX, &c.PT)); // (refactored by the KSP's next set-up)
     c.p_state = state;
   }
@@ -137,6 +172,7 @@ PetscErrorCode solve_factored_transpose(TS ts, KSP ksp, PCType type, ThetaAdjoin
       PetscCall(PetscInfo(ts, "Step=%" PetscInt_FMT ", cost %" PetscInt_FMT ": transposed linear solve failed\n", ts->steps, k));
     }
   }
+  *done = true;
   PetscFunctionReturn(0);
 }
 
@@ -150,10 +186,9 @@ PetscErrorCode solve_transpose(TS ts, KSP ksp, ThetaAdjoint &c) {
   if (c.transposed_factor) {
     PCType type;
     PetscCall(sequential_lu(ksp, &type));
-    if (type) {
-      PetscCall(solve_factored_transpose(ts, ksp, type, c));
-      PetscFunctionReturn(0);
-    }
+    bool done = false;
+    if (type) PetscCall(solve_factored_transpose(ts, ksp, type, c, &done));
+    if (done) PetscFunctionReturn(0);
   }
   PetscCall(KSPGetInitialGuessNonzero(ksp, &nonzero));
   PetscCall(PetscObjectTypeCompare((PetscObject)ksp, KSPPREONLY, &preonly));
