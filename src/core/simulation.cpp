@@ -404,8 +404,8 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
                              "directly, not through SNESComputeJacobian (theta_adjoint.hpp; else TSTHETA's own)",
                              "Simulation", theta_direct, &theta_direct, nullptr));
   PetscCall(PetscOptionsBool("-theta_adjoint_factor_transpose", "That adjoint's transposed solves, when the forward's "
-                             "are one sequential LU (1 rank, or redundant) and P's pattern is symmetric: factor P^T "
-                             "(prefix -theta_adjoint_) instead of solving with P's factors transposed", "Simulation", theta_factor_t,
+                             "are one sequential LU (1 rank, or redundant): factor P^T in P's ordering (prefix "
+                             "-theta_adjoint_) instead of solving with P's factors transposed", "Simulation", theta_factor_t,
                              &theta_factor_t, nullptr));
   PetscCall(PetscOptionsBool("-rk_stage_adjoint", "That adjoint calls the model's fused stage products when it has them "
                              "(Model::stage_adjoint; else its Jacobians)", "Simulation", rk_stage, &rk_stage, nullptr));

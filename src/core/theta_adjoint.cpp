@@ -2,7 +2,6 @@
 #include "flexipde/theta_adjoint.hpp"
 #include <petsc/private/kspimpl.h> // the forward KSP's pre-solve hook
 #include <petsc/private/tsimpl.h>
-#include <algorithm>
 #include <cstring>
 #include <vector>
 
@@ -22,7 +21,6 @@ struct ThetaAdjoint {
   bool transposed_factor = true;
   Mat PT = nullptr, P_from = nullptr;
   PetscObjectState p_state = -1, p_nonzeros = -1;
-  bool pt_usable = false; // P_from's pattern is symmetric (see structurally_symmetric)
   KSP kspT = nullptr;
   ~ThetaAdjoint() {
     release();
@@ -94,27 +92,28 @@ PetscErrorCode sequential_lu(KSP ksp, PCType *type) {
   PetscFunctionReturn(0);
 }
 
-// Whether P and P^T have the same nonzero pattern, on every rank. PETSc's orderings (nd, rcm, qmd)
-// read a matrix's graph from its lower triangle alone (MatGetRowIJ's symmetric form), which for a
-// one-sided stencil's P^T, 2D upwind advection, holds little more than the periodic wrap: its LU
-// then filled 44x the matrix against 5.6x for P (-ksp_view), and a solve took 2.1 ms against 0.42.
-// Such a P keeps KSPSolveTranspose.
-PetscErrorCode structurally_symmetric(Mat P, Mat PT, bool *same) {
-  PetscInt r0, r1;
-  int ok = 1;
+// The ordering for P^T's LU: nested dissection (the forward's LU default) computed on the transpose of
+// the matrix given, i.e. on P, with rows and columns swapped, so that P^T's factors are P's transposed
+// in structure. nd on P^T itself reads a graph from P^T's lower triangle alone (MatGetRowIJ's
+// symmetric form), which for a one-sided stencil holds little more than the periodic wrap.
+constexpr const char *kTransposedND = "flexipde_transposed_nd";
+PetscErrorCode transposed_nd(Mat mat, MatOrderingType, IS *row, IS *col) {
+  Mat T;
+  IS r, c;
   PetscFunctionBegin;
-  PetscCall(MatGetOwnershipRange(P, &r0, &r1));
-  for (PetscInt r = r0; r < r1 && ok; ++r) {
-    PetscInt na, nb;
-    const PetscInt *ca, *cb;
-    PetscCall(MatGetRow(P, r, &na, &ca, nullptr));
-    PetscCall(MatGetRow(PT, r, &nb, &cb, nullptr));
-    ok = na == nb && std::equal(ca, ca + na, cb);
-    PetscCall(MatRestoreRow(PT, r, &nb, &cb, nullptr));
-    PetscCall(MatRestoreRow(P, r, &na, &ca, nullptr));
-  }
-  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &ok, 1, MPI_INT, MPI_MIN, PetscObjectComm((PetscObject)P)));
-  *same = ok;
+  PetscCall(MatTranspose(mat, MAT_INITIAL_MATRIX, &T));
+  PetscCall(MatGetOrdering(T, MATORDERINGND, &r, &c));
+  PetscCall(MatDestroy(&T));
+  *row = c;
+  *col = r;
+  PetscFunctionReturn(0);
+}
+PetscErrorCode use_transposed_nd(PC factor) {
+  static bool registered = false;
+  PetscFunctionBegin;
+  if (!registered) PetscCall(MatOrderingRegister(kTransposedND, transposed_nd));
+  registered = true;
+  PetscCall(PCFactorSetMatOrderingType(factor, kTransposedND));
   PetscFunctionReturn(0);
 }
 
@@ -123,13 +122,12 @@ PetscErrorCode structurally_symmetric(Mat P, Mat PT, bool *same) {
 // sequential MatSolveTranspose walks the factors column by column (scattered updates of the
 // solution): 0.60 ms against MatSolve's 0.42 ms for 2D advection at 128^2 (-log_view), and slower
 // still when another process shares the memory system. For linear models P is built once per
-// gradient, so P^T costs one more factorisation per gradient.
-// *done = false (nothing solved) when P's pattern is not symmetric.
-PetscErrorCode solve_factored_transpose(TS ts, KSP ksp, PCType type, ThetaAdjoint &c, bool *done) {
+// gradient, so P^T costs one more factorisation per gradient. Its LU uses P's ordering
+// (transposed_nd), so its factors have the fill of P's.
+PetscErrorCode solve_factored_transpose(TS ts, KSP ksp, PCType type, ThetaAdjoint &c) {
   Mat A, P;
   PetscObjectState state;
   PetscFunctionBegin;
-  *done = false;
   // what KSPSolveTranspose would run first (the Simulation rebuilds a stale shifted P there)
   if (ksp->presolve) PetscCall((*ksp->presolve)(ksp, c.rhs[0], c.nu[0], ksp->prectx));
   PetscCall(KSPGetOperators(ksp, &A, &P));
@@ -144,11 +142,8 @@ PetscErrorCode solve_factored_transpose(TS ts, KSP ksp, PCType type, ThetaAdjoin
     c.P_from = P;
     c.p_state = state;
     c.p_nonzeros = nonzeros;
-    PetscCall(structurally_symmetric(P, c.PT, &c.pt_usable));
-    if (!c.pt_usable) PetscCall(MatDestroy(&c.PT));
-    else if (c.kspT) PetscCall(KSPSetOperators(c.kspT, c.PT, c.PT));
+    if (c.kspT) PetscCall(KSPSetOperators(c.kspT, c.PT, c.PT));
   }
-  if (!c.pt_usable) PetscFunctionReturn(0);
   if (state != c.p_state) {
     PetscCall(MatTranspose(P, MAT_REUSE_MATRIX, &c.PT)); // (refactored by the KSP's next set-up)
     c.p_state = state;
@@ -160,6 +155,18 @@ PetscErrorCode solve_factored_transpose(TS ts, KSP ksp, PCType type, ThetaAdjoin
     PetscCall(KSPSetType(c.kspT, KSPPREONLY));
     PetscCall(KSPGetPC(c.kspT, &pc));
     PetscCall(PCSetType(pc, type));
+    { // P's ordering for P^T (transposed_nd)
+      PC factor = pc;
+      PetscBool redundant;
+      PetscCall(PetscObjectTypeCompare((PetscObject)pc, PCREDUNDANT, &redundant));
+      if (redundant) {
+        KSP inner;
+        PetscCall(PCRedundantGetKSP(pc, &inner));
+        PetscCall(KSPGetPC(inner, &factor));
+        PetscCall(PCSetType(factor, PCLU));
+      }
+      PetscCall(use_transposed_nd(factor));
+    }
     PetscCall(KSPSetOperators(c.kspT, c.PT, c.PT));
     PetscCall(KSPSetFromOptions(c.kspT));
   }
@@ -172,7 +179,6 @@ PetscErrorCode solve_factored_transpose(TS ts, KSP ksp, PCType type, ThetaAdjoin
       PetscCall(PetscInfo(ts, "Step=%" PetscInt_FMT ", cost %" PetscInt_FMT ": transposed linear solve failed\n", ts->steps, k));
     }
   }
-  *done = true;
   PetscFunctionReturn(0);
 }
 
@@ -186,9 +192,10 @@ PetscErrorCode solve_transpose(TS ts, KSP ksp, ThetaAdjoint &c) {
   if (c.transposed_factor) {
     PCType type;
     PetscCall(sequential_lu(ksp, &type));
-    bool done = false;
-    if (type) PetscCall(solve_factored_transpose(ts, ksp, type, c, &done));
-    if (done) PetscFunctionReturn(0);
+    if (type) {
+      PetscCall(solve_factored_transpose(ts, ksp, type, c));
+      PetscFunctionReturn(0);
+    }
   }
   PetscCall(KSPGetInitialGuessNonzero(ksp, &nonzero));
   PetscCall(PetscObjectTypeCompare((PetscObject)ksp, KSPPREONLY, &preonly));
