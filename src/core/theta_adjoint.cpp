@@ -109,10 +109,8 @@ PetscErrorCode transposed_nd(Mat mat, MatOrderingType, IS *row, IS *col) {
   PetscFunctionReturn(0);
 }
 PetscErrorCode use_transposed_nd(PC factor) {
-  static bool registered = false;
   PetscFunctionBegin;
-  if (!registered) PetscCall(MatOrderingRegister(kTransposedND, transposed_nd));
-  registered = true;
+  PetscCall(MatOrderingRegister(kTransposedND, transposed_nd)); // (idempotent: the same name replaces itself)
   PetscCall(PCFactorSetMatOrderingType(factor, kTransposedND));
   PetscFunctionReturn(0);
 }
