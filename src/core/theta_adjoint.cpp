@@ -59,25 +59,37 @@ PetscErrorCode scaled_copy(Vec y, PetscReal a, Vec x) {
   PetscFunctionReturn(0);
 }
 
+// The PC that factors for pc: pc itself, or a PCREDUNDANT's inner one (and *inner its KSP).
+PetscErrorCode factor_pc(PC pc, PC *factor, KSP *inner = nullptr) {
+  PetscBool redundant;
+  PetscFunctionBegin;
+  *factor = pc;
+  if (inner) *inner = nullptr;
+  PetscCall(PetscObjectTypeCompare((PetscObject)pc, PCREDUNDANT, &redundant));
+  if (!redundant) PetscFunctionReturn(0);
+  KSP k;
+  PetscCall(PCRedundantGetKSP(pc, &k));
+  PetscCall(KSPGetPC(k, factor));
+  if (inner) *inner = k;
+  PetscFunctionReturn(0);
+}
+
 // The PC type when ksp solves with one sequential LU factorisation of PETSc's own (KSPPREONLY with
 // PCLU on one rank, or PCREDUNDANT whose copies do that), else null.
 PetscErrorCode sequential_lu(KSP ksp, PCType *type) {
-  PetscBool preonly, lu, redundant;
-  PC pc;
+  PetscBool preonly, lu;
+  PC pc, factor;
+  KSP inner;
   PetscFunctionBegin;
   *type = nullptr;
   PetscCall(PetscObjectTypeCompare((PetscObject)ksp, KSPPREONLY, &preonly));
   if (!preonly) PetscFunctionReturn(0);
   PetscCall(KSPGetPC(ksp, &pc));
-  PetscCall(PetscObjectTypeCompare((PetscObject)pc, PCLU, &lu));
-  PetscCall(PetscObjectTypeCompare((PetscObject)pc, PCREDUNDANT, &redundant));
-  PC factor = pc;
+  PetscCall(factor_pc(pc, &factor, &inner));
+  const bool redundant = inner != nullptr;
+  PetscCall(PetscObjectTypeCompare((PetscObject)factor, PCLU, &lu));
   if (redundant) {
-    KSP inner;
-    PetscCall(PCRedundantGetKSP(pc, &inner));
     PetscCall(PetscObjectTypeCompare((PetscObject)inner, KSPPREONLY, &preonly));
-    PetscCall(KSPGetPC(inner, &factor));
-    PetscCall(PetscObjectTypeCompare((PetscObject)factor, PCLU, &lu));
     if (!preonly) PetscFunctionReturn(0);
   } else {
     PetscMPIInt size;
@@ -122,6 +134,7 @@ PetscErrorCode use_transposed_nd(PC factor) {
 // still when another process shares the memory system. For linear models P is built once per
 // gradient, so P^T costs one more factorisation per gradient. Its LU uses P's ordering
 // (transposed_nd), so its factors have the fill of P's.
+// type: the forward's PC type (sequential_lu), used when the KSP for P^T is made on the first call.
 PetscErrorCode solve_factored_transpose(TS ts, KSP ksp, PCType type, ThetaAdjoint &c) {
   Mat A, P;
   PetscObjectState state;
@@ -153,18 +166,10 @@ PetscErrorCode solve_factored_transpose(TS ts, KSP ksp, PCType type, ThetaAdjoin
     PetscCall(KSPSetType(c.kspT, KSPPREONLY));
     PetscCall(KSPGetPC(c.kspT, &pc));
     PetscCall(PCSetType(pc, type));
-    { // P's ordering for P^T (transposed_nd)
-      PC factor = pc;
-      PetscBool redundant;
-      PetscCall(PetscObjectTypeCompare((PetscObject)pc, PCREDUNDANT, &redundant));
-      if (redundant) {
-        KSP inner;
-        PetscCall(PCRedundantGetKSP(pc, &inner));
-        PetscCall(KSPGetPC(inner, &factor));
-        PetscCall(PCSetType(factor, PCLU));
-      }
-      PetscCall(use_transposed_nd(factor));
-    }
+    PC factor;
+    PetscCall(factor_pc(pc, &factor));
+    PetscCall(PCSetType(factor, PCLU)); // (a redundant PC's inner one is LU by default)
+    PetscCall(use_transposed_nd(factor)); // P's ordering for P^T
     PetscCall(KSPSetOperators(c.kspT, c.PT, c.PT));
     PetscCall(KSPSetFromOptions(c.kspT));
   }
@@ -188,9 +193,9 @@ PetscErrorCode solve_transpose(TS ts, KSP ksp, ThetaAdjoint &c) {
   PetscBool nonzero, preonly;
   PetscFunctionBegin;
   if (c.transposed_factor) {
-    PCType type;
-    PetscCall(sequential_lu(ksp, &type));
-    if (type) {
+    PCType type = nullptr;
+    if (!c.kspT) PetscCall(sequential_lu(ksp, &type)); // (decided once: kspT exists from then on)
+    if (c.kspT || type) {
       PetscCall(solve_factored_transpose(ts, ksp, type, c));
       PetscFunctionReturn(0);
     }

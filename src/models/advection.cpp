@@ -1043,19 +1043,32 @@ private:
     for (PetscInt jl = 0; jl < ym; ++jl, l += sy, out += xm, u += xm)
       sweep_sums_row<R, DIM, LAP>(l, vxt, vyt, lxt, lyt, c, u, out, xm, sy, z, sums);
   }
+  // sweep_sums_row's coefficients and taps for this model: c = (-v_d / h_d, a scalar D's), the
+  // Laplacian's part only with a scalar D (lap).
+  struct SweepSumsTaps {
+    bool lap;
+    PetscReal c[3];
+    const PetscReal *vx, *vy, *lx, *ly;
+  };
+  SweepSumsTaps sweep_sums_taps() const {
+    const bool lap = diffusion_ && !D_field_;
+    return {lap,
+            {-vel_[0] / h_[0], dim_ == 2 ? -vel_[1] / h_[1] : 0.0, lap ? D_scalar_ : 0.0},
+            vel_taps_t_[0][0].data(),
+            vel_taps_t_[1][1].data(),
+            lap_taps_[0].data(),
+            lap_taps_[1].data()};
+  }
   // y = A^T x without a field D's faces, and sums[d] = <D_d^T x, u> (times h_d), sums[2] = <L x, u>.
   void sweep_sums(const PetscScalar *l, const PetscScalar *u, PetscScalar *out, PetscReal *sums) {
     const PetscInt xm = grid_->xm(), ym = grid_->ym(), sy = stride_[1];
-    const bool lap = diffusion_ && !D_field_;
-    const PetscReal c[3] = {-vel_[0] / h_[0], dim_ == 2 ? -vel_[1] / h_[1] : 0.0, lap ? D_scalar_ : 0.0};
-    const PetscReal *vx = vel_taps_t_[0][0].data(), *vy = vel_taps_t_[1][1].data(), *lx = lap_taps_[0].data(),
-                    *ly = lap_taps_[1].data();
+    const SweepSumsTaps t = sweep_sums_taps();
     const PetscScalar *l0 = row(l, 0);
     PetscReal *z = stage_scratch_.data();
     sums[0] = sums[1] = sums[2] = 0;
 #define FLEXIPDE_SWEEP_SUMS(R, DIM)                                                                                    \
-  (lap ? sweep_sums_rows<R, DIM, true>(l0, vx, vy, lx, ly, c, u, out, xm, ym, sy, z, sums)                             \
-       : sweep_sums_rows<R, DIM, false>(l0, vx, vy, lx, ly, c, u, out, xm, ym, sy, z, sums))
+  (t.lap ? sweep_sums_rows<R, DIM, true>(l0, t.vx, t.vy, t.lx, t.ly, t.c, u, out, xm, ym, sy, z, sums)                 \
+         : sweep_sums_rows<R, DIM, false>(l0, t.vx, t.vy, t.lx, t.ly, t.c, u, out, xm, ym, sy, z, sums))
     switch (10 * (int)dim_ + (int)radius_) {
     case 11: FLEXIPDE_SWEEP_SUMS(1, 1); break;
     case 12: FLEXIPDE_SWEEP_SUMS(2, 1); break;
@@ -1689,12 +1702,11 @@ private:
       field_stage_2d(xl, nullptr, y, nullptr, [&](PetscInt jl) { sweep_row<R, 2>(l0 + jl * sy, t, y + jl * xm, xm, sy); });
       return;
     }
-    const PetscReal c[3] = {-vel_[0] / h_[0], -vel_[1] / h_[1], 0.0};
-    const PetscReal *vx = vel_taps_t_[0][0].data(), *vy = vel_taps_t_[1][1].data();
+    const SweepSumsTaps t = sweep_sums_taps(); // (no Laplacian part: D is a field)
     PetscReal *z = stage_scratch_.data();
     sums[0] = sums[1] = sums[2] = 0;
     field_stage_2d(xl, u, y, g, [&](PetscInt jl) {
-      sweep_sums_row<R, 2, false>(l0 + jl * sy, vx, vy, nullptr, nullptr, c, u + jl * xm, y + jl * xm, xm, sy, z, sums);
+      sweep_sums_row<R, 2, false>(l0 + jl * sy, t.vx, t.vy, t.lx, t.ly, t.c, u + jl * xm, y + jl * xm, xm, sy, z, sums);
     });
   }
   void fused_stage_2d(const PetscScalar *xl, const PetscScalar *u, PetscScalar *y, PetscScalar *g, PetscReal *sums) {
