@@ -4,7 +4,8 @@
 //   - accuracy: round-off by N = 64 for smooth periodic functions (exponential convergence),
 //   - odd-derivative skew-symmetry, and refusal of odd N and non-periodic directions,
 //   - apply_many and apply_pair (two real outputs per backward transform), transform/backward/pairing
-//     against apply, one output at a time.
+//     against apply, one output at a time; transform_pair/pairing_packed/balance (two real fields in
+//     one transform) against separate transforms.
 // Grids live on PETSC_COMM_WORLD, so every case runs distributed on 2 ranks too.
 #include "flexipde/spectral.hpp"
 #include "test_support.hpp"
@@ -154,6 +155,57 @@ TEST_P(SpectralTranspose, ApplyManyMatchesApply) {
   const PetscReal direct = dot(u, y0); // y0 = S0 x
   EXPECT_GT(std::fabs(direct), 1e-3);
   EXPECT_LE(rel_diff(parseval, direct), 1e-12) << c.name;
+}
+
+// transform_pair packs two real fields into one forward transform, zhat = F(x + i alpha u): a
+// backward transform of S zhat gives S x (real part) and alpha S u (imaginary part), and
+// pairing_packed gives <u, S x> for an odd imaginary symbol from zhat alone. Checked against the
+// separate transforms, with u on a scale 1e8 times x's (balance() must keep the pairing at
+// round-off) and with alpha = 1 on equal scales; b = null is transform().
+TEST_P(SpectralTranspose, TransformPairPacksTwoFields) {
+  const DotCase &c = GetParam();
+  Grid g;
+  SpectralDifferentiator s;
+  OwnedVec x, u, y0, y1, r;
+  PETSC_ASSERT_OK(make_grid(c.dim, c.nx, c.ny, c.periodic_y, g));
+  PETSC_ASSERT_OK(s.setup(g, c.x_only));
+  PETSC_ASSERT_OK(DMCreateGlobalVector(g.dm(), x.out()));
+  for (auto *v : {&u, &y0, &y1, &r}) PETSC_ASSERT_OK(VecDuplicate(x, v->out()));
+  using cplx = std::complex<PetscReal>;
+  const SpectralDifferentiator::Symbol even = s.symbol([](const FourierMode &k) { return cplx(0.5 - k.wx * k.wx - k.wy * k.wy, 0.3 * k.wx); }),
+                                       odd = s.symbol([](const FourierMode &k) { return SpectralDifferentiator::derivative_symbol(k, 0, 1); });
+  SpectralDifferentiator::Spectrum zhat, xhat;
+  for (PetscReal uscale : {1.0, 1e8}) {
+    PETSC_ASSERT_OK(fill_random(x, -1, 1, 45));
+    PETSC_ASSERT_OK(fill_random(u, -uscale, uscale, 46));
+    PetscReal alpha = 1;
+    if (uscale != 1) {
+      PETSC_ASSERT_OK(s.balance(x, u, &alpha));
+      EXPECT_LE(rel_diff(alpha, flexipde_test::norm(x, NORM_2) / flexipde_test::norm(u, NORM_2)), 1e-13);
+    }
+    PETSC_ASSERT_OK(s.transform_pair(x, u, alpha, zhat));
+    PETSC_ASSERT_OK(s.backward({{&even, &zhat}}, y0, y1));
+    PETSC_ASSERT_OK(s.apply(even, x, r));
+    EXPECT_LE(rel_diff(r, y0), 1e-13) << c.name << " scale " << uscale;
+    PETSC_ASSERT_OK(s.apply(even, u, r));
+    PETSC_ASSERT_OK(VecScale(r, alpha));
+    EXPECT_LE(rel_diff(r, y1), 1e-13) << c.name << " scale " << uscale;
+    PetscReal local = s.pairing_packed(odd, zhat, alpha), packed = 0;
+    MPI_Allreduce(&local, &packed, 1, MPIU_REAL, MPI_SUM, PETSC_COMM_WORLD);
+    PETSC_ASSERT_OK(s.apply(odd, x, r));
+    const PetscReal direct = dot(u, r);
+    EXPECT_GT(std::fabs(direct), 1e-3 * uscale);
+    EXPECT_LE(rel_diff(packed, direct), 1e-12) << c.name << " scale " << uscale;
+  }
+  PETSC_ASSERT_OK(s.transform_pair(x, nullptr, 1, zhat));
+  PETSC_ASSERT_OK(s.transform(x, xhat));
+  ASSERT_EQ(zhat.size(), xhat.size());
+  PetscReal diff = 0, scale = 0;
+  for (size_t p = 0; p < xhat.size(); ++p) {
+    diff = std::max(diff, std::abs(zhat[p] - xhat[p]));
+    scale = std::max(scale, std::abs(xhat[p]));
+  }
+  EXPECT_LE(diff, 1e-14 * scale) << c.name;
 }
 
 INSTANTIATE_TEST_SUITE_P(Spectral, SpectralTranspose,

@@ -77,13 +77,30 @@ public:
   // coefficient between two derivatives, an adjoint's sums): a Spectrum is this rank's modes of F u.
   using Spectrum = std::vector<std::complex<PetscReal>>;
   PetscErrorCode transform(Vec u, Spectrum &uhat) const;
-  // y = sum_j S_j u_j from the spectra of the u_j: one backward transform.
-  PetscErrorCode backward(const std::vector<std::pair<const Symbol *, const Spectrum *>> &terms, Vec y) const;
+  // Two real fields in one forward transform: zhat = F(a + i alpha b) (alpha real, the same on every
+  // rank; b null: zhat = F a). Since a symbol's backward transform is real, a backward transform of
+  // S zhat gives S a + i alpha S b (backward's y_imag), and its real part alone is S a: zhat can stand
+  // for a's spectrum in any backward sum. b's spectrum is not separable from it without the modes -k
+  // (held by other ranks); pairing_packed gives what an adjoint needs of the two together.
+  PetscErrorCode transform_pair(Vec a, Vec b, PetscReal alpha, Spectrum &zhat) const;
+  // y = Re F^-1 sum_j S_j u_j from the spectra of the u_j: one backward transform; y_imag (optional) =
+  // its imaginary part (for a spectrum packed by transform_pair: alpha S b).
+  PetscErrorCode backward(const std::vector<std::pair<const Symbol *, const Spectrum *>> &terms, Vec y,
+                          Vec y_imag = nullptr) const;
   // y0 = S0 a and y1 = S1 b from one backward transform (real and imaginary parts).
   PetscErrorCode backward_pair(const Symbol &s0, const Spectrum &a, Vec y0, const Symbol &s1, const Spectrum &b, Vec y1) const;
   // This rank's part of <b, S a> (Parseval: Re sum_k s(k) a(k) conj(b(k))); the sum over ranks is
   // the inner product. Local, no communication.
   PetscReal pairing(const Symbol &s, const Spectrum &a, const Spectrum &b) const;
+  // The same <b, S a> from zhat = F(a + i alpha b) alone (transform_pair), for a symbol that is odd and
+  // purely imaginary (s(-k) = -s(k): an odd derivative, i kappa_d): |zhat|^2 = |a^|^2 + alpha^2 |b^|^2
+  // + 2 alpha Im(a^ conj(b^)), whose first two parts are even in k and drop out of the sum with the odd
+  // s, so <b, S a> = -sum_k Im s(k) |zhat(k)|^2 / (2 alpha). Local (this rank's modes), no -k needed.
+  // Its round-off is eps |s| (|a^|^2 + alpha^2 |b^|^2): choose alpha ~ |a| / |b| (balance()).
+  PetscReal pairing_packed(const Symbol &s, const Spectrum &zhat, PetscReal alpha) const;
+  // alpha = ||a|| / ||b|| over all ranks (1 when either is zero): the scaling that keeps
+  // transform_pair's two parts, and pairing_packed's round-off, balanced. Collective.
+  PetscErrorCode balance(Vec a, Vec b, PetscReal *alpha) const;
   // y = d^order u / d(x or y)^order (dir 0 = x, 1 = y), optionally de-aliased by the 2/3 rule.
   PetscErrorCode derivative(PetscInt dir, PetscInt order, Vec u, Vec y, bool dealias = false, bool transpose = false) const;
   // y = the 2/3-rule truncation of u (symmetric, a projection).

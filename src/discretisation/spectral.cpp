@@ -44,7 +44,7 @@ struct SpectralDifferentiator::Impl {
   bool same_mid = true; // backward input layout == forward output layout on every rank
   fftw_plan fwd = nullptr, bwd = nullptr;
   OwnedVec v_fin, v_fout, v_bin, v_bout;
-  OwnedScatter to_fft, relayout, from_fft, from_fft_imag;
+  OwnedScatter to_fft, to_fft_imag, relayout, from_fft, from_fft_imag;
   // Every layout is this rank's block of the DMDA ordering (one rank, or y-slabs that match the
   // DMDA's): the copies in and out of the transforms are plain loops, no VecScatter.
   bool direct = false;
@@ -55,7 +55,7 @@ struct SpectralDifferentiator::Impl {
   // transpose); a_out -> backward transform -> y (DMDA, real parts).
   // from_spectrum(y, y_imag): y = the real parts of the backward transform; y_imag (optional) = the
   // imaginary parts.
-  PetscErrorCode to_spectrum(Vec u);
+  PetscErrorCode to_spectrum(Vec u, Vec v = nullptr, PetscReal alpha = 1); // F(u + i alpha v)
   void multiply(const std::complex<PetscReal> *s, bool transpose);
   // a_out = sum_j s_j v_j; a_out = s0 u + i s1 v (symbols and spectra as interleaved reals; a spectrum
   // may be a_out itself).
@@ -251,14 +251,14 @@ PetscErrorCode SpectralDifferentiator::setup(const Grid &grid, bool x_only) {
   OwnedVec g;
   PetscCall(DMCreateGlobalVector(grid.dm(), g.out()));
   std::vector<PetscInt> nat, pet, twice;
-  { // DMDA -> real parts of the forward input
+  for (int part = 0; part < 2; ++part) { // DMDA -> real (and imaginary) parts of the forward input
     OwnedIS from, to;
     PetscCall(layout_indices(grid.dm(), im->fin, nat, pet));
     twice.resize(nat.size());
-    for (size_t p = 0; p < nat.size(); ++p) twice[p] = 2 * nat[p];
+    for (size_t p = 0; p < nat.size(); ++p) twice[p] = 2 * nat[p] + part;
     PetscCall(make_is(comm, pet, from.out()));
     PetscCall(make_is(comm, twice, to.out()));
-    PetscCall(VecScatterCreate(g, from, im->v_fin, to, im->to_fft.out()));
+    PetscCall(VecScatterCreate(g, from, im->v_fin, to, part ? im->to_fft_imag.out() : im->to_fft.out()));
   }
   for (int part = 0; part < 2; ++part) { // real (and imaginary) parts of the backward output -> DMDA
     OwnedIS from, to;
@@ -296,21 +296,41 @@ PetscErrorCode SpectralDifferentiator::setup(const Grid &grid, bool x_only) {
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode SpectralDifferentiator::Impl::to_spectrum(Vec u) {
+PetscErrorCode SpectralDifferentiator::Impl::to_spectrum(Vec u, Vec v, PetscReal alpha) {
   PetscFunctionBeginUser;
   if (direct) {
-    const PetscScalar *x;
+    const PetscScalar *x, *y;
     PetscReal *a = &a_in[0][0];
     PetscCall(VecGetArrayRead(u, &x));
-    for (PetscInt p = 0; p < nlocal; ++p) {
-      a[2 * p] = PetscRealPart(x[p]);
-      a[2 * p + 1] = 0;
-    }
+    if (v) {
+      PetscCall(VecGetArrayRead(v, &y));
+      for (PetscInt p = 0; p < nlocal; ++p) {
+        a[2 * p] = PetscRealPart(x[p]);
+        a[2 * p + 1] = alpha * PetscRealPart(y[p]);
+      }
+      PetscCall(VecRestoreArrayRead(v, &y));
+    } else
+      for (PetscInt p = 0; p < nlocal; ++p) {
+        a[2 * p] = PetscRealPart(x[p]);
+        a[2 * p + 1] = 0;
+      }
     PetscCall(VecRestoreArrayRead(u, &x));
   } else {
-    PetscCall(VecSet(v_fin, 0.0));
+    if (!v) PetscCall(VecSet(v_fin, 0.0)); // else every entry is written below
     PetscCall(VecScatterBegin(to_fft, u, v_fin, INSERT_VALUES, SCATTER_FORWARD));
     PetscCall(VecScatterEnd(to_fft, u, v_fin, INSERT_VALUES, SCATTER_FORWARD));
+    if (v) {
+      PetscCall(VecScatterBegin(to_fft_imag, v, v_fin, INSERT_VALUES, SCATTER_FORWARD));
+      PetscCall(VecScatterEnd(to_fft_imag, v, v_fin, INSERT_VALUES, SCATTER_FORWARD));
+      if (alpha != 1) {
+        PetscScalar *a;
+        PetscInt n;
+        PetscCall(VecGetLocalSize(v_fin, &n));
+        PetscCall(VecGetArray(v_fin, &a));
+        for (PetscInt p = 1; p < n; p += 2) a[p] *= alpha;
+        PetscCall(VecRestoreArray(v_fin, &a));
+      }
+    }
   }
   if (fwd) fftw_execute(fwd);
   PetscFunctionReturn(0);
@@ -456,7 +476,17 @@ PetscErrorCode SpectralDifferentiator::transform(Vec u, Spectrum &uhat) const {
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode SpectralDifferentiator::backward(const std::vector<std::pair<const Symbol *, const Spectrum *>> &terms, Vec y) const {
+PetscErrorCode SpectralDifferentiator::transform_pair(Vec a, Vec b, PetscReal alpha, Spectrum &zhat) const {
+  Impl &im = *impl_;
+  PetscFunctionBeginUser;
+  PetscCall(im.to_spectrum(a, b, alpha));
+  const auto *out = reinterpret_cast<const std::complex<PetscReal> *>(im.a_out);
+  zhat.assign(out, out + im.modes.size());
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SpectralDifferentiator::backward(const std::vector<std::pair<const Symbol *, const Spectrum *>> &terms, Vec y,
+                                                Vec y_imag) const {
   Impl &im = *impl_;
   const size_t n = im.modes.size();
   std::vector<std::pair<const PetscReal *, const PetscReal *>> t;
@@ -467,7 +497,7 @@ PetscErrorCode SpectralDifferentiator::backward(const std::vector<std::pair<cons
     t.push_back({reals(*q.first), reals(*q.second)});
   }
   im.sum_products(t);
-  PetscCall(im.from_spectrum(y));
+  PetscCall(im.from_spectrum(y, y_imag));
   PetscFunctionReturn(0);
 }
 
@@ -493,6 +523,33 @@ PetscReal SpectralDifferentiator::pairing(const Symbol &s, const Spectrum &a, co
     sum += re * v[2 * p] + im * v[2 * p + 1];
   }
   return sum;
+}
+
+PetscReal SpectralDifferentiator::pairing_packed(const Symbol &s, const Spectrum &zhat, PetscReal alpha) const {
+  const size_t n = std::min(s.size(), zhat.size());
+  const PetscReal *f = reals(s), *z = reals(zhat);
+  PetscReal sum = 0;
+  for (size_t p = 0; p < n; ++p) sum += f[2 * p + 1] * (z[2 * p] * z[2 * p] + z[2 * p + 1] * z[2 * p + 1]);
+  return -sum / (2 * alpha);
+}
+
+PetscErrorCode SpectralDifferentiator::balance(Vec a, Vec b, PetscReal *alpha) const {
+  PetscReal ss[2] = {0, 0};
+  const PetscScalar *x;
+  PetscInt n;
+  PetscFunctionBeginUser;
+  PetscCall(VecGetLocalSize(a, &n));
+  Vec v[2] = {a, b};
+  for (int j = 0; j < 2; ++j) {
+    PetscCall(VecGetArrayRead(v[j], &x));
+    for (PetscInt p = 0; p < n; ++p) ss[j] += PetscRealPart(x[p]) * PetscRealPart(x[p]);
+    PetscCall(VecRestoreArrayRead(v[j], &x));
+  }
+  PetscMPIInt size;
+  PetscCallMPI(MPI_Comm_size(impl_->comm, &size));
+  if (size > 1) PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, ss, 2, MPIU_REAL, MPIU_SUM, impl_->comm));
+  *alpha = ss[0] > 0 && ss[1] > 0 ? std::sqrt(ss[0] / ss[1]) : 1.0;
+  PetscFunctionReturn(0);
 }
 
 std::complex<PetscReal> SpectralDifferentiator::derivative_symbol(const FourierMode &k, PetscInt dir, PetscInt order) {

@@ -1267,17 +1267,23 @@ private:
       parts_.push_back(spectral_.symbol([d](const FourierMode &k) { return SpectralDifferentiator::derivative_symbol(k, d, 1); }));
     if (diffusion_ && !D_field_) parts_.push_back(spectral_.symbol([](const FourierMode &k) { return cplx(-(k.wx * k.wx + k.wy * k.wy)); }));
     if (parts_.size() == 2) packed_parts_ = spectral_.pack(parts_[0], parts_[1]); // the stage adjoint's pair
-    if (diffusion_ && D_field_)
+    if (diffusion_ && D_field_) {
       for (PetscInt d = 0; d < dim_; ++d)
         dealiased_[d] = spectral_.symbol([d](const FourierMode &k) {
           return k.kept ? SpectralDifferentiator::derivative_symbol(k, d, 1) : cplx(0);
         });
+      if (dim_ == 2) { // E_x - i E_y: the divergence of a flux packed as f_x + i f_y (diffusion_sum)
+        flux_div_ = dealiased_[0];
+        for (size_t p = 0; p < flux_div_.size(); ++p) flux_div_[p] -= cplx(0, 1) * dealiased_[1][p];
+      }
+    }
   }
 
   // y = A x (or A^T x) for the spectral scheme. A field D adds sum_d E_d diag(P D) E_d x, E_d = P d/dx_d
   // (skew: the transpose has -E_d on both sides, the same product): x^ once, E_d x from one backward
-  // transform (both directions in one in 2D), and (D E_d x)^ summed with the constant part's s x^ in
-  // the spectrum before the last backward transform: 4 transforms in 1D, 5 in 2D.
+  // transform (both directions in one in 2D), and (D E_d x)^ (both directions in one transform in 2D)
+  // summed with the constant part's s x^ in the spectrum before the last backward transform: 4
+  // transforms in 1D and 2D.
   PetscErrorCode spectral_apply(Vec x, Vec y, bool transpose) {
     PetscFunctionBeginUser;
     const SpectralDifferentiator::Symbol &s = transpose ? symbol_t_ : symbol_;
@@ -1289,19 +1295,18 @@ private:
     PetscCall(spectral_.transform(x, xhat_));
     if (dim_ == 2) PetscCall(spectral_.backward_pair(dealiased_[0], xhat_, ex[0], dealiased_[1], xhat_, ex[1]));
     else PetscCall(spectral_.backward({{&dealiased_[0], &xhat_}}, ex[0]));
-    PetscCall(diffusion_sum(s, ex, y));
+    PetscCall(diffusion_sum(s, xhat_, ex, y));
     PetscFunctionReturn(0);
   }
-  // y = S x + sum_d E_d (D .* ex_d), with x's spectrum in xhat_ (ex_d overwritten).
-  PetscErrorCode diffusion_sum(const SpectralDifferentiator::Symbol &s, Vec *ex, Vec y) {
+  // y = S x + sum_d E_d (D .* ex_d) (ex_d overwritten), with xhat the spectrum of x or of x + i alpha u
+  // (the backward transform's real part is all that is kept). In 2D the fluxes go forward together as
+  // f = f_x + i f_y, and Re F^-1 (E_x - i E_y) f^ = E_x f_x + E_y f_y (both E_d f_d real): one forward
+  // transform for the two.
+  PetscErrorCode diffusion_sum(const SpectralDifferentiator::Symbol &s, const SpectralDifferentiator::Spectrum &xhat, Vec *ex, Vec y) {
     PetscFunctionBeginUser;
-    std::vector<std::pair<const SpectralDifferentiator::Symbol *, const SpectralDifferentiator::Spectrum *>> terms{{&s, &xhat_}};
-    for (PetscInt d = 0; d < dim_; ++d) {
-      PetscCall(VecPointwiseMult(ex[d], ex[d], D_));
-      PetscCall(spectral_.transform(ex[d], what_[d]));
-      terms.push_back({&dealiased_[d], &what_[d]});
-    }
-    PetscCall(spectral_.backward(terms, y));
+    for (PetscInt d = 0; d < dim_; ++d) PetscCall(VecPointwiseMult(ex[d], ex[d], D_));
+    PetscCall(spectral_.transform_pair(ex[0], dim_ == 2 ? ex[1] : nullptr, 1.0, what_));
+    PetscCall(spectral_.backward({{&s, &xhat}, {dim_ == 2 ? &flux_div_ : &dealiased_[0], &what_}}, y));
     PetscFunctionReturn(0);
   }
   static PetscErrorCode spectral_mult(Mat A, Vec x, Vec y) {
@@ -1584,30 +1589,36 @@ private:
   }
 
   // The spectral stage with a field D: y = A^T x = S^T x + sum_d E_d (D .* E_d x) (spectral_apply),
-  // (dG/da_d)^T x = <u, D_d x> from the spectra of x and u (Parseval, no transform of its own), and
-  // (dG/dD)^T x = P g, g = -sum_d E_d u .* E_d x, P applied once after the adjoint (end_adjoint), not
-  // at every stage. Transforms: x, u and D E_d x forward, E_d x with E_d u and the sum backward: 5 in
-  // 1D, 7 in 2D.
+  // (dG/da_d)^T x = <u, D_d x> (Parseval, no transform of its own), and (dG/dD)^T x = P g,
+  // g = -sum_d E_d u .* E_d x, P applied once after the adjoint (end_adjoint), not at every stage.
+  // x and u go forward together as z = x + i alpha u (transform_pair, alpha balancing their sizes):
+  // E_d z's backward transform is E_d x + i alpha E_d u, z^ stands for x^ in the last backward sum, and
+  // <u, D_d x> comes from |z^|^2 (pairing_packed). Transforms: z and D E_d x forward, E_d z and the sum
+  // backward: 4 in 1D, 5 in 2D (the forward operator takes 4).
   PetscErrorCode spectral_field_stage_adjoint(PetscReal, Vec U, Vec x, Vec y, Vec mu) {
     const PetscInt n = grid_->local_points();
     Vec ex[2] = {t1_, t2_}, eu[2] = {w_[0], w_[1]};
+    PetscReal alpha = 1;
     PetscFunctionBeginUser;
-    PetscCall(spectral_.transform(x, xhat_));
-    if (mu) PetscCall(spectral_.transform(U, uhat_));
-    if (dim_ == 1 && mu) PetscCall(spectral_.backward_pair(dealiased_[0], xhat_, ex[0], dealiased_[0], uhat_, eu[0]));
-    else if (dim_ == 1) PetscCall(spectral_.backward({{&dealiased_[0], &xhat_}}, ex[0]));
-    else {
-      PetscCall(spectral_.backward_pair(dealiased_[0], xhat_, ex[0], dealiased_[1], xhat_, ex[1]));
-      if (mu) PetscCall(spectral_.backward_pair(dealiased_[0], uhat_, eu[0], dealiased_[1], uhat_, eu[1]));
+    if (!mu) {
+      PetscCall(spectral_.transform(x, xhat_));
+      if (dim_ == 2) PetscCall(spectral_.backward_pair(dealiased_[0], xhat_, ex[0], dealiased_[1], xhat_, ex[1]));
+      else PetscCall(spectral_.backward({{&dealiased_[0], &xhat_}}, ex[0]));
+      PetscCall(diffusion_sum(symbol_t_, xhat_, ex, y));
+      PetscFunctionReturn(0);
     }
-    if (mu) {
-      for (PetscInt d = 0; d < dim_; ++d) PetscCall(params_->add_local_sum(mu, vel_index_[d], spectral_.pairing(parts_[d], xhat_, uhat_)));
+    PetscCall(spectral_.balance(x, U, &alpha));
+    PetscCall(spectral_.transform_pair(x, U, alpha, xhat_));
+    for (PetscInt d = 0; d < dim_; ++d) PetscCall(spectral_.backward({{&dealiased_[d], &xhat_}}, ex[d], eu[d]));
+    {
+      for (PetscInt d = 0; d < dim_; ++d) PetscCall(params_->add_local_sum(mu, vel_index_[d], spectral_.pairing_packed(parts_[d], xhat_, alpha)));
       std::fill(gD_.begin(), gD_.end(), 0.0);
+      const PetscReal s = 1 / alpha;
       for (PetscInt d = 0; d < dim_; ++d) {
         ConstArray a(ex[d]), b(eu[d]);
         PetscCall(a.error());
         PetscCall(b.error());
-        for (PetscInt il = 0; il < n; ++il) gD_[il] -= PetscRealPart(a[il]) * PetscRealPart(b[il]);
+        for (PetscInt il = 0; il < n; ++il) gD_[il] -= s * PetscRealPart(a[il]) * PetscRealPart(b[il]);
       }
       if (!defer_truncation_) { // (an adjoint outside the Simulation's: truncate here)
         PetscCall(VecPlaceArray(t3_, gD_.data()));
@@ -1616,7 +1627,7 @@ private:
       }
       PetscCall(params_->add_pointwise(mu, D_index_, gD_));
     }
-    PetscCall(diffusion_sum(symbol_t_, ex, y));
+    PetscCall(diffusion_sum(symbol_t_, xhat_, ex, y));
     PetscFunctionReturn(0);
   }
 
@@ -1851,7 +1862,8 @@ private:
   std::vector<SpectralDifferentiator::Symbol> parts_; // spectral: i kappa_d (d < dim), then -|kappa|^2 (scalar D)
   SpectralDifferentiator::Symbol symbol_t_, dealiased_[2]; // conj(symbol_); a field D's E_d = P d/dx_d
   SpectralDifferentiator::Symbol packed_parts_;           // parts_[0] + i parts_[1] when there are two
-  SpectralDifferentiator::Spectrum xhat_, uhat_, what_[2];  // spectra of x, u and D E_d x (field D)
+  SpectralDifferentiator::Symbol flux_div_;               // field D, 2D: E_x - i E_y (diffusion_sum)
+  SpectralDifferentiator::Spectrum xhat_, what_;            // spectra of x (or x + i alpha u) and of D E_x x [+ i D E_y x] (field D)
   bool defer_truncation_ = false; // spectral field D: P left to end_adjoint
   std::vector<PetscReal> face_D_, face_D_y_; // field D: I D at the faces (cache_face_diffusivity; y: 2D only)
   std::vector<PetscReal> faces2_;       // 1D: stage_adjoint's second face array
