@@ -5,7 +5,8 @@
 #   flexipde   -ts_type leapfrog (and rk4 for reference), -timing_repeats: in-process medians;
 #              the leapfrog also on 2 ranks and with one scalar speed (1 versus 1000 parameters)
 #   reference  run/reference_leapfrog.c: a plain C leapfrog with its hand-written adjoint
-#   torch      run/peer_torch.py: the same scheme in PyTorch autograd (python3-torch; skipped if absent)
+#   torch      run/peer_torch.py: the same scheme in PyTorch autograd (python3-torch, installed by
+#              run/setup.sh --peers when missing; skipped if it cannot be)
 # The gradients are compared entry by entry (flexipde vs reference must agree to <= 1e-8).
 # Then scale: forward and gradient throughput (grid-point updates per second) of the 1D wave with
 # 10^6 points and the 2D wave with 2000^2 points against hand-written loops (run/reference_leapfrog*.c),
@@ -15,7 +16,7 @@
 #   REPS=5 SCALE=0 bash run/bench_peers.sh
 #
 # Environment: FLEXIPDE (default build/flexipde), REPS (7), SCALE (1: also the large-grid part),
-# PYTHON (/usr/bin/python3), OUT (default a new /tmp/bench_peers.XXXXXX), MPIEXEC.
+# PYTHON (/usr/bin/python3), OUT (default a new /tmp/bench_peers.XXXXXX), MPIEXEC, PEERS_INSTALL (1).
 set -euo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 root=$(dirname "$here")
@@ -46,6 +47,11 @@ for np in 1 2; do
 done
 "$OUT/reference_leapfrog" 1000 5000 5e-4 0.9 "$REPS" "$OUT/reference_gradient.txt" > "$OUT/reference.log"
 torch_status=0
+# PyTorch is installed from Debian (run/setup.sh --peers) when it is missing and Debian's python3 runs
+# the peer; PEERS_INSTALL=0 skips that (the peer is then reported as skipped).
+if [ "${PEERS_INSTALL:-1}" = 1 ] && [ "$PYTHON" = /usr/bin/python3 ] && ! "$PYTHON" -c 'import torch' 2>/dev/null; then
+  bash "$here/setup.sh" --peers >&2 || echo "bench_peers: could not install python3-torch; the PyTorch peer is skipped" >&2
+fi
 "$PYTHON" "$here/peer_torch.py" 1000 5000 5e-4 0.9 "$(( REPS < 5 ? REPS : 5 ))" "$OUT/torch_gradient.txt" > "$OUT/torch.log" || torch_status=$?
 if [ "$SCALE" = 1 ]; then
   big="-da_grid_x 1000000 -ts_type leapfrog -ts_dt 2.5e-7 -ts_max_time 5e-5 -wave_c 0.9"   # 200 steps
