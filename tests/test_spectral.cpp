@@ -12,6 +12,7 @@
 #include <cmath>
 #include <complex>
 #include <functional>
+#include <initializer_list>
 
 using namespace flexipde;
 using flexipde_test::dot;
@@ -54,15 +55,21 @@ std::ostream &operator<<(std::ostream &os, const DotCase &c) { return os << c.na
 
 class SpectralTranspose : public ::testing::TestWithParam<DotCase> {};
 
+// The case's grid and differentiator, and global Vecs of its layout.
+PetscErrorCode setup_case(const DotCase &c, Grid &g, SpectralDifferentiator &s, std::initializer_list<OwnedVec *> vs) {
+  PetscFunctionBeginUser;
+  PetscCall(make_grid(c.dim, c.nx, c.ny, c.periodic_y, g));
+  PetscCall(s.setup(g, c.x_only));
+  for (OwnedVec *v : vs) PetscCall(DMCreateGlobalVector(g.dm(), v->out()));
+  PetscFunctionReturn(0);
+}
+
 TEST_P(SpectralTranspose, DotProductIdentities) {
   const DotCase &c = GetParam();
   Grid g;
   SpectralDifferentiator s;
   OwnedVec x, y, Mx, Mty;
-  PETSC_ASSERT_OK(make_grid(c.dim, c.nx, c.ny, c.periodic_y, g));
-  PETSC_ASSERT_OK(s.setup(g, c.x_only));
-  PETSC_ASSERT_OK(DMCreateGlobalVector(g.dm(), x.out()));
-  for (auto *v : {&y, &Mx, &Mty}) PETSC_ASSERT_OK(VecDuplicate(x, v->out()));
+  PETSC_ASSERT_OK(setup_case(c, g, s, {&x, &y, &Mx, &Mty}));
   PETSC_ASSERT_OK(fill_random(x, -1, 1, 41));
   PETSC_ASSERT_OK(fill_random(y, -1, 1, 42));
   const PetscInt ndir = c.dim == 2 && !c.x_only ? 2 : 1;
@@ -105,10 +112,7 @@ TEST_P(SpectralTranspose, ApplyManyMatchesApply) {
   Grid g;
   SpectralDifferentiator s;
   OwnedVec x, y0, y1, y2, r;
-  PETSC_ASSERT_OK(make_grid(c.dim, c.nx, c.ny, c.periodic_y, g));
-  PETSC_ASSERT_OK(s.setup(g, c.x_only));
-  PETSC_ASSERT_OK(DMCreateGlobalVector(g.dm(), x.out()));
-  for (auto *v : {&y0, &y1, &y2, &r}) PETSC_ASSERT_OK(VecDuplicate(x, v->out()));
+  PETSC_ASSERT_OK(setup_case(c, g, s, {&x, &y0, &y1, &y2, &r}));
   PETSC_ASSERT_OK(fill_random(x, -1, 1, 43));
   using cplx = std::complex<PetscReal>;
   const SpectralDifferentiator::Symbol s0 = s.symbol([](const FourierMode &k) { return cplx(0.5 + k.wx * k.wx, k.wx); }),
@@ -167,10 +171,7 @@ TEST_P(SpectralTranspose, TransformPairPacksTwoFields) {
   Grid g;
   SpectralDifferentiator s;
   OwnedVec x, u, y0, y1, r;
-  PETSC_ASSERT_OK(make_grid(c.dim, c.nx, c.ny, c.periodic_y, g));
-  PETSC_ASSERT_OK(s.setup(g, c.x_only));
-  PETSC_ASSERT_OK(DMCreateGlobalVector(g.dm(), x.out()));
-  for (auto *v : {&u, &y0, &y1, &r}) PETSC_ASSERT_OK(VecDuplicate(x, v->out()));
+  PETSC_ASSERT_OK(setup_case(c, g, s, {&x, &u, &y0, &y1, &r}));
   using cplx = std::complex<PetscReal>;
   const SpectralDifferentiator::Symbol even = s.symbol([](const FourierMode &k) { return cplx(0.5 - k.wx * k.wx - k.wy * k.wy, 0.3 * k.wx); }),
                                        odd = s.symbol([](const FourierMode &k) { return SpectralDifferentiator::derivative_symbol(k, 0, 1); });
