@@ -1600,33 +1600,28 @@ private:
     Vec ex[2] = {t1_, t2_}, eu[2] = {w_[0], w_[1]};
     PetscReal alpha = 1;
     PetscFunctionBeginUser;
-    if (!mu) {
-      PetscCall(spectral_.transform(x, xhat_));
-      if (dim_ == 2) PetscCall(spectral_.backward_pair(dealiased_[0], xhat_, ex[0], dealiased_[1], xhat_, ex[1]));
-      else PetscCall(spectral_.backward({{&dealiased_[0], &xhat_}}, ex[0]));
-      PetscCall(diffusion_sum(symbol_t_, xhat_, ex, y));
+    if (!mu) { // y = A^T x alone
+      PetscCall(spectral_apply(x, y, true));
       PetscFunctionReturn(0);
     }
     PetscCall(spectral_.balance(x, U, &alpha));
     PetscCall(spectral_.transform_pair(x, U, alpha, xhat_));
     for (PetscInt d = 0; d < dim_; ++d) PetscCall(spectral_.backward({{&dealiased_[d], &xhat_}}, ex[d], eu[d]));
-    {
-      for (PetscInt d = 0; d < dim_; ++d) PetscCall(params_->add_local_sum(mu, vel_index_[d], spectral_.pairing_packed(parts_[d], xhat_, alpha)));
-      std::fill(gD_.begin(), gD_.end(), 0.0);
-      const PetscReal s = 1 / alpha;
-      for (PetscInt d = 0; d < dim_; ++d) {
-        ConstArray a(ex[d]), b(eu[d]);
-        PetscCall(a.error());
-        PetscCall(b.error());
-        for (PetscInt il = 0; il < n; ++il) gD_[il] -= s * PetscRealPart(a[il]) * PetscRealPart(b[il]);
-      }
-      if (!defer_truncation_) { // (an adjoint outside the Simulation's: truncate here)
-        PetscCall(VecPlaceArray(t3_, gD_.data()));
-        PetscCall(spectral_.dealias(t3_, t3_));
-        PetscCall(VecResetArray(t3_));
-      }
-      PetscCall(params_->add_pointwise(mu, D_index_, gD_));
+    for (PetscInt d = 0; d < dim_; ++d) PetscCall(params_->add_local_sum(mu, vel_index_[d], spectral_.pairing_packed(parts_[d], xhat_, alpha)));
+    std::fill(gD_.begin(), gD_.end(), 0.0);
+    const PetscReal s = 1 / alpha;
+    for (PetscInt d = 0; d < dim_; ++d) {
+      ConstArray a(ex[d]), b(eu[d]);
+      PetscCall(a.error());
+      PetscCall(b.error());
+      for (PetscInt il = 0; il < n; ++il) gD_[il] -= s * PetscRealPart(a[il]) * PetscRealPart(b[il]);
     }
+    if (!defer_truncation_) { // (an adjoint outside the Simulation's: truncate here)
+      PetscCall(VecPlaceArray(t3_, gD_.data()));
+      PetscCall(spectral_.dealias(t3_, t3_));
+      PetscCall(VecResetArray(t3_));
+    }
+    PetscCall(params_->add_pointwise(mu, D_index_, gD_));
     PetscCall(diffusion_sum(symbol_t_, xhat_, ex, y));
     PetscFunctionReturn(0);
   }
