@@ -5,6 +5,7 @@
 // two must agree exactly). Each case's gradient is also nonzero, so the comparison means something.
 #include "flexipde/scene.hpp"
 #include "test_support.hpp"
+#include <cstring>
 
 using namespace flexipde;
 using flexipde_test::expect_same_gradient;
@@ -196,9 +197,9 @@ INSTANTIATE_TEST_SUITE_P(Wave, RkPositions, ::testing::ValuesIn(positions_cases(
 // The 2D wave's fused stage products (wave2d's Model::stage_adjoint: J^T and (dG/dc)^T in one sweep)
 // give the gradient of its two Jacobian transposes (-rk_stage_adjoint 0) to round-off, for field and
 // scalar speeds (the scalar's sums deferred to one reduction), with and without the sponge, on grids
-// that 2 ranks split along x (23 x 19) and along y (19 x 23). dG/dU and dG/dc read u alone, sponge or
-// not (Model::stage_adjoint_positions), so full storage keeps only the stages' u: half the memory,
-// the same gradient bitwise.
+// that 2 ranks split along x (23 x 19) and along y (19 x 23). dG/dU is constant and dG/dc reads L u
+// alone, sponge or not: the RHS evaluations at the stages record L u (Model::stage_record_size) and full
+// storage keeps only those records, half the memory of whole stages, with the same gradient bitwise.
 namespace {
 
 struct Wave2DStageCase {
@@ -241,3 +242,37 @@ TEST_P(RkPositionsWave2D, SameGradientAsJacobianTransposes) {
 TEST_P(RkPositionsWave2D, PositionsMemorySameGradient) { expect_positions_memory(scene, p, GetParam().memory_ratio); }
 
 INSTANTIATE_TEST_SUITE_P(Wave2D, RkPositionsWave2D, ::testing::ValuesIn(wave2d_stage_cases()), wave2d_stage_name);
+
+// Stage records (Model::stage_record_size): Vlasov's RHS evaluations at the stages leave the field E(f)
+// at the owned x, which the adjoint stage reads instead of summing the stored stage's density again.
+// The gradient is bitwise that of -rk_stage_records 0 (the same E from the same sums), and full storage
+// grows by exactly the records: s * xm entries per step beside the s * xm * ym of the stages, on this
+// rank. Tableaux of 4 and 3 stages, x split over 2 ranks or not (16 x 16: v split), and an FSAL one
+// (3bs), whose adjoint is PETSc's and gets no records.
+TEST(RkStageRecords, VlasovFieldRecordSameGradientBitwise) {
+  for (const char *rk : {"4", "3", "3bs"})
+    for (const char *nx : {"16", "32"}) {
+      SCOPED_TRACE(std::string("-ts_rk_type ") + rk + ", " + nx + " x 16");
+      RkScene s;
+      s.set_up({{"-model", "vlasov"}, {"-vlasov_ic", "landau"}, {"-da_grid_x", nx}, {"-da_grid_y", "16"},
+                {"-objective_type", "functional"}, {"-ts_rk_type", rk}, {"-ts_dt", "0.05"}, {"-ts_max_time", "1"}});
+      OwnedVec p_true, g1, g0;
+      PetscReal J1, J0;
+      flexipde_test::data_and_gradient(s.scene, s.p, p_true, g1, &J1);
+      const PetscReal mb_records = s.scene.sim.checkpoint_stats().stored_mb;
+      PETSC_ASSERT_OK(s.scene.params.create_vec(g0.out()));
+      {
+        ScopedOptions off;
+        off.set("-rk_stage_records", "0");
+        PETSC_ASSERT_OK(s.scene.gradient(s.p, &J0, g0));
+      }
+      const PetscReal mb_plain = s.scene.sim.checkpoint_stats().stored_mb;
+      flexipde_test::expect_gradients_match(J1, J0, g1, g0, 1e-300);
+      if (!std::strcmp(rk, "3bs")) { // (PETSc's trajectory, whose memory is not counted)
+        EXPECT_EQ(mb_records, mb_plain);
+        continue;
+      }
+      ASSERT_GT(mb_plain, 0.0);
+      EXPECT_NEAR(mb_records / mb_plain, 1.0 + 1.0 / (PetscReal)s.scene.grid.ym(), 1e-14);
+    }
+}

@@ -90,19 +90,33 @@ public:
   // Without it the RK adjoint applies rhs_jacobian's and rhs_jacobian_p's transposes: the same numbers.
   virtual bool has_stage_adjoint() const { return false; }
   // m > 0 when dG/dU and dG/dtheta depend on the first m components of each grid point's state only
-  // (the wave models: u) and stage_adjoint also accepts, as U, those m components alone (laid out
-  // like the grid's own m-component Vecs): full storage then keeps only them of every stage.
+  // and stage_adjoint also accepts, as U, those m components alone (laid out like the grid's own
+  // m-component Vecs): full storage then keeps only them of every stage.
   virtual PetscInt stage_adjoint_positions() const { return 0; }
-  virtual PetscErrorCode stage_adjoint(PetscReal t, Vec U, Vec x, Vec y, Vec mu) {
-    (void)t, (void)x, (void)y, (void)mu;
-    SETERRQ(PetscObjectComm((PetscObject)U), PETSC_ERR_SUP, "Model %s has no fused RK adjoint stage", name());
+  // Stage records: r = stage_record_size() > 0 when evaluating G at a state computes, on the way, r local
+  // numbers that stage_adjoint at that state would otherwise compute again (the 2D wave: L u; Vlasov:
+  // the field E(f) at the owned x). rhs_record() is rhs() that also writes them to `record`. Full storage
+  // keeps them for every stage (the RHS evaluations at the stages write them in place) and
+  // stage_adjoint receives them; when stage_record_replaces_state() it needs nothing else of the stage
+  // (U is null then) and full storage keeps only the records. Without a record (null: the stage was
+  // recomputed, or records are off) stage_adjoint works from U as before.
+  virtual PetscInt stage_record_size() const { return 0; }
+  virtual bool stage_record_replaces_state() const { return false; }
+  virtual PetscErrorCode rhs_record(PetscReal t, Vec U, Vec G, PetscScalar *record) {
+    (void)record;
+    return rhs(t, U, G);
+  }
+  virtual PetscErrorCode stage_adjoint(PetscReal t, Vec U, const PetscScalar *record, Vec x, Vec y, Vec mu) {
+    (void)t, (void)record, (void)x, (void)y, (void)mu;
+    SETERRQ(PetscObjectComm((PetscObject)x), PETSC_ERR_SUP, "Model %s has no fused RK adjoint stage", name());
   }
   // The same stage with x given as its combination (what the RK adjoint calls): by default x is formed
   // into the combination's scratch Vec first; a model that copies x anyway forms it in that copy.
-  virtual PetscErrorCode stage_adjoint_combination(PetscReal t, Vec U, const StageCombination &x, Vec y, Vec mu) {
+  virtual PetscErrorCode stage_adjoint_combination(PetscReal t, Vec U, const PetscScalar *record, const StageCombination &x,
+                                                   Vec y, Vec mu) {
     PetscFunctionBeginUser;
     PetscCall(x.form(x.scratch));
-    PetscCall(stage_adjoint(t, U, x.scratch, y, mu));
+    PetscCall(stage_adjoint(t, U, record, x.scratch, y, mu));
     PetscFunctionReturn(0);
   }
   // Optional, around one adjoint solve (the Simulation calls begin_adjoint() before TSAdjointSolve and

@@ -55,9 +55,9 @@ using OwnedScatter = Handle<VecScatter, VecScatterDestroy>;
 // Read access to a Vec's local array for the lifetime of the object.
 class ConstArray {
 public:
-  ConstArray(Vec v) : v_(v) { err_ = VecGetArrayRead(v_, &a_); }
+  ConstArray(Vec v) : v_(v) { err_ = v_ ? VecGetArrayRead(v_, &a_) : 0; } // null: no array (data() null)
   ~ConstArray() {
-    if (!err_) (void)VecRestoreArrayRead(v_, &a_);
+    if (!err_ && v_) (void)VecRestoreArrayRead(v_, &a_);
   }
   ConstArray(const ConstArray &) = delete;
   ConstArray &operator=(const ConstArray &) = delete;

@@ -40,21 +40,39 @@ struct StageCombination {
 };
 
 // A stage's products in one call, at stage state U: y = (dG/dU)^T x and, unless mu is null,
-// mu += (dG/dp)^T x (Model::stage_adjoint), with x given as its combination.
-typedef PetscErrorCode (*RkStageAdjoint)(void *ctx, PetscReal t, Vec U, const StageCombination &x, Vec y, Vec mu);
+// mu += (dG/dp)^T x (Model::stage_adjoint), with x given as its combination. `record`: what evaluating
+// G at the stage recorded of it in the forward solve (Model::stage_record_size; null when nothing was
+// recorded); U is null when the record replaces the stage (Model::stage_record_replaces_state).
+typedef PetscErrorCode (*RkStageAdjoint)(void *ctx, PetscReal t, Vec U, const PetscScalar *record,
+                                         const StageCombination &x, Vec y, Vec mu);
+
+// What a stage hook can read of each stage besides its state: position_pairs > 0 when it also accepts, as U,
+// the first position_pairs components of a stage's points alone (Model::stage_adjoint_positions: dG/dU and
+// dG/dp depend on those only), so that full storage may keep only those (trajectory_store.cpp);
+// record_size > 0 when it reads a record of record_size local entries per stage that the forward's own
+// evaluations of G write (Model::stage_record_size), replacing the stage itself when record_replaces.
+struct RkStageNeeds {
+  PetscInt position_pairs = 0;
+  PetscInt record_size = 0;
+  bool record_replaces = false;
+};
 
 // After the TS's type is final: if it is TSRK, its adjoint step becomes the one above (idempotent).
 // With a stage hook, each stage calls it instead of evaluating and applying the two Jacobians.
-// position_pairs > 0: the hook also accepts, as U, the first position_pairs components of a stage's
-// points alone (Model::stage_adjoint_positions: dG/dU and dG/dp depend on those only), so that full
-// storage may keep only those (trajectory_store.cpp).
 PetscErrorCode rk_adjoint_install(TS ts, RkStageAdjoint stage = nullptr, void *stage_ctx = nullptr,
-                                  PetscInt position_pairs = 0);
-// The positions per point that the installed adjoint can work from (0: whole stages needed): for
-// a non-FSAL tableau without a cost integrand and a hook that takes positions.
-PetscErrorCode rk_adjoint_positions(TS ts, PetscInt *pairs);
+                                  RkStageNeeds needs = {});
+// What the installed adjoint can work from for a non-FSAL tableau without a cost integrand and with a
+// stage hook (else all zero: whole stages needed, no records).
+PetscErrorCode rk_adjoint_stage_needs(TS ts, RkStageNeeds *needs);
 // The next adjoint step reads stage i's positions from q + i * stride (local entries), in place;
 // q = null: back to whole stages.
 PetscErrorCode rk_adjoint_place_positions(TS ts, const PetscScalar *q, PetscInt stride);
+// Records. Forward: the evaluations of G at stage i of the following steps write their record to
+// base + i * stride (base = null: no records), rk_adjoint_record_target telling an RHS evaluation at U
+// where (null unless U is a stage Vec and records are armed). Adjoint: the next adjoint step hands its
+// hook stage i's record at base + i * stride (base = null: none).
+PetscErrorCode rk_adjoint_arm_records(TS ts, PetscScalar *base, PetscInt stride);
+PetscErrorCode rk_adjoint_record_target(TS ts, Vec U, PetscScalar **record);
+PetscErrorCode rk_adjoint_place_records(TS ts, const PetscScalar *base, PetscInt stride);
 
 } // namespace flexipde

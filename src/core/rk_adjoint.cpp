@@ -22,6 +22,15 @@ struct RkAdjoint {
   PetscInt pairs = 0;
   std::vector<Vec> Q;
   bool q_placed = false;
+  // Stage records (Model::stage_record_size): `record_size` entries per stage, replacing the stage when
+  // record_replaces. Forward: armed at arm_base (stage i at arm_base + i * arm_stride), for the RHS
+  // evaluations at the stage Vecs. Adjoint: placed at rec_base.
+  PetscInt record_size = 0;
+  bool record_replaces = false;
+  PetscScalar *arm_base = nullptr;
+  PetscInt arm_stride = 0;
+  const PetscScalar *rec_base = nullptr;
+  PetscInt rec_stride = 0;
   PetscInt s = 0, ncost = 0;
   ~RkAdjoint() {
     release();
@@ -69,9 +78,9 @@ PetscErrorCode adjoint_step(TS ts) {
   PetscCall(TSRKGetTableau(ts, &s, &A, &b, &c, &bembed, &pinterp, &binterp, &fsal));
   (void)bembed, (void)pinterp, (void)binterp;
   if (fsal || ts->quadraturets || ts->vecs_sensi2 || ts->numcost < 1) {
-    PetscCheck(!ctx->q_placed, PetscObjectComm((PetscObject)ts), PETSC_ERR_SUP,
-               "rk_adjoint: only the stages' positions were stored, which this adjoint (FSAL tableau, cost "
-               "integrand or second-order sensitivities) cannot use: run with -checkpoint_positions_only 0");
+    PetscCheck(!ctx->q_placed && !(ctx->rec_base && ctx->record_replaces), PetscObjectComm((PetscObject)ts), PETSC_ERR_SUP,
+               "rk_adjoint: only the stages' positions or records were stored, which this adjoint (FSAL tableau, "
+               "cost integrand or second-order sensitivities) cannot use: run with -checkpoint_positions_only 0");
     PetscCall(ctx->petsc_step(ts));
     PetscFunctionReturn(0);
   }
@@ -114,8 +123,9 @@ PetscErrorCode adjoint_step(TS ts) {
         x.c = coef.data();
         x.X = terms.data();
         x.scratch = ctx->W;
-        PetscCall(ctx->stage(ctx->stage_ctx, stage_time, ctx->q_placed ? ctx->Q[i] : Y[i], x, dl[i],
-                             ts->vecs_sensip ? ts->vecs_sensip[k] : nullptr));
+        const PetscScalar *record = ctx->rec_base ? ctx->rec_base + (size_t)i * ctx->rec_stride : nullptr;
+        Vec U = record && ctx->record_replaces ? nullptr : ctx->q_placed ? ctx->Q[i] : Y[i];
+        PetscCall(ctx->stage(ctx->stage_ctx, stage_time, U, record, x, dl[i], ts->vecs_sensip ? ts->vecs_sensip[k] : nullptr));
         continue;
       }
       PetscCall(combine(ctx->W, -h * b[i], ts->vecs_sensi[k], m, coef.data(), terms.data())); // dt W_i
@@ -165,7 +175,7 @@ void StageCombination::form_local(PetscInt n, PetscScalar c0, const PetscScalar 
 
 PetscErrorCode StageCombination::form(Vec w) const { return combine(w, c0, x0, m, c, X); }
 
-PetscErrorCode rk_adjoint_install(TS ts, RkStageAdjoint stage, void *stage_ctx, PetscInt position_pairs) {
+PetscErrorCode rk_adjoint_install(TS ts, RkStageAdjoint stage, void *stage_ctx, RkStageNeeds needs) {
   PetscBool rk;
   RkAdjoint *ctx;
   PetscFunctionBegin;
@@ -180,21 +190,65 @@ PetscErrorCode rk_adjoint_install(TS ts, RkStageAdjoint stage, void *stage_ctx, 
   }
   ctx->stage = stage;
   ctx->stage_ctx = stage_ctx;
-  ctx->pairs = stage ? position_pairs : 0;
+  ctx->pairs = stage ? needs.position_pairs : 0;
+  ctx->record_size = stage ? needs.record_size : 0;
+  ctx->record_replaces = ctx->record_size > 0 && needs.record_replaces;
+  ctx->arm_base = nullptr;
+  ctx->rec_base = nullptr;
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode rk_adjoint_positions(TS ts, PetscInt *pairs) {
+PetscErrorCode rk_adjoint_stage_needs(TS ts, RkStageNeeds *needs) {
   RkAdjoint *ctx;
   PetscInt s;
   const PetscReal *A, *b, *c;
   PetscBool fsal = PETSC_FALSE;
   PetscFunctionBegin;
-  *pairs = 0;
+  *needs = RkStageNeeds{};
   PetscCall(installed(ts, &ctx));
-  if (!ctx || !ctx->pairs || ts->quadraturets) PetscFunctionReturn(0);
+  if (!ctx || !ctx->stage || ts->quadraturets) PetscFunctionReturn(0);
   PetscCall(TSRKGetTableau(ts, &s, &A, &b, &c, nullptr, nullptr, nullptr, &fsal));
-  if (!fsal) *pairs = ctx->pairs;
+  if (fsal) PetscFunctionReturn(0);
+  needs->position_pairs = ctx->pairs;
+  needs->record_size = ctx->record_size;
+  needs->record_replaces = ctx->record_replaces;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode rk_adjoint_arm_records(TS ts, PetscScalar *base, PetscInt stride) {
+  RkAdjoint *ctx;
+  PetscFunctionBegin;
+  PetscCall(installed(ts, &ctx));
+  if (!ctx) PetscFunctionReturn(0);
+  PetscCheck(!base || ctx->record_size > 0, PetscObjectComm((PetscObject)ts), PETSC_ERR_ORDER, "rk_adjoint: no records to arm");
+  ctx->arm_base = base;
+  ctx->arm_stride = stride;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode rk_adjoint_record_target(TS ts, Vec U, PetscScalar **record) {
+  RkAdjoint *ctx;
+  PetscFunctionBegin;
+  *record = nullptr;
+  PetscCall(installed(ts, &ctx));
+  if (!ctx || !ctx->arm_base) PetscFunctionReturn(0);
+  PetscInt s;
+  Vec *Y;
+  PetscCall(TSGetStages(ts, &s, &Y));
+  for (PetscInt i = 0; i < s; ++i)
+    if (Y[i] == U) *record = ctx->arm_base + (size_t)i * ctx->arm_stride;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode rk_adjoint_place_records(TS ts, const PetscScalar *base, PetscInt stride) {
+  RkAdjoint *ctx;
+  PetscFunctionBegin;
+  PetscCall(installed(ts, &ctx));
+  if (!ctx && !base) PetscFunctionReturn(0);
+  PetscCheck(ctx && (!base || ctx->record_size > 0), PetscObjectComm((PetscObject)ts), PETSC_ERR_ORDER,
+             "rk_adjoint: no records to place");
+  ctx->rec_base = base;
+  ctx->rec_stride = stride;
   PetscFunctionReturn(0);
 }
 

@@ -28,10 +28,15 @@ PetscErrorCode Simulation::setup(Model &model, const Grid &grid, DM state_dm, co
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode Simulation::rhs_cb(TS, PetscReal t, Vec U, Vec G, void *ctx) {
+PetscErrorCode Simulation::rhs_cb(TS ts, PetscReal t, Vec U, Vec G, void *ctx) {
   auto *sim = static_cast<Simulation *>(ctx);
+  PetscScalar *record = nullptr;
   PetscFunctionBeginUser;
-  PetscCall(sim->model_->rhs(t, U, G));
+  // An explicit RK's stage of a stored forward solve: G's evaluation also writes the stage's record
+  // where full storage keeps it (Model::stage_record_size).
+  if (sim->rk_stage_records_) PetscCall(rk_adjoint_record_target(ts, U, &record));
+  if (record) PetscCall(sim->model_->rhs_record(t, U, G, record));
+  else PetscCall(sim->model_->rhs(t, U, G));
   PetscFunctionReturn(0);
 }
 
@@ -220,10 +225,11 @@ PetscErrorCode Simulation::adjoint_kick_cb(void *ctx, PetscReal t, Vec U, Vec la
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode Simulation::stage_adjoint_cb(void *ctx, PetscReal t, Vec U, const StageCombination &x, Vec y, Vec mu) {
+PetscErrorCode Simulation::stage_adjoint_cb(void *ctx, PetscReal t, Vec U, const PetscScalar *record,
+                                            const StageCombination &x, Vec y, Vec mu) {
   auto *sim = static_cast<Simulation *>(ctx);
   PetscFunctionBeginUser;
-  PetscCall(sim->model_->stage_adjoint_combination(t, U, x, y, mu));
+  PetscCall(sim->model_->stage_adjoint_combination(t, U, record, x, y, mu));
   PetscFunctionReturn(0);
 }
 
@@ -384,7 +390,7 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
     PetscCall(TSGetTrajectory(ts, &tj));
     PetscCall(store_trajectory_use_buffer(tj, &trajectory_buffer_));
   }
-  PetscBool rk_fused = PETSC_TRUE, rk_stage = PETSC_TRUE, theta_direct = PETSC_TRUE, theta_factor_t = PETSC_TRUE;
+  PetscBool rk_fused = PETSC_TRUE, rk_stage = PETSC_TRUE, rk_records = PETSC_TRUE, theta_direct = PETSC_TRUE, theta_factor_t = PETSC_TRUE;
   PetscOptionsBegin(comm, nullptr, "Simulation", "Simulation");
   PetscCall(PetscOptionsBool("-sim_stability_check", "Refuse explicit steps beyond the stability limit", "Simulation",
                              stability_check, &stability_check, nullptr));
@@ -409,6 +415,10 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
                              &theta_factor_t, nullptr));
   PetscCall(PetscOptionsBool("-rk_stage_adjoint", "That adjoint calls the model's fused stage products when it has them "
                              "(Model::stage_adjoint; else its Jacobians)", "Simulation", rk_stage, &rk_stage, nullptr));
+  PetscCall(PetscOptionsBool("-rk_stage_records", "With those stage products and full storage: the forward's evaluations "
+                             "of G record at every stage what the model's adjoint stage would recompute (Model::"
+                             "stage_record_size: the 2D wave's L u, Vlasov's field E), and the adjoint reads it",
+                             "Simulation", rk_records, &rk_records, nullptr));
   PetscOptionsEnd();
   PetscCheck(blowup_every_ >= 0, comm, PETSC_ERR_ARG_OUTOFRANGE, "-sim_blowup_check_every must be non-negative");
   if (blowup_every_ > 0) PetscCall(TSMonitorSet(ts, blowup_monitor, this, nullptr));
@@ -463,9 +473,16 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
   }
   if (with_adjoint && theta_direct) PetscCall(theta_adjoint_install(ts, theta_factor_t)); // only theta types
   rk_stage_fused_ = with_adjoint && rk_fused && rk_stage && !std::strcmp(type, TSRK) && model_->has_stage_adjoint();
-  if (with_adjoint && rk_fused && !std::strcmp(type, TSRK))
-    PetscCall(rk_adjoint_install(ts, rk_stage_fused_ ? stage_adjoint_cb : nullptr, this,
-                                 model_->stage_adjoint_positions()));
+  rk_stage_records_ = rk_stage_fused_ && rk_records && model_->stage_record_size() > 0;
+  if (with_adjoint && rk_fused && !std::strcmp(type, TSRK)) {
+    RkStageNeeds needs;
+    needs.position_pairs = model_->stage_adjoint_positions();
+    if (rk_stage_records_) {
+      needs.record_size = model_->stage_record_size();
+      needs.record_replaces = model_->stage_record_replaces_state();
+    }
+    PetscCall(rk_adjoint_install(ts, rk_stage_fused_ ? stage_adjoint_cb : nullptr, this, needs));
+  }
   if (with_adjoint && Jp_ && !std::strcmp(type, TSRK)) {
     // PETSc 3.18's TSAdjointStep_RK skips dG/dp for a stage whose weight b_i is zero (it rescales
     // a stale vector instead), so parameter gradients of such tableaux are wrong. The FSAL last

@@ -62,10 +62,18 @@ struct StoreTrajectory {
   bool compact = false;
   bool lf_placed = false; // the leapfrog's stage Vec points into the buffer
   // Explicit RK on a second-order model whose adjoint stage reads positions alone
-  // (rk_adjoint_positions): slot k = the positions of the stages of step k -> k+1, rk_pairs per point
+  // (rk_adjoint_stage_needs): slot k = the positions of the stages of step k -> k+1, rk_pairs per point
   // (rk_n entries per stage), copied from the TS's stages after the step with streaming stores and
   // placed for the adjoint in place; nothing else is stored (U_k is never read).
   PetscInt rk_pairs = 0, rk_n = 0;
+  // Explicit RK whose adjoint stage reads a record of each stage (rk_adjoint_stage_needs:
+  // Model::stage_record_size): rec_n entries per stage, those of step k -> k+1 at rec_offset in the slot
+  // where that step's stages are (compact: k, placed: k + 1). The RHS evaluations at the stages write
+  // them there (rk_adjoint_arm_records) and the adjoint reads them in place (rk_adjoint_place_records).
+  // rec_only: they replace the stages (Model::stage_record_replaces_state), slot k = the records of
+  // step k -> k+1 and nothing else.
+  PetscInt rec_n = 0, rec_offset = 0;
+  bool rec_only = false;
   // An endpoint theta method (cn, beuler, -ts_theta_endpoint): its two stages are U_{k-1} and U_k, both
   // stored as solutions, so only the solutions are kept and Get hands it both (no stage copies, no
   // re-run, a third of the memory).
@@ -150,6 +158,15 @@ void prefetch_slot(const StoreTrajectory &st, PetscInt k) {
   for (size_t o = 0; o < bytes; o += 64) __builtin_prefetch(b + o, 0, 3);
 }
 
+// The records of the step about to run are written to slot k (k < 0, or no records: none).
+PetscErrorCode arm_records(StoreTrajectory &st, TS ts, PetscInt k) {
+  PetscFunctionBegin;
+  if (!st.rec_n) PetscFunctionReturn(0);
+  const bool fits = k >= 0 && (size_t)(k + 1) * st.slot <= st.buffer->size;
+  PetscCall(rk_adjoint_arm_records(ts, fits ? at(st, k, 0) + st.rec_offset : nullptr, st.rec_n));
+  PetscFunctionReturn(0);
+}
+
 // Point the stage Vecs into slot k (k < 0: back to their own arrays).
 PetscErrorCode place_stages(StoreTrajectory &st, TS ts, PetscInt k) {
   Vec *Y;
@@ -200,8 +217,11 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
   st->lf_placed = false;
   st->use_stream = st->stream && is_leapfrog(ts);
   st->rk_pairs = st->rk_n = 0;
-  // Stages: how they would be kept (explicit RK: positions only, compact or placed; otherwise
-  // copied next to the state), then whether that fits the memory cap.
+  st->rec_n = st->rec_offset = 0;
+  st->rec_only = false;
+  // Stages: how they would be kept (explicit RK: records alone, positions only, compact or placed, with
+  // the records after the stages; otherwise copied next to the state), then whether that fits the
+  // memory cap.
   PetscInt stage_slot = 0;
   if (!is_leapfrog(ts) && !st->theta_endpoint && st->nstages > 0 && st->keep_stages_option) {
     PetscBool rk;
@@ -211,9 +231,17 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
     PetscCall(TSGetStages(ts, nullptr, &Y));
     for (PetscInt i = 0; i < st->nstages; ++i) stage_is_solution = stage_is_solution || Y[i] == ts->vec_sol;
     const bool fixed = ts->max_steps < PETSC_MAX_INT;
-    if (st->positions_only && !adjoint_monitors_read_state(ts) && fixed && !stage_is_solution)
-      PetscCall(rk_adjoint_positions(ts, &st->rk_pairs));
-    if (st->rk_pairs) {
+    RkStageNeeds needs;
+    if (fixed && !stage_is_solution) PetscCall(rk_adjoint_stage_needs(ts, &needs));
+    const bool partial = st->positions_only && !adjoint_monitors_read_state(ts); // keep less than whole stages
+    if (needs.record_size > 0 && (!needs.record_replaces || partial)) {
+      st->rec_n = needs.record_size;
+      st->rec_only = needs.record_replaces;
+    }
+    if (partial && !st->rec_only) st->rk_pairs = needs.position_pairs;
+    if (st->rec_only) stage_slot = st->nstages * st->rec_n;
+    else if (st->rk_pairs) {
+      st->rec_n = 0; // (no model has both)
       PetscCall(VecGetBlockSize(ts->vec_sol, &st->dof));
       st->rk_n = st->nlocal / st->dof * st->rk_pairs;
       stage_slot = st->nstages * st->rk_n;
@@ -227,6 +255,9 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
         for (PetscInt j = 0; j < s; ++j) st->compact = st->compact && A[j] == 0;
       }
       stage_slot = (st->compact ? st->nstages : 1 + st->nstages) * st->nlocal;
+      if (!st->place_stages) st->rec_n = 0;
+      st->rec_offset = stage_slot;
+      stage_slot += st->nstages * st->rec_n;
     }
     if (st->keep_stages_set) st->keep_stages = true;
     else if (fixed) { // by default only within the memory cap, decided alike on every rank
@@ -234,7 +265,7 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
       PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &mb, 1, MPIU_REAL, MPI_MAX, PetscObjectComm((PetscObject)tj)));
       st->keep_stages = mb <= st->keep_stages_max_mb;
     }
-    if (!st->keep_stages) st->rk_pairs = st->rk_n = 0, st->place_stages = st->compact = false;
+    if (!st->keep_stages) st->rk_pairs = st->rk_n = st->rec_n = 0, st->place_stages = st->compact = st->rec_only = false;
   }
   st->slot = st->pairs ? st->nlocal / st->dof * st->pairs : st->keep_stages ? stage_slot : st->nlocal;
   if (ts->max_steps < PETSC_MAX_INT) { // reserve the planned trajectory once
@@ -254,6 +285,14 @@ PetscErrorCode store_set(TSTrajectory tj, TS ts, PetscInt stepnum, PetscReal tim
   st->times.push_back(time);
   st->steps.push_back(ts->time_step);
   st->last = stepnum;
+  if (st->rec_n && ts->reason) PetscCall(rk_adjoint_arm_records(ts, nullptr, 0)); // the solve is over
+  if (st->rec_only) { // the next step's stages write their records to slot stepnum
+    if (ts->reason) PetscFunctionReturn(0);
+    const size_t need = (size_t)(stepnum + 1) * st->slot;
+    if (st->buffer->size < need) st->buffer->grow(std::max(need, 2 * st->buffer->size), true);
+    PetscCall(arm_records(*st, ts, stepnum));
+    PetscFunctionReturn(0);
+  }
   if (st->rk_pairs) { // the positions of the stages of step stepnum-1 -> stepnum, still in the TS
     if (stepnum == 0) PetscFunctionReturn(0);
     const size_t need = (size_t)stepnum * st->slot;
@@ -276,6 +315,7 @@ PetscErrorCode store_set(TSTrajectory tj, TS ts, PetscInt stepnum, PetscReal tim
   }
   if (st->compact) { // U_stepnum goes to this slot as the next step's first stage
     PetscCall(place_stages(*st, ts, stepnum));
+    PetscCall(arm_records(*st, ts, st->placed));
     PetscFunctionReturn(0);
   }
   if (!st->pairs || leapfrog_sunk_positions(ts) != at(*st, stepnum, 0)) PetscCall(copy_in(*st, stepnum, 0, X));
@@ -286,7 +326,10 @@ PetscErrorCode store_set(TSTrajectory tj, TS ts, PetscInt stepnum, PetscReal tim
     PetscCall(TSGetStages(ts, nullptr, &Y));
     for (PetscInt i = 0; i < st->nstages; ++i) PetscCall(copy_in(*st, stepnum, 1 + i, Y[i]));
   }
-  if (st->place_stages) PetscCall(place_stages(*st, ts, stepnum + 1)); // where the next step writes its stages
+  if (st->place_stages) { // where the next step writes its stages (and records)
+    PetscCall(place_stages(*st, ts, stepnum + 1));
+    PetscCall(arm_records(*st, ts, st->placed));
+  }
   PetscFunctionReturn(0);
 }
 
@@ -296,6 +339,10 @@ PetscErrorCode store_get(TSTrajectory tj, TS ts, PetscInt k, PetscReal *t) {
   if (k == 0) { // the adjoint has finished
     PetscCall(place_stages(*st, ts, -1));
     if (st->rk_pairs) PetscCall(rk_adjoint_place_positions(ts, nullptr, 0));
+    if (st->rec_n) {
+      PetscCall(rk_adjoint_place_records(ts, nullptr, 0));
+      PetscCall(rk_adjoint_arm_records(ts, nullptr, 0));
+    }
     if (st->lf_placed) {
       Vec *Y;
       PetscCall(TSGetStages(ts, nullptr, &Y));
@@ -329,6 +376,11 @@ PetscErrorCode store_get(TSTrajectory tj, TS ts, PetscInt k, PetscReal *t) {
     if (st->prefetch) prefetch_slot(*st, k - 2);
     ts->ptime = st->times[k];
     ts->ptime_prev = st->times[k - 1];
+  } else if (st->rec_only) { // the records of the stages of step k-1 -> k, read in place
+    PetscCall(rk_adjoint_place_records(ts, at(*st, k - 1, 0), st->rec_n));
+    if (st->prefetch) prefetch_slot(*st, k - 2);
+    ts->ptime = st->times[k];
+    ts->ptime_prev = st->times[k - 1];
   } else if (st->rk_pairs) { // the positions of the stages of step k-1 -> k, read in place
     PetscCall(rk_adjoint_place_positions(ts, at(*st, k - 1, 0), st->rk_n));
     if (st->prefetch) prefetch_slot(*st, k - 2);
@@ -336,6 +388,7 @@ PetscErrorCode store_get(TSTrajectory tj, TS ts, PetscInt k, PetscReal *t) {
     ts->ptime_prev = st->times[k - 1];
   } else if (st->compact) { // the stages of step k-1 -> k, in place; U_k only for adjoint monitors
     PetscCall(place_stages(*st, ts, k - 1));
+    if (st->rec_n) PetscCall(rk_adjoint_place_records(ts, at(*st, k - 1, 0) + st->rec_offset, st->rec_n));
     if (st->prefetch) prefetch_slot(*st, k - 2);
     if (k < st->last && adjoint_monitors_read_state(ts)) PetscCall(copy_out(*st, k, 0, ts->vec_sol));
     ts->ptime = st->times[k];
@@ -369,6 +422,8 @@ PetscErrorCode store_get(TSTrajectory tj, TS ts, PetscInt k, PetscReal *t) {
       tj->recomps = (PetscInt)std::min<PetscInt64>(st->recomputed, PETSC_MAX_INT);
     }
   }
+  if (st->rec_n && !st->compact && !st->rec_only) // placed stages: step k-1 -> k's are in slot k
+    PetscCall(rk_adjoint_place_records(ts, at(*st, k, 0) + st->rec_offset, st->rec_n));
   ts->time_step = -st->steps[k - 1];
   *t = ts->ptime;
   PetscFunctionReturn(0);

@@ -1727,7 +1727,7 @@ private:
   // one pass over the ghosted x: the velocities' -<u, D_d^T x> / h_d, a scalar D's <u, B^T B x>-column
   // (local sums, reduced once per adjoint by the Parameters), a field D's face products with u.
   bool has_stage_adjoint() const override { return fuse_adjoint_; }
-  PetscErrorCode stage_adjoint(PetscReal t, Vec U, Vec x, Vec y, Vec mu) override {
+  PetscErrorCode stage_adjoint(PetscReal t, Vec U, const PetscScalar *, Vec x, Vec y, Vec mu) override {
     if (scheme_ == SPECTRAL) return spectral_stage_adjoint(t, U, x, y, mu);
     PetscFunctionBeginUser;
     if (diffusion_ && D_field_ && dim_ == 1) PetscCall(fill_ghosted_pair(x, X_local_, U, U_local_)); // the faces read u's ghosts too
@@ -1741,11 +1741,12 @@ private:
   }
   // Finite differences copy x into the ghosted X_local_ anyway: the combination is formed there, in
   // the same pass (on several ranks also into its scratch Vec, whose halo is exchanged).
-  PetscErrorCode stage_adjoint_combination(PetscReal t, Vec U, const StageCombination &x, Vec y, Vec mu) override {
+  PetscErrorCode stage_adjoint_combination(PetscReal t, Vec U, const PetscScalar *record, const StageCombination &x, Vec y,
+                                           Vec mu) override {
     const bool field = diffusion_ && D_field_;
     PetscFunctionBeginUser;
     if (scheme_ == SPECTRAL || x.m > 3 || !fuse_combination_) {
-      PetscCall(LinearModel::stage_adjoint_combination(t, U, x, y, mu));
+      PetscCall(LinearModel::stage_adjoint_combination(t, U, record, x, y, mu));
       PetscFunctionReturn(0);
     }
     if (wrap_) {

@@ -800,26 +800,38 @@ private:
     VlasovModel *m;
     PetscFunctionBeginUser;
     PetscCall(MatShellGetContext(J, &m));
-    PetscCall(m->transpose(m->f_lin_, m->Elin_, x, y));
+    PetscCall(m->transpose(m->f_lin_, m->Elin_.data(), x, y));
     PetscFunctionReturn(0);
   }
 
   // An explicit RK adjoint stage at the stored stage U: y = (dG/dU)(U)^T x as j_mult_transpose, read
-  // from U in place (rhs_jacobian would copy it) with E(U) from one pass over U; no dG/dp (mu).
-  PetscErrorCode stage_adjoint(PetscReal, Vec U, Vec x, Vec y, Vec) override {
+  // from U in place (rhs_jacobian would copy it), with E(U) as G's evaluation at the stage recorded it
+  // (stage records: the owned x of E, the same numbers bitwise) or else from one pass over U; no dG/dp (mu).
+  PetscErrorCode stage_adjoint(PetscReal, Vec U, const PetscScalar *record, Vec x, Vec y, Vec) override {
     const PetscScalar *u;
     PetscFunctionBeginUser;
+    if (record) {
+      PetscCall(transpose(U, record, x, y));
+      PetscFunctionReturn(0);
+    }
     PetscCall(VecGetArrayRead(U, &u));
     sum_density(u);
     PetscCall(VecRestoreArrayRead(U, &u));
     PetscCall(field_from_row_sums(Estage_));
-    PetscCall(transpose(U, Estage_, x, y));
+    PetscCall(transpose(U, Estage_.data(), x, y));
     PetscFunctionReturn(0);
   }
   bool has_stage_adjoint() const override { return true; }
+  PetscInt stage_record_size() const override { return grid_->xm(); }
+  PetscErrorCode rhs_record(PetscReal t, Vec U, Vec G, PetscScalar *record) override {
+    PetscFunctionBeginUser;
+    PetscCall(rhs(t, U, G));
+    std::copy(E_.begin(), E_.begin() + grid_->xm(), record);
+    PetscFunctionReturn(0);
+  }
 
   // y = (dG/dU)(f)^T x at the state f with field E = E(f) (see j_mult_transpose).
-  PetscErrorCode transpose(Vec f, const std::vector<PetscReal> &Ef, Vec x, Vec y) {
+  PetscErrorCode transpose(Vec f, const PetscReal *E, Vec x, Vec y) {
     VlasovModel *m = this;
     const PetscScalar *xo, *fl;
     PetscScalar *yo;
@@ -848,7 +860,6 @@ private:
     PetscCall(VecGetArray(y, &yo));
     std::fill(m->w_.begin(), m->w_.end(), 0.0);
     PetscReal *w = m->w_.data() + g.xs();
-    const PetscReal *E = Ef.data();
     const PetscReal cv = -1.0 / (12 * m->hv_);
     auto sweep_row = [&](PetscInt jl) {
       const PetscInt j = ys + jl;

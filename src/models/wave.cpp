@@ -245,7 +245,7 @@ public:
   // An explicit RK adjoint stage at state U (a whole state or u alone): y = J^T x = [D2 (c^2 x_v) ; x_u]
   // (walls 0) and mu += 2 c (D2 u) x_v, in one sweep; a scalar c's local sum goes to the Parameters
   // (deferred there by the Simulation to one reduction per adjoint).
-  PetscErrorCode stage_adjoint(PetscReal, Vec U, Vec x, Vec y, Vec mu) override {
+  PetscErrorCode stage_adjoint(PetscReal, Vec U, const PetscScalar *, Vec x, Vec y, Vec mu) override {
     const ParamInfo &pi = params_->info(c_index_);
     PetscReal local[4] = {0, 0, 0, 0};
     PetscFunctionBeginUser;

@@ -57,18 +57,19 @@ void stage_operands(PetscInt n, const PetscScalar *__restrict X, const PetscScal
 
 // The interior points [k0, k1) of one row (all four neighbours owned, xm apart in y) of the RK adjoint
 // stage (Wave2DModel::stage_adjoint): y = [L (c^2 x_v) ; x_u - sigma x_v] and g = 2 c (L u) x_v, added
-// to g when ADD (a field's gradient), else written (a scalar's terms); u at stride SU (2: a whole
-// (u, v) state, 1: positions alone), sigma only when SPONGE. The expressions of jmf_apply<true> and
-// jp_mult_transpose, term by term.
-template <int SU, bool SPONGE, bool ADD>
+// to g when ADD (a field's gradient), else written (a scalar's terms); u: a whole (u, v) state, or
+// with REC the stage's record L u itself; sigma only when SPONGE. The expressions of jmf_apply<true>
+// and jp_mult_transpose, term by term (and of rhs's L u, which made the record).
+template <bool REC, bool SPONGE, bool ADD>
 void stage_interior_row(PetscInt k0, PetscInt k1, PetscInt xm, PetscReal ax, PetscReal ay, PetscReal a0,
                         const PetscScalar *__restrict X, const PetscScalar *__restrict u,
                         const PetscReal *__restrict c2, const PetscReal *__restrict tc,
                         const PetscReal *__restrict sig, PetscScalar *__restrict Y, PetscReal *__restrict g) {
   for (PetscInt k = k0; k < k1; ++k) {
-    const PetscReal lu = ax * (PetscRealPart(u[SU * (k - 1)]) + PetscRealPart(u[SU * (k + 1)])) +
-                         ay * (PetscRealPart(u[SU * (k - xm)]) + PetscRealPart(u[SU * (k + xm)])) +
-                         a0 * PetscRealPart(u[SU * k]);
+    const PetscReal lu = REC ? PetscRealPart(u[k])
+                             : ax * (PetscRealPart(u[2 * (k - 1)]) + PetscRealPart(u[2 * (k + 1)])) +
+                                   ay * (PetscRealPart(u[2 * (k - xm)]) + PetscRealPart(u[2 * (k + xm)])) +
+                                   a0 * PetscRealPart(u[2 * k]);
     const PetscReal xv = PetscRealPart(X[2 * k + 1]);
     const PetscReal lz = ax * (c2[k - 1] * PetscRealPart(X[2 * (k - 1) + 1]) + c2[k + 1] * PetscRealPart(X[2 * (k + 1) + 1])) +
                          ay * (c2[k - xm] * PetscRealPart(X[2 * (k - xm) + 1]) + c2[k + xm] * PetscRealPart(X[2 * (k + xm) + 1])) +
@@ -82,14 +83,15 @@ void stage_interior_row(PetscInt k0, PetscInt k1, PetscInt xm, PetscReal ax, Pet
 
 // The same for n points of a row whose operands z = c^2 x_v and u were made contiguous (stage_operands,
 // ghosts included): rows m, 0, p below, at and above it, z0[-1] and z0[n] its left and right neighbours.
-template <bool SPONGE, bool ADD>
+// REC: u0 is the row of the record L u (um, up unread).
+template <bool REC, bool SPONGE, bool ADD>
 void stage_row(PetscInt n, PetscReal ax, PetscReal ay, PetscReal a0, const PetscReal *__restrict zm,
                const PetscReal *__restrict z0, const PetscReal *__restrict zp, const PetscReal *__restrict um,
                const PetscReal *__restrict u0, const PetscReal *__restrict up, const PetscScalar *__restrict X,
                const PetscReal *__restrict tc, const PetscReal *__restrict sig, PetscScalar *__restrict Y,
                PetscReal *__restrict g) {
   for (PetscInt i = 0; i < n; ++i) {
-    const PetscReal lu = ax * (u0[i - 1] + u0[i + 1]) + ay * (um[i] + up[i]) + a0 * u0[i];
+    const PetscReal lu = REC ? u0[i] : ax * (u0[i - 1] + u0[i + 1]) + ay * (um[i] + up[i]) + a0 * u0[i];
     const PetscReal lz = ax * (z0[i - 1] + z0[i + 1]) + ay * (zm[i] + zp[i]) + a0 * z0[i];
     const PetscReal xv = PetscRealPart(X[2 * i + 1]);
     Y[2 * i] = lz;
@@ -209,7 +211,15 @@ public:
   }
 
   // G = A U as a sweep: u_t = v, v_t = c^2 L u - sigma v off the edges, 0 on them; plus the source.
-  PetscErrorCode rhs(PetscReal t, Vec U, Vec G) override {
+  PetscErrorCode rhs(PetscReal t, Vec U, Vec G) override { return rhs_sweep<false>(t, U, G, nullptr); }
+  // The same, also writing the stage record L u (0 on the edges) for stage_adjoint.
+  PetscInt stage_record_size() const override { return grid_->local_points(); }
+  bool stage_record_replaces_state() const override { return true; }
+  PetscErrorCode rhs_record(PetscReal t, Vec U, Vec G, PetscScalar *record) override {
+    return rhs_sweep<true>(t, U, G, record);
+  }
+  template <bool REC>
+  PetscErrorCode rhs_sweep(PetscReal t, Vec U, Vec G, PetscScalar *record) {
     PetscFunctionBeginUser;
     {
       Array g(G);
@@ -217,10 +227,13 @@ public:
       PetscScalar *ga = g.data();
       const PetscReal *sig = sigma_.data(), *c2 = c2m_.data();
       PetscCall(sweep_lap(U, [&](PetscInt k, PetscReal lu, const PetscScalar *u) {
-        if (edge_[k]) ga[2 * k] = ga[2 * k + 1] = 0;
-        else {
+        if (edge_[k]) {
+          ga[2 * k] = ga[2 * k + 1] = 0;
+          if (REC) record[k] = 0;
+        } else {
           ga[2 * k] = u[2 * k + 1];
           ga[2 * k + 1] = c2[k] * lu - sig[k] * u[2 * k + 1];
+          if (REC) record[k] = lu;
         }
       }));
     }
@@ -319,48 +332,47 @@ public:
   }
 
   // The explicit RK adjoint's stage products (rk_adjoint.hpp) in one sweep, at a stage U (a whole
-  // state, or u alone):
+  // state), or from the stage's record L u (rhs_record) alone:
   //   y = (dG/dU)^T x = [L (c^2 x_v) ; x_u - sigma x_v]  (L (c^2 x_v) at every point, edge columns
   //       included as in A^T; the second block 0 on the edge rows)
   //   mu += (dG/dc)^T x = 2 c (L u) x_v  off the edges (a scalar c: its sum, deferred to the Parameters).
   // The same expressions as jmf_apply<true> and jp_mult_transpose: a field's gradient equals theirs
-  // bitwise, a scalar's up to the order of the sum. dG/dU and dG/dc read u only, sponge or not (with
-  // a sponge G_v depends on v, so the model is not in second-order form for the leapfrog, but its
-  // stages' u alone still serve the RK adjoint).
+  // bitwise, a scalar's up to the order of the sum. dG/dU is constant and dG/dc reads L u only, sponge
+  // or not (with a sponge G_v depends on v, so the model is not in second-order form for the leapfrog,
+  // but the record still serves the RK adjoint): full storage keeps the records alone, half the memory
+  // of whole stages, and the sweep computes one Laplacian instead of two (and exchanges no ghosts of u).
   bool has_stage_adjoint() const override { return true; }
-  PetscInt stage_adjoint_positions() const override { return 1; } // u alone, sponge or not
-  PetscErrorCode stage_adjoint(PetscReal, Vec U, Vec x, Vec y, Vec mu) override {
+  PetscErrorCode stage_adjoint(PetscReal, Vec U, const PetscScalar *record, Vec x, Vec y, Vec mu) override {
     PetscReal local[4] = {0, 0, 0, 0};
-    PetscInt nu;
     PetscFunctionBeginUser;
-    PetscCall(VecGetLocalSize(U, &nu));
     const bool sponge = sponge_width_ > 0;
-    if (nu == grid_->local_points()) {
-      if (sponge) PetscCall(stage_sweep<1, true>(U, x, y, mu, local));
-      else PetscCall(stage_sweep<1, false>(U, x, y, mu, local));
-    } else if (sponge) PetscCall(stage_sweep<2, true>(U, x, y, mu, local));
-    else PetscCall(stage_sweep<2, false>(U, x, y, mu, local));
+    if (record) {
+      if (sponge) PetscCall(stage_sweep<true, true>(nullptr, record, x, y, mu, local));
+      else PetscCall(stage_sweep<true, false>(nullptr, record, x, y, mu, local));
+    } else if (sponge) PetscCall(stage_sweep<false, true>(U, nullptr, x, y, mu, local));
+    else PetscCall(stage_sweep<false, false>(U, nullptr, x, y, mu, local));
     if (mu && !c_field_) PetscCall(params_->add_local_sum(mu, c_index_, local[0] + local[1] + local[2] + local[3]));
     PetscFunctionReturn(0);
   }
 
-  // stage_adjoint's sweep, u read at stride SU in U, SPONGE: sigma read (else 0).
-  template <int SU, bool SPONGE>
-  PetscErrorCode stage_sweep(Vec U, Vec x, Vec y, Vec mu, PetscReal local[4]) {
+  // stage_adjoint's sweep: REC: L u read from the record lu (U unread), else from the whole state U;
+  // SPONGE: sigma read (else 0).
+  template <bool REC, bool SPONGE>
+  PetscErrorCode stage_sweep(Vec U, const PetscScalar *lu_record, Vec x, Vec y, Vec mu, PetscReal local[4]) {
     const PetscInt xm = grid_->xm(), ym = grid_->ym(), w = xm + 2;
-    Halo &halo_u = SU == 1 ? halo_q_ : halo_u_;
+    Halo &halo_u = halo_u_;
     PetscFunctionBeginUser;
-    PetscCall(halo_u.begin(U));
+    if (!REC) PetscCall(halo_u.begin(U));
     PetscCall(halo_v_.begin(x));
     {
-      ConstArray u(U), xa(x);
+      ConstArray u(REC ? nullptr : U), xa(x);
       Array ya(y);
       PetscCall(u.error());
       PetscCall(xa.error());
       PetscCall(ya.error());
       PetscScalar *gm = nullptr;
       if (mu && c_field_) PetscCall(VecGetArray(mu, &gm));
-      const PetscScalar *ua = u.data(), *X = xa.data();
+      const PetscScalar *ua = REC ? lu_record : u.data(), *X = xa.data();
       PetscScalar *Y = ya.data();
       const PetscReal *c2 = c2m_.data(), *tc = two_c_.data(), *sig = sigma_.data();
       const PetscReal ax = ihx2_, ay = ihy2_, a0 = -2 * (ihx2_ + ihy2_);
@@ -371,13 +383,13 @@ public:
       for (PetscInt jl = 1; jl < ym - 1; ++jl) {
         const PetscInt k0 = jl * xm + 1, k1 = jl * xm + xm - 1;
         if (k1 <= k0) break;
-        if (gm) stage_interior_row<SU, SPONGE, true>(k0, k1, xm, ax, ay, a0, X, ua, c2, tc, sig, Y, g);
+        if (gm) stage_interior_row<REC, SPONGE, true>(k0, k1, xm, ax, ay, a0, X, ua, c2, tc, sig, Y, g);
         else {
-          stage_interior_row<SU, SPONGE, false>(k0, k1, xm, ax, ay, a0, X, ua, c2, tc, sig, Y, g);
+          stage_interior_row<REC, SPONGE, false>(k0, k1, xm, ax, ay, a0, X, ua, c2, tc, sig, Y, g);
           if (mu) sum4(g, k0, k1, local);
         }
       }
-      PetscCall(halo_u.end(U));
+      if (!REC) PetscCall(halo_u.end(U));
       PetscCall(halo_v_.end(x));
       // ghost z: 0 at an edge point (and beyond a wall, where the halo reads 0), else c^2 x_v
       auto zg = [&](PetscInt il, PetscInt jl) {
@@ -387,18 +399,19 @@ public:
       };
       // The first and last rows whole, from their rows of z = c^2 x_v and u and those below and above
       // made contiguous with their ghosts (stage_operands; three rows of xm + 2, entry 1 + il, the two
-      // ends for the ghosts).
+      // ends for the ghosts; with REC the record's own row only).
       PetscReal *zr = rows_.data(), *ur = zr + 3 * w;
       auto own_row = [&](PetscInt jl, PetscInt slot) {
-        stage_operands<SU>(xm, X + 2 * jl * xm, ua + SU * jl * xm, c2 + jl * xm, zr + slot * w + 1, ur + slot * w + 1);
+        if (REC) stage_operands<1>(xm, X + 2 * jl * xm, ua + jl * xm, c2 + jl * xm, zr + slot * w + 1, ur + slot * w + 1);
+        else stage_operands<2>(xm, X + 2 * jl * xm, ua + 2 * jl * xm, c2 + jl * xm, zr + slot * w + 1, ur + slot * w + 1);
       };
       auto row = [&](PetscInt jl) {
         const PetscInt k0 = jl * xm;
         const PetscReal *zm = zr + 1, *z0 = zr + w + 1, *zp = zr + 2 * w + 1;
         const PetscReal *um = ur + 1, *u0 = ur + w + 1, *up = ur + 2 * w + 1;
-        if (gm) stage_row<SPONGE, true>(xm, ax, ay, a0, zm, z0, zp, um, u0, up, X + 2 * k0, tc + k0, sig + k0, Y + 2 * k0, g + k0);
+        if (gm) stage_row<REC, SPONGE, true>(xm, ax, ay, a0, zm, z0, zp, um, u0, up, X + 2 * k0, tc + k0, sig + k0, Y + 2 * k0, g + k0);
         else {
-          stage_row<SPONGE, false>(xm, ax, ay, a0, zm, z0, zp, um, u0, up, X + 2 * k0, tc + k0, sig + k0, Y + 2 * k0, g + k0);
+          stage_row<REC, SPONGE, false>(xm, ax, ay, a0, zm, z0, zp, um, u0, up, X + 2 * k0, tc + k0, sig + k0, Y + 2 * k0, g + k0);
           if (mu) sum4(g, k0, k0 + xm, local);
         }
       };
@@ -409,11 +422,11 @@ public:
           else
             for (PetscInt il = 0; il < xm; ++il) {
               zr[slot * w + 1 + il] = zg(il, jr);
-              ur[slot * w + 1 + il] = PetscRealPart(halo_u(il, jr));
+              ur[slot * w + 1 + il] = REC ? 0.0 : PetscRealPart(halo_u(il, jr));
             }
         }
         zr[w] = zg(-1, jl), zr[w + xm + 1] = zg(xm, jl);
-        ur[w] = PetscRealPart(halo_u(-1, jl)), ur[w + xm + 1] = PetscRealPart(halo_u(xm, jl));
+        if (!REC) ur[w] = PetscRealPart(halo_u(-1, jl)), ur[w + xm + 1] = PetscRealPart(halo_u(xm, jl));
         row(jl);
         for (PetscInt k = jl * xm; k < jl * xm + xm; ++k)
           if (edge_[k]) Y[2 * k + 1] = 0;
@@ -425,11 +438,13 @@ public:
           const PetscInt k = jl * xm + il;
           const PetscReal zl = il > 0 ? c2[k - 1] * PetscRealPart(X[2 * (k - 1) + 1]) : zg(il - 1, jl);
           const PetscReal zx = il < xm - 1 ? c2[k + 1] * PetscRealPart(X[2 * (k + 1) + 1]) : zg(il + 1, jl);
-          const PetscReal ul = PetscRealPart(il > 0 ? ua[SU * (k - 1)] : halo_u(il - 1, jl));
-          const PetscReal ux = PetscRealPart(il < xm - 1 ? ua[SU * (k + 1)] : halo_u(il + 1, jl));
+          const PetscReal ul = REC ? 0.0 : PetscRealPart(il > 0 ? ua[2 * (k - 1)] : halo_u(il - 1, jl));
+          const PetscReal ux = REC ? 0.0 : PetscRealPart(il < xm - 1 ? ua[2 * (k + 1)] : halo_u(il + 1, jl));
           const PetscReal xv = PetscRealPart(X[2 * k + 1]);
           const PetscReal lz = ax * (zl + zx) + ay * (c2[k - xm] * PetscRealPart(X[2 * (k - xm) + 1]) + c2[k + xm] * PetscRealPart(X[2 * (k + xm) + 1])) + a0 * (c2[k] * xv);
-          const PetscReal lu = ax * (ul + ux) + ay * (PetscRealPart(ua[SU * (k - xm)]) + PetscRealPart(ua[SU * (k + xm)])) + a0 * PetscRealPart(ua[SU * k]);
+          const PetscReal lu = REC ? PetscRealPart(ua[k])
+                                   : ax * (ul + ux) + ay * (PetscRealPart(ua[2 * (k - xm)]) + PetscRealPart(ua[2 * (k + xm)])) +
+                                         a0 * PetscRealPart(ua[2 * k]);
           Y[2 * k] = lz;
           Y[2 * k + 1] = edge_[k] ? 0.0 : (SPONGE ? X[2 * k] - sig[k] * X[2 * k + 1] : X[2 * k]);
           const PetscReal gk = tc[k] * lu * xv; // 0 on the edges (2c = 0 there)
