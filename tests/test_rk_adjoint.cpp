@@ -147,31 +147,31 @@ TEST(RkStageCombination, AdvectionSameGradientBitwise) {
     }
 }
 
-// A second-order model's stages enter its adjoint through their positions alone
-// (Model::stage_adjoint_positions): full storage then keeps only those, half the memory of whole
-// stages, with the same gradient bitwise; and the fused stage products give the gradient of the
-// model's two Jacobian transposes (-wave_fused_adjoint 0) to round-off. Field and scalar speeds (the
+// The wave's stages enter its adjoint through their records D2 u alone (Model::stage_record_size,
+// written by the RHS evaluations at the stages): full storage then keeps only those, half the memory
+// of whole stages, with the same gradient bitwise; and the fused stage products give the gradient of
+// the model's two Jacobian transposes (-wave_fused_adjoint 0) to round-off. Field and scalar speeds (the
 // scalar's sums deferred to one reduction), 2nd- and 4th-order stencils, walls and periodic.
 namespace {
 
-std::vector<RkCase> positions_cases() {
+std::vector<RkCase> records_cases() {
   const auto all = rk_cases();
   return {all[0], all[1]}; // wave_rk4_field, wave_rk3_scalar_fd4_periodic
 }
 
-class RkPositions : public RkAdjoint {};
+class RkRecords : public RkAdjoint {};
 
 } // namespace
 
 namespace {
 
-// The gradient with full storage as configured (stages' positions alone when the adjoint can use them)
+// The gradient with full storage as configured (the stages' records alone when the adjoint can use them)
 // against whole stages (-checkpoint_positions_only 0): bitwise the same, with `ratio` times the memory.
-void expect_positions_memory(Scene &scene, Vec p, PetscReal ratio) {
+void expect_records_memory(Scene &scene, Vec p, PetscReal ratio) {
   OwnedVec p_true, g1, g0;
   PetscReal J1, J0;
   flexipde_test::data_and_gradient(scene, p, p_true, g1, &J1);
-  const PetscReal mb_positions = scene.sim.checkpoint_stats().stored_mb;
+  const PetscReal mb_records = scene.sim.checkpoint_stats().stored_mb;
   PETSC_ASSERT_OK(scene.params.create_vec(g0.out()));
   {
     ScopedOptions whole;
@@ -181,18 +181,18 @@ void expect_positions_memory(Scene &scene, Vec p, PetscReal ratio) {
   const PetscReal mb_whole = scene.sim.checkpoint_stats().stored_mb;
   flexipde_test::expect_gradients_match(J1, J0, g1, g0, 1e-300); // bitwise
   EXPECT_GT(mb_whole, 0.0);
-  EXPECT_DOUBLE_EQ(mb_positions / mb_whole, ratio);
+  EXPECT_DOUBLE_EQ(mb_records / mb_whole, ratio);
 }
 
 } // namespace
 
-TEST_P(RkPositions, HalfTheMemorySameGradient) { expect_positions_memory(scene, p, 0.5); }
+TEST_P(RkRecords, HalfTheMemorySameGradient) { expect_records_memory(scene, p, 0.5); }
 
-TEST_P(RkPositions, SameGradientAsJacobianTransposes) {
+TEST_P(RkRecords, SameGradientAsJacobianTransposes) {
   flexipde_test::expect_same_gradient_other_setup(scene, p, {}, {{"-wave_fused_adjoint", "0"}}, 1e-12);
 }
 
-INSTANTIATE_TEST_SUITE_P(Wave, RkPositions, ::testing::ValuesIn(positions_cases()), rk_name);
+INSTANTIATE_TEST_SUITE_P(Wave, RkRecords, ::testing::ValuesIn(records_cases()), rk_name);
 
 // The 2D wave's fused stage products (wave2d's Model::stage_adjoint: J^T and (dG/dc)^T in one sweep)
 // give the gradient of its two Jacobian transposes (-rk_stage_adjoint 0) to round-off, for field and
@@ -225,7 +225,7 @@ std::vector<Wave2DStageCase> wave2d_stage_cases() {
   };
 }
 
-class RkPositionsWave2D : public ::testing::TestWithParam<Wave2DStageCase>, public RkScene {
+class RkRecordsWave2D : public ::testing::TestWithParam<Wave2DStageCase>, public RkScene {
 protected:
   void SetUp() override { set_up(GetParam().rk.opts); }
 };
@@ -234,14 +234,14 @@ std::string wave2d_stage_name(const ::testing::TestParamInfo<Wave2DStageCase> &i
 
 } // namespace
 
-TEST_P(RkPositionsWave2D, SameGradientAsJacobianTransposes) {
+TEST_P(RkRecordsWave2D, SameGradientAsJacobianTransposes) {
   ASSERT_TRUE(scene.model->has_stage_adjoint());
   expect_same_gradient(scene, p, {}, {{"-rk_stage_adjoint", "0"}}, GetParam().rk.tol);
 }
 
-TEST_P(RkPositionsWave2D, PositionsMemorySameGradient) { expect_positions_memory(scene, p, GetParam().memory_ratio); }
+TEST_P(RkRecordsWave2D, RecordsMemorySameGradient) { expect_records_memory(scene, p, GetParam().memory_ratio); }
 
-INSTANTIATE_TEST_SUITE_P(Wave2D, RkPositionsWave2D, ::testing::ValuesIn(wave2d_stage_cases()), wave2d_stage_name);
+INSTANTIATE_TEST_SUITE_P(Wave2D, RkRecordsWave2D, ::testing::ValuesIn(wave2d_stage_cases()), wave2d_stage_name);
 
 // Stage records (Model::stage_record_size): Vlasov's RHS evaluations at the stages leave the field E(f)
 // at the owned x, which the adjoint stage reads instead of summing the stored stage's density again.

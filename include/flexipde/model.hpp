@@ -89,10 +89,6 @@ public:
   //   y = (dG/dU)^T x   and, unless mu is null,   mu += (dG/dtheta)^T x.
   // Without it the RK adjoint applies rhs_jacobian's and rhs_jacobian_p's transposes: the same numbers.
   virtual bool has_stage_adjoint() const { return false; }
-  // m > 0 when dG/dU and dG/dtheta depend on the first m components of each grid point's state only
-  // and stage_adjoint also accepts, as U, those m components alone (laid out like the grid's own
-  // m-component Vecs): full storage then keeps only them of every stage.
-  virtual PetscInt stage_adjoint_positions() const { return 0; }
   // Stage records: r = stage_record_size() > 0 when evaluating G at a state computes, on the way, r local
   // numbers that stage_adjoint at that state would otherwise compute again (the 2D wave: L u; Vlasov:
   // the field E(f) at the owned x). rhs_record() is rhs() that also writes them to `record`. Full storage

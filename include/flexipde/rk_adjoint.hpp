@@ -46,13 +46,11 @@ struct StageCombination {
 typedef PetscErrorCode (*RkStageAdjoint)(void *ctx, PetscReal t, Vec U, const PetscScalar *record,
                                          const StageCombination &x, Vec y, Vec mu);
 
-// What a stage hook can read of each stage besides its state: position_pairs > 0 when it also accepts, as U,
-// the first position_pairs components of a stage's points alone (Model::stage_adjoint_positions: dG/dU and
-// dG/dp depend on those only), so that full storage may keep only those (trajectory_store.cpp);
-// record_size > 0 when it reads a record of record_size local entries per stage that the forward's own
-// evaluations of G write (Model::stage_record_size), replacing the stage itself when record_replaces.
+// What a stage hook can read of each stage besides its state: record_size > 0 when it reads a record of
+// record_size local entries per stage that the forward's own evaluations of G write
+// (Model::stage_record_size), replacing the stage itself when record_replaces (full storage then keeps
+// the records alone, trajectory_store.cpp).
 struct RkStageNeeds {
-  PetscInt position_pairs = 0;
   PetscInt record_size = 0;
   bool record_replaces = false;
 };
@@ -64,9 +62,6 @@ PetscErrorCode rk_adjoint_install(TS ts, RkStageAdjoint stage = nullptr, void *s
 // What the installed adjoint can work from for a non-FSAL tableau without a cost integrand and with a
 // stage hook (else all zero: whole stages needed, no records).
 PetscErrorCode rk_adjoint_stage_needs(TS ts, RkStageNeeds *needs);
-// The next adjoint step reads stage i's positions from q + i * stride (local entries), in place;
-// q = null: back to whole stages.
-PetscErrorCode rk_adjoint_place_positions(TS ts, const PetscScalar *q, PetscInt stride);
 // Records. Forward: the evaluations of G at stage i of the following steps write their record to
 // base + i * stride (base = null: no records), rk_adjoint_record_target telling an RHS evaluation at U
 // where (null unless U is a stage Vec and records are armed). Adjoint: the next adjoint step hands its

@@ -16,12 +16,6 @@ struct RkAdjoint {
   std::vector<Vec> terms;                     // ... and their dLambda_j
   RkStageAdjoint stage = nullptr;             // the model's fused stage products, if any
   void *stage_ctx = nullptr;
-  // A model whose stage products read the first `pairs` components per point only
-  // (Model::stage_adjoint_positions): a full-storage trajectory keeps only those and places them here,
-  // stage i in Q[i] (rk_adjoint_place_positions), for the hook to read in place.
-  PetscInt pairs = 0;
-  std::vector<Vec> Q;
-  bool q_placed = false;
   // Stage records (Model::stage_record_size): `record_size` entries per stage, replacing the stage when
   // record_replaces. Forward: armed at arm_base (stage i at arm_base + i * arm_stride), for the RHS
   // evaluations at the stage Vecs. Adjoint: placed at rec_base.
@@ -32,10 +26,7 @@ struct RkAdjoint {
   const PetscScalar *rec_base = nullptr;
   PetscInt rec_stride = 0;
   PetscInt s = 0, ncost = 0;
-  ~RkAdjoint() {
-    release();
-    for (Vec &v : Q) (void)VecDestroy(&v);
-  }
+  ~RkAdjoint() { release(); }
   void release() {
     for (Vec &v : dlam) (void)VecDestroy(&v);
     dlam.clear();
@@ -78,9 +69,9 @@ PetscErrorCode adjoint_step(TS ts) {
   PetscCall(TSRKGetTableau(ts, &s, &A, &b, &c, &bembed, &pinterp, &binterp, &fsal));
   (void)bembed, (void)pinterp, (void)binterp;
   if (fsal || ts->quadraturets || ts->vecs_sensi2 || ts->numcost < 1) {
-    PetscCheck(!ctx->q_placed && !(ctx->rec_base && ctx->record_replaces), PetscObjectComm((PetscObject)ts), PETSC_ERR_SUP,
-               "rk_adjoint: only the stages' positions or records were stored, which this adjoint (FSAL tableau, "
-               "cost integrand or second-order sensitivities) cannot use: run with -checkpoint_positions_only 0");
+    PetscCheck(!(ctx->rec_base && ctx->record_replaces), PetscObjectComm((PetscObject)ts), PETSC_ERR_SUP,
+               "rk_adjoint: only the stages' records were stored, which this adjoint (FSAL tableau, cost integrand "
+               "or second-order sensitivities) cannot use: run with -checkpoint_positions_only 0");
     PetscCall(ctx->petsc_step(ts));
     PetscFunctionReturn(0);
   }
@@ -124,7 +115,7 @@ PetscErrorCode adjoint_step(TS ts) {
         x.X = terms.data();
         x.scratch = ctx->W;
         const PetscScalar *record = ctx->rec_base ? ctx->rec_base + (size_t)i * ctx->rec_stride : nullptr;
-        Vec U = record && ctx->record_replaces ? nullptr : ctx->q_placed ? ctx->Q[i] : Y[i];
+        Vec U = record && ctx->record_replaces ? nullptr : Y[i];
         PetscCall(ctx->stage(ctx->stage_ctx, stage_time, U, record, x, dl[i], ts->vecs_sensip ? ts->vecs_sensip[k] : nullptr));
         continue;
       }
@@ -190,7 +181,6 @@ PetscErrorCode rk_adjoint_install(TS ts, RkStageAdjoint stage, void *stage_ctx, 
   }
   ctx->stage = stage;
   ctx->stage_ctx = stage_ctx;
-  ctx->pairs = stage ? needs.position_pairs : 0;
   ctx->record_size = stage ? needs.record_size : 0;
   ctx->record_replaces = ctx->record_size > 0 && needs.record_replaces;
   ctx->arm_base = nullptr;
@@ -209,7 +199,6 @@ PetscErrorCode rk_adjoint_stage_needs(TS ts, RkStageNeeds *needs) {
   if (!ctx || !ctx->stage || ts->quadraturets) PetscFunctionReturn(0);
   PetscCall(TSRKGetTableau(ts, &s, &A, &b, &c, nullptr, nullptr, nullptr, &fsal));
   if (fsal) PetscFunctionReturn(0);
-  needs->position_pairs = ctx->pairs;
   needs->record_size = ctx->record_size;
   needs->record_replaces = ctx->record_replaces;
   PetscFunctionReturn(0);
@@ -249,27 +238,6 @@ PetscErrorCode rk_adjoint_place_records(TS ts, const PetscScalar *base, PetscInt
              "rk_adjoint: no records to place");
   ctx->rec_base = base;
   ctx->rec_stride = stride;
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode rk_adjoint_place_positions(TS ts, const PetscScalar *q, PetscInt stride) {
-  RkAdjoint *ctx;
-  PetscFunctionBegin;
-  PetscCall(installed(ts, &ctx));
-  PetscCheck(ctx && ctx->pairs, PetscObjectComm((PetscObject)ts), PETSC_ERR_ORDER, "rk_adjoint: no positions to place");
-  if (ctx->q_placed)
-    for (Vec &v : ctx->Q) PetscCall(VecResetArray(v));
-  ctx->q_placed = false;
-  if (!q) PetscFunctionReturn(0);
-  PetscInt s;
-  PetscCall(TSGetStages(ts, &s, nullptr));
-  while ((PetscInt)ctx->Q.size() < s) {
-    Vec v;
-    PetscCall(VecCreateMPIWithArray(PetscObjectComm((PetscObject)ts), ctx->pairs, stride, PETSC_DECIDE, nullptr, &v));
-    ctx->Q.push_back(v);
-  }
-  for (PetscInt i = 0; i < s; ++i) PetscCall(VecPlaceArray(ctx->Q[i], q + (size_t)i * stride));
-  ctx->q_placed = true;
   PetscFunctionReturn(0);
 }
 

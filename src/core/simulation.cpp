@@ -476,7 +476,6 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
   rk_stage_records_ = rk_stage_fused_ && rk_records && model_->stage_record_size() > 0;
   if (with_adjoint && rk_fused && !std::strcmp(type, TSRK)) {
     RkStageNeeds needs;
-    needs.position_pairs = model_->stage_adjoint_positions();
     if (rk_stage_records_) {
       needs.record_size = model_->stage_record_size();
       needs.record_replaces = model_->stage_record_replaces_state();

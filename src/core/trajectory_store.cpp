@@ -14,8 +14,10 @@
 // (StateBuffer). With -checkpoint_positions_only 0, or a cost integrand (which may read p), whole
 // states are stored and the stage Vec is pointed at them (VecPlaceArray), nothing copied; any other
 // integrator re-runs the step from U_{k-1} (TSStep) to rebuild its stages, like PETSc's memory
-// trajectory in solution-only mode. Fixed steps only (the Simulation uses PETSc's memory trajectory
-// for adaptive runs).
+// trajectory in solution-only mode, unless it keeps them: an explicit RK's stages are placed in the
+// buffer and written there by the step itself, with the records its fused adjoint stage reads beside
+// them (Model::stage_record_size) or, when those replace the stage (the wave models), the records
+// alone. Fixed steps only (the Simulation uses PETSc's memory trajectory for adaptive runs).
 #include "flexipde/checkpoint.hpp"
 #include "flexipde/leapfrog.hpp"
 #include "flexipde/rk_adjoint.hpp"
@@ -61,11 +63,6 @@ struct StoreTrajectory {
   // Set (one copy and one vector of memory per step fewer). Slot k = [Y_0 = U_k, Y_1, ..., Y_{s-1}].
   bool compact = false;
   bool lf_placed = false; // the leapfrog's stage Vec points into the buffer
-  // Explicit RK on a second-order model whose adjoint stage reads positions alone
-  // (rk_adjoint_stage_needs): slot k = the positions of the stages of step k -> k+1, rk_pairs per point
-  // (rk_n entries per stage), copied from the TS's stages after the step with streaming stores and
-  // placed for the adjoint in place; nothing else is stored (U_k is never read).
-  PetscInt rk_pairs = 0, rk_n = 0;
   // Explicit RK whose adjoint stage reads a record of each stage (rk_adjoint_stage_needs:
   // Model::stage_record_size): rec_n entries per stage, those of step k -> k+1 at rec_offset in the slot
   // where that step's stages are (compact: k, placed: k + 1). The RHS evaluations at the stages write
@@ -216,12 +213,10 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
   st->compact = false;
   st->lf_placed = false;
   st->use_stream = st->stream && is_leapfrog(ts);
-  st->rk_pairs = st->rk_n = 0;
   st->rec_n = st->rec_offset = 0;
   st->rec_only = false;
-  // Stages: how they would be kept (explicit RK: records alone, positions only, compact or placed, with
-  // the records after the stages; otherwise copied next to the state), then whether that fits the
-  // memory cap.
+  // Stages: how they would be kept (explicit RK: records alone, or compact or placed with the records
+  // after the stages; otherwise copied next to the state), then whether that fits the memory cap.
   PetscInt stage_slot = 0;
   if (!is_leapfrog(ts) && !st->theta_endpoint && st->nstages > 0 && st->keep_stages_option) {
     PetscBool rk;
@@ -238,14 +233,8 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
       st->rec_n = needs.record_size;
       st->rec_only = needs.record_replaces;
     }
-    if (partial && !st->rec_only) st->rk_pairs = needs.position_pairs;
     if (st->rec_only) stage_slot = st->nstages * st->rec_n;
-    else if (st->rk_pairs) {
-      st->rec_n = 0; // (no model has both)
-      PetscCall(VecGetBlockSize(ts->vec_sol, &st->dof));
-      st->rk_n = st->nlocal / st->dof * st->rk_pairs;
-      stage_slot = st->nstages * st->rk_n;
-    } else {
+    else {
       st->place_stages = rk && fixed && !stage_is_solution;
       if (st->place_stages && st->compact_option) { // Y_0 = U_k exactly: c_0 = 0 and A's first row zero
         PetscInt s;
@@ -265,7 +254,7 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
       PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &mb, 1, MPIU_REAL, MPI_MAX, PetscObjectComm((PetscObject)tj)));
       st->keep_stages = mb <= st->keep_stages_max_mb;
     }
-    if (!st->keep_stages) st->rk_pairs = st->rk_n = st->rec_n = 0, st->place_stages = st->compact = st->rec_only = false;
+    if (!st->keep_stages) st->rec_n = 0, st->place_stages = st->compact = st->rec_only = false;
   }
   st->slot = st->pairs ? st->nlocal / st->dof * st->pairs : st->keep_stages ? stage_slot : st->nlocal;
   if (ts->max_steps < PETSC_MAX_INT) { // reserve the planned trajectory once
@@ -291,20 +280,6 @@ PetscErrorCode store_set(TSTrajectory tj, TS ts, PetscInt stepnum, PetscReal tim
     const size_t need = (size_t)(stepnum + 1) * st->slot;
     if (st->buffer->size < need) st->buffer->grow(std::max(need, 2 * st->buffer->size), true);
     PetscCall(arm_records(*st, ts, stepnum));
-    PetscFunctionReturn(0);
-  }
-  if (st->rk_pairs) { // the positions of the stages of step stepnum-1 -> stepnum, still in the TS
-    if (stepnum == 0) PetscFunctionReturn(0);
-    const size_t need = (size_t)stepnum * st->slot;
-    if (st->buffer->size < need) st->buffer->grow(std::max(need, 2 * st->buffer->size), true);
-    Vec *Y;
-    const PetscScalar *y;
-    PetscCall(TSGetStages(ts, nullptr, &Y));
-    for (PetscInt i = 0; i < st->nstages; ++i) {
-      PetscCall(VecGetArrayRead(Y[i], &y));
-      copy_positions(at(*st, stepnum - 1, 0) + (size_t)i * st->rk_n, y, st->rk_pairs, st->dof, st->nlocal / st->dof, st->stream);
-      PetscCall(VecRestoreArrayRead(Y[i], &y));
-    }
     PetscFunctionReturn(0);
   }
   if (ts->reason) PetscFunctionReturn(0); // the final state stays in the TS for the first adjoint step
@@ -338,7 +313,6 @@ PetscErrorCode store_get(TSTrajectory tj, TS ts, PetscInt k, PetscReal *t) {
   PetscFunctionBegin;
   if (k == 0) { // the adjoint has finished
     PetscCall(place_stages(*st, ts, -1));
-    if (st->rk_pairs) PetscCall(rk_adjoint_place_positions(ts, nullptr, 0));
     if (st->rec_n) {
       PetscCall(rk_adjoint_place_records(ts, nullptr, 0));
       PetscCall(rk_adjoint_arm_records(ts, nullptr, 0));
@@ -378,11 +352,6 @@ PetscErrorCode store_get(TSTrajectory tj, TS ts, PetscInt k, PetscReal *t) {
     ts->ptime_prev = st->times[k - 1];
   } else if (st->rec_only) { // the records of the stages of step k-1 -> k, read in place
     PetscCall(rk_adjoint_place_records(ts, at(*st, k - 1, 0), st->rec_n));
-    if (st->prefetch) prefetch_slot(*st, k - 2);
-    ts->ptime = st->times[k];
-    ts->ptime_prev = st->times[k - 1];
-  } else if (st->rk_pairs) { // the positions of the stages of step k-1 -> k, read in place
-    PetscCall(rk_adjoint_place_positions(ts, at(*st, k - 1, 0), st->rk_n));
     if (st->prefetch) prefetch_slot(*st, k - 2);
     ts->ptime = st->times[k];
     ts->ptime_prev = st->times[k - 1];
@@ -440,8 +409,9 @@ PetscErrorCode store_setfromoptions(TSTrajectory tj, PetscOptionItems *PetscOpti
   PetscCall(PetscOptionsBool("-checkpoint_positions_only",
                              "Leapfrog full storage keeps only the positions q of each state: half the memory; the "
                              "model's fused kick reads them in place (else one strided copy into the stage per adjoint "
-                             "step) (0: whole states, read in place; whole states always with a time-integrated "
-                             "objective)",
+                             "step). Explicit RK keeps only the stage records when they replace the stages (the wave "
+                             "models' L u) (0: whole states and stages, read in place; whole states always with a "
+                             "time-integrated objective)",
                              "store", st->positions_only, &st->positions_only, nullptr));
   PetscCall(PetscOptionsBool("-checkpoint_prefetch", "Full storage prefetches the state the next adjoint step reads",
                              "store", st->prefetch, &st->prefetch, nullptr));

@@ -52,8 +52,8 @@ struct FusedGradient : ProductTag {
 
 // J^T x = [D2 (c^2 x_v) ; x_u] and g = 2 c (D2 u) x_v on the plain interior points [lo, hi), in one
 // sweep over x and the stage u (interleaved (u, v) arrays); ADD: g is added to (a field's gradient).
-// u is read with stride SU: 2 in a whole (u, v) state, 1 in stored positions alone.
-template <int HW, bool ADD = false, int SU = 2>
+// REC: u is the stage's record D2 u itself (rhs_record), else a whole (u, v) state.
+template <int HW, bool ADD = false, bool REC = false>
 void fused_transpose_interior(PetscInt lo, PetscInt hi, const PetscReal *__restrict wt, const PetscScalar *__restrict x,
                               const PetscScalar *__restrict u, const PetscReal *__restrict c2,
                               const PetscReal *__restrict dg, PetscScalar *__restrict y, PetscReal *__restrict g) {
@@ -61,9 +61,10 @@ void fused_transpose_interior(PetscInt lo, PetscInt hi, const PetscReal *__restr
     PetscReal du = 0, dz = 0;
 #pragma GCC unroll 8
     for (int k = -HW; k <= HW; ++k) {
-      du += wt[k + HW] * PetscRealPart(u[SU * (i + k)]);
+      if (!REC) du += wt[k + HW] * PetscRealPart(u[2 * (i + k)]);
       dz += wt[k + HW] * c2[i + k] * PetscRealPart(x[2 * (i + k) + 1]);
     }
+    if (REC) du = PetscRealPart(u[i]);
     y[2 * i] = dz;
     y[2 * i + 1] = x[2 * i];
     if (ADD) g[i] += dg[i] * du * PetscRealPart(x[2 * i + 1]);
@@ -241,41 +242,47 @@ public:
   }
 
   bool has_stage_adjoint() const override { return fuse_adjoint_; }
-  PetscInt stage_adjoint_positions() const override { return 1; } // u alone
-  // An explicit RK adjoint stage at state U (a whole state or u alone): y = J^T x = [D2 (c^2 x_v) ; x_u]
-  // (walls 0) and mu += 2 c (D2 u) x_v, in one sweep; a scalar c's local sum goes to the Parameters
+  // dG/dU is constant and dG/dc reads D2 u alone: the RHS evaluations at the stages record D2 u (0 at
+  // the walls) and full storage keeps those records instead of the stages (half the memory), from which
+  // the adjoint stage forms mu without a second stencil.
+  PetscInt stage_record_size() const override { return grid_->xm(); }
+  bool stage_record_replaces_state() const override { return true; }
+  PetscErrorCode rhs_record(PetscReal t, Vec U, Vec G, PetscScalar *record) override {
+    return rhs_sweep<true>(t, U, G, record);
+  }
+  // An explicit RK adjoint stage at state U (whole), or from its record D2 u: y = J^T x = [D2 (c^2 x_v) ;
+  // x_u] (walls 0) and mu += 2 c (D2 u) x_v, in one sweep; a scalar c's local sum goes to the Parameters
   // (deferred there by the Simulation to one reduction per adjoint).
-  PetscErrorCode stage_adjoint(PetscReal, Vec U, const PetscScalar *, Vec x, Vec y, Vec mu) override {
+  PetscErrorCode stage_adjoint(PetscReal, Vec U, const PetscScalar *record, Vec x, Vec y, Vec mu) override {
     const ParamInfo &pi = params_->info(c_index_);
     PetscReal local[4] = {0, 0, 0, 0};
     PetscFunctionBeginUser;
     if (mu && c_field_) { // a field's gradient added in place
       PetscScalar *gm;
       PetscCall(VecGetArray(mu, &gm));
-      PetscCall(transpose_sweep(U, x, y, gm + pi.local_offset, true, nullptr));
+      PetscCall(transpose_sweep(U, record, x, y, gm + pi.local_offset, true, nullptr));
       PetscCall(VecRestoreArray(mu, &gm));
-    } else if (mu && scalar_pointwise_) PetscCall(transpose_sweep(U, x, y, gacc_.data(), true, nullptr)); // begin_adjoint
-    else PetscCall(transpose_sweep(U, x, y, gbuf_.data(), false, mu ? local : nullptr));
+    } else if (mu && scalar_pointwise_) PetscCall(transpose_sweep(U, record, x, y, gacc_.data(), true, nullptr)); // begin_adjoint
+    else PetscCall(transpose_sweep(U, record, x, y, gbuf_.data(), false, mu ? local : nullptr));
     if (mu && !c_field_ && !scalar_pointwise_)
       PetscCall(params_->add_local_sum(mu, c_index_, local[0] + local[1] + local[2] + local[3]));
     PetscFunctionReturn(0);
   }
 
-  // y = J^T x = [D2 (c^2 x_v) ; x_u] (walls 0) and the pointwise 2 c (D2 u) x_v at the state U (whole, or
-  // u alone), in one sweep: added to g (add), or written to g (walls 0); local, when given, gets the
-  // pointwise terms' sum (four partial sums).
-  PetscErrorCode transpose_sweep(Vec U, Vec x, Vec y, PetscReal *g, bool add, PetscReal *local) {
-    PetscInt su = 2;
+  // y = J^T x = [D2 (c^2 x_v) ; x_u] (walls 0) and the pointwise 2 c (D2 u) x_v at the whole state U, or
+  // from the record D2 u (U unread), in one sweep: added to g (add), or written to g (walls 0); local,
+  // when given, gets the pointwise terms' sum (four partial sums).
+  PetscErrorCode transpose_sweep(Vec U, const PetscScalar *record, Vec x, Vec y, PetscReal *g, bool add, PetscReal *local) {
+    const bool rec = record != nullptr;
     PetscFunctionBeginUser;
-    PetscCall(u_layout(U, &su));
     {
-      ConstArray xa(x), ua(U);
+      ConstArray xa(x), ua(rec ? nullptr : U);
       Array ya(y);
       PetscCall(xa.error());
       PetscCall(ua.error());
       PetscCall(ya.error());
-      const PetscScalar *X = xa.data(), *u = ua.data();
-      PetscCall(begin_pair(u, su, X));
+      const PetscScalar *X = xa.data(), *u = rec ? record : ua.data();
+      PetscCall(begin_pair(u, rec ? 1 : 2, X)); // (a record's ghosts travel unread)
       PetscScalar *Y = ya.data();
       const PetscInt xm = grid_->xm();
       for (PetscInt il : {(PetscInt)0, xm - 1}) // the walls (no gradient there: 2c = 0)
@@ -284,15 +291,16 @@ public:
           if (!add) g[il] = 0;
         }
       const PetscReal *c2 = c2_.data(), *dg = two_c_.data();
-      if (add && su == 1) stage_interior<true, 1>(X, u, c2, dg, Y, g);
-      else if (add) stage_interior<true, 2>(X, u, c2, dg, Y, g);
-      else if (su == 1) stage_interior<false, 1>(X, u, c2, dg, Y, g);
-      else stage_interior<false, 2>(X, u, c2, dg, Y, g);
+      if (add && rec) stage_interior<true, true>(X, u, c2, dg, Y, g);
+      else if (add) stage_interior<true, false>(X, u, c2, dg, Y, g);
+      else if (rec) stage_interior<false, true>(X, u, c2, dg, Y, g);
+      else stage_interior<false, false>(X, u, c2, dg, Y, g);
       if (local) sum4(g, lo_, hi_, local);
       PetscCall(pair_.end());
       for_edge_points([&](PetscInt il, const std::array<StencilEntry, 5> &st, PetscInt m) {
         PetscReal du, dz;
-        edge_sums(st, m, u, su, X, &du, &dz);
+        edge_sums(st, m, u, rec ? 1 : 2, X, &du, &dz);
+        if (rec) du = PetscRealPart(u[il]);
         Y[2 * il] = dz;
         Y[2 * il + 1] = X[2 * il];
         const PetscReal gi = two_c_[il] * du * PetscRealPart(X[2 * il + 1]);
@@ -363,7 +371,10 @@ public:
   }
   // G = A U as a stencil sweep (u_t = v, v_t = c^2 D2 u, both 0 at the walls), plus the point
   // source's forcing on v.
-  PetscErrorCode rhs(PetscReal t, Vec U, Vec G) override {
+  PetscErrorCode rhs(PetscReal t, Vec U, Vec G) override { return rhs_sweep<false>(t, U, G, nullptr); }
+  // ... and with REC the record D2 u (0 at the walls) of stage_record_size.
+  template <bool REC>
+  PetscErrorCode rhs_sweep(PetscReal t, Vec U, Vec G, PetscScalar *record) {
     PetscFunctionBeginUser;
     {
       Array g(G);
@@ -372,9 +383,13 @@ public:
       PetscCall(sweep_d2u(U, [&](PetscInt il, PetscReal du, const PetscScalar *u) {
         ga[2 * il] = u[2 * il + 1];
         ga[2 * il + 1] = c2_[il] * du;
+        if (REC) record[il] = du;
       }));
       for (PetscInt il : {(PetscInt)0, grid_->xm() - 1}) // the walls: G = 0
-        if (grid_->xm() > 0 && grid_->is_boundary(grid_->xs() + il)) ga[2 * il] = ga[2 * il + 1] = 0;
+        if (grid_->xm() > 0 && grid_->is_boundary(grid_->xs() + il)) {
+          ga[2 * il] = ga[2 * il + 1] = 0;
+          if (REC) record[il] = 0;
+        }
     }
     if (source_ && source_->stencil.n) {
       Array g(G);
@@ -432,11 +447,11 @@ public:
 
 private:
   // The RK adjoint stage's sweep on the plain interior (stage_adjoint), by half-width.
-  template <bool ADD, int SU>
+  template <bool ADD, bool REC>
   void stage_interior(const PetscScalar *X, const PetscScalar *u, const PetscReal *c2, const PetscReal *dg,
                       PetscScalar *Y, PetscReal *g) const {
-    if (hw_ == 1) fused_transpose_interior<1, ADD, SU>(lo_, hi_, wt_, X, u, c2, dg, Y, g);
-    else fused_transpose_interior<2, ADD, SU>(lo_, hi_, wt_, X, u, c2, dg, Y, g);
+    if (hw_ == 1) fused_transpose_interior<1, ADD, REC>(lo_, hi_, wt_, X, u, c2, dg, Y, g);
+    else fused_transpose_interior<2, ADD, REC>(lo_, hi_, wt_, X, u, c2, dg, Y, g);
   }
   template <int SU>
   void kick_interior(const PetscScalar *ua, PetscScalar *L, const PetscReal *c2, const PetscReal *dg, PetscReal *out,
@@ -587,7 +602,7 @@ private:
     Vec U = nullptr;
     PetscFunctionBeginUser;
     PetscCall(stage_.get(&U));
-    PetscCall(transpose_sweep(U, x, y, fused_.g.data(), false, nullptr));
+    PetscCall(transpose_sweep(U, nullptr, x, y, fused_.g.data(), false, nullptr));
     PetscCall(fused_.store(x, stage_.serial()));
     PetscFunctionReturn(0);
   }
