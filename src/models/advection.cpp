@@ -1753,10 +1753,13 @@ private:
       PetscCall(fill_interior(x, X_local_, Part::All));
       if (field && dim_ == 1) PetscCall(fill_interior(U, U_local_)); // (2D reads u in place)
     } else if (dim_ == 1) PetscCall(fill_ghosted_packed(x, field ? U : nullptr)); // x's and u's ghosts in one exchange
-    else { // 2D: rows of ghosts, exchanged by two Halos in flight together (see packed_); u is read in place
+    else { // 2D: rows of ghosts, exchanged by two Halos in flight together (see packed_); u is read in place.
+      // x's strips that the neighbours read are formed (and copied into the scratch Vec) first, the rest
+      // while they travel.
       if (field) PetscCall(halo2_.begin(U));
-      PetscCall(fill_interior(x, X_local_, Part::All, x.scratch));
+      PetscCall(fill_interior(x, X_local_, Part::Strips, x.scratch));
       PetscCall(halo_.begin(x.scratch));
+      PetscCall(fill_interior(x, X_local_, Part::Rest));
       PetscCall(fill_halo(halo_, x.scratch, X_local_));
       if (field) PetscCall(halo2_.end(U));
     }
