@@ -90,7 +90,7 @@ public:
   // Without it the RK adjoint applies rhs_jacobian's and rhs_jacobian_p's transposes: the same numbers.
   virtual bool has_stage_adjoint() const { return false; }
   // Stage records: r = stage_record_size() > 0 when evaluating G at a state computes, on the way, r local
-  // numbers that stage_adjoint at that state would otherwise compute again (the 2D wave: L u; Vlasov:
+  // numbers that stage_adjoint at that state would otherwise compute again (the wave models: L u; Vlasov:
   // the field E(f) at the owned x). rhs_record() is rhs() that also writes them to `record`. Full storage
   // keeps them for every stage (the RHS evaluations at the stages write them in place) and
   // stage_adjoint receives them; when stage_record_replaces_state() it needs nothing else of the stage

@@ -417,7 +417,7 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
                              "(Model::stage_adjoint; else its Jacobians)", "Simulation", rk_stage, &rk_stage, nullptr));
   PetscCall(PetscOptionsBool("-rk_stage_records", "With those stage products and full storage: the forward's evaluations "
                              "of G record at every stage what the model's adjoint stage would recompute (Model::"
-                             "stage_record_size: the 2D wave's L u, Vlasov's field E), and the adjoint reads it",
+                             "stage_record_size: the waves' L u, Vlasov's field E), and the adjoint reads it",
                              "Simulation", rk_records, &rk_records, nullptr));
   PetscOptionsEnd();
   PetscCheck(blowup_every_ >= 0, comm, PETSC_ERR_ARG_OUTOFRANGE, "-sim_blowup_check_every must be non-negative");
