@@ -6,7 +6,9 @@
 //   - apply_many and apply_pair (two real outputs per backward transform), transform/backward/pairing
 //     against apply, one output at a time; transform_pair/pairing_packed/balance (two real fields in
 //     one transform) against separate transforms.
-// Grids live on PETSC_COMM_WORLD, so every case runs distributed on 2 ranks too.
+// Grids live on PETSC_COMM_WORLD, so every case runs distributed on 2 ranks too. A 1D grid on several
+// ranks is transformed whole on every rank (replicated, up to -spectral_replicate_max points) or by
+// FFTW-MPI's distributed transform: the 1D cases run both ways, and the two agree to round-off.
 #include "flexipde/spectral.hpp"
 #include "test_support.hpp"
 #include <cmath>
@@ -50,6 +52,7 @@ struct DotCase {
   const char *name;
   PetscInt dim, nx, ny;
   bool periodic_y, x_only;
+  bool distributed = false; // 1D: FFTW-MPI's distributed transform also on small grids (-spectral_replicate_max 0)
 };
 std::ostream &operator<<(std::ostream &os, const DotCase &c) { return os << c.name; }
 
@@ -59,7 +62,11 @@ class SpectralTranspose : public ::testing::TestWithParam<DotCase> {};
 PetscErrorCode setup_case(const DotCase &c, Grid &g, SpectralDifferentiator &s, std::initializer_list<OwnedVec *> vs) {
   PetscFunctionBeginUser;
   PetscCall(make_grid(c.dim, c.nx, c.ny, c.periodic_y, g));
-  PetscCall(s.setup(g, c.x_only));
+  {
+    flexipde_test::ScopedOptions o;
+    if (c.distributed) o.set("-spectral_replicate_max", "0");
+    PetscCall(s.setup(g, c.x_only));
+  }
   for (OwnedVec *v : vs) PetscCall(DMCreateGlobalVector(g.dm(), v->out()));
   PetscFunctionReturn(0);
 }
@@ -211,6 +218,8 @@ TEST_P(SpectralTranspose, TransformPairPacksTwoFields) {
 
 INSTANTIATE_TEST_SUITE_P(Spectral, SpectralTranspose,
                          ::testing::Values(DotCase{"1d_64", 1, 64, 1, true, false}, DotCase{"1d_50", 1, 50, 1, true, false},
+                                           DotCase{"1d_64_distributed", 1, 64, 1, true, false, true},
+                                           DotCase{"1d_50_distributed", 1, 50, 1, true, false, true},
                                            DotCase{"2d_32x24", 2, 32, 24, true, false},
                                            DotCase{"2d_x_only_nonperiodic_y", 2, 32, 15, false, true}),
                          [](const ::testing::TestParamInfo<DotCase> &i) { return std::string(i.param.name); });
@@ -243,6 +252,49 @@ PetscErrorCode derivative_error(PetscInt dim, PetscInt n, PetscInt dir, PetscInt
 }
 
 } // namespace
+
+// The replicated 1D transform (every rank transforms the whole gathered field) against FFTW-MPI's
+// distributed one (-spectral_replicate_max 0): the same first and second derivatives and the same
+// packed pairing <u, D x> (each rank sums its own slice of the modes) to round-off, on grids that 2 and
+// 3 ranks split evenly or not.
+TEST(Spectral, ReplicatedMatchesDistributed1D) {
+  for (PetscInt n : {64, 50}) {
+    SCOPED_TRACE("N = " + std::to_string(n));
+    Grid g;
+    SpectralDifferentiator rep, dis;
+    OwnedVec x, u, y0, y1;
+    PETSC_ASSERT_OK(setup_case(DotCase{"replicated", 1, n, 1, true, false}, g, rep, {&x, &u, &y0, &y1}));
+    {
+      flexipde_test::ScopedOptions o;
+      o.set("-spectral_replicate_max", "0");
+      PETSC_ASSERT_OK(dis.setup(g));
+    }
+    PETSC_ASSERT_OK(fill_random(x, -1, 1, 47));
+    PETSC_ASSERT_OK(fill_random(u, -2, 3, 48));
+    for (PetscInt order = 1; order <= 2; ++order) {
+      PETSC_ASSERT_OK(rep.derivative(0, order, x, y0));
+      PETSC_ASSERT_OK(dis.derivative(0, order, x, y1));
+      EXPECT_GT(flexipde_test::norm(y1, NORM_INFINITY), 0.1);
+      EXPECT_LE(rel_diff(y0, y1), 1e-13) << "order " << order;
+    }
+    PetscReal sums[2];
+    SpectralDifferentiator *ds[2] = {&rep, &dis};
+    for (int j = 0; j < 2; ++j) {
+      SpectralDifferentiator::Spectrum z;
+      PetscReal alpha;
+      PETSC_ASSERT_OK(ds[j]->balance(x, u, &alpha));
+      PETSC_ASSERT_OK(ds[j]->transform_pair(x, u, alpha, z));
+      const auto d1 = ds[j]->symbol([](const FourierMode &k) { return SpectralDifferentiator::derivative_symbol(k, 0, 1); });
+      sums[j] = ds[j]->pairing_packed(d1, z, alpha);
+      ASSERT_EQ(MPI_Allreduce(MPI_IN_PLACE, &sums[j], 1, MPIU_REAL, MPIU_SUM, PETSC_COMM_WORLD), MPI_SUCCESS);
+    }
+    PETSC_ASSERT_OK(rep.derivative(0, 1, x, y0));
+    const PetscReal direct = dot(y0, u); // <u, D x>
+    EXPECT_GT(std::fabs(direct), 1e-2);
+    EXPECT_LE(rel_diff(sums[0], direct), 1e-12);
+    EXPECT_LE(rel_diff(sums[1], direct), 1e-12);
+  }
+}
 
 TEST(Spectral, ConvergesToRoundOffByN64) {
   struct Case {

@@ -14,7 +14,13 @@
 //
 // Transforms (chosen by the grid and `x_only`):
 //   1D grid                 FFTW-MPI 1D complex DFT, distributed over the ranks (FFTW's own
-//                           input and output layouts, reached by VecScatters from the DMDA layout)
+//                           input and output layouts, reached by VecScatters from the DMDA layout);
+//                           on several ranks with at most -spectral_replicate_max points (32768),
+//                           replicated instead: every rank gathers the whole field (one
+//                           MPI_Allgatherv) and transforms it with serial FFTW, holding every mode,
+//                           so that a backward transform needs no communication (pairing sums each
+//                           rank's slice of the modes). FFTW-MPI's 1D transform does three all-to-all
+//                           transposes each way, which cost far more than small transforms.
 //   2D grid                 FFTW-MPI 2D complex DFT on y-slabs (both directions periodic)
 //   2D grid, x_only = true  the same y-slabs, each rank transforming its whole x-lines with serial
 //                           FFTW: d/dx on a grid whose y direction need not be periodic (e.g. the

@@ -48,6 +48,18 @@ struct SpectralDifferentiator::Impl {
   // Every layout is this rank's block of the DMDA ordering (one rank, or y-slabs that match the
   // DMDA's): the copies in and out of the transforms are plain loops, no VecScatter.
   bool direct = false;
+  // A 1D grid of at most -spectral_replicate_max points on several ranks: every rank gathers the whole
+  // field (one MPI_Allgatherv of its owned values, real and imaginary parts interleaved, straight into
+  // a_in) and transforms all of it with serial FFTW, so it holds every mode and the backward transform
+  // needs no communication at all. FFTW-MPI's distributed 1D transform does three all-to-all transposes
+  // each way, which on small grids cost far more than the transform. Sums over modes (pairing) then
+  // take this rank's slice [pair_begin, pair_end) of them, so that their sum over the ranks counts each
+  // mode once.
+  bool replicated = false;
+  PetscInt xs = 0; // this rank's first point (1D)
+  std::vector<PetscMPIInt> counts, displs; // reals per rank in the gather
+  std::vector<PetscReal> sendbuf;
+  size_t pair_begin = 0, pair_end = 0;
   std::vector<FourierMode> modes; // of the forward output this rank holds (fout), made once
   std::map<PetscInt, SpectralDifferentiator::Symbol> derivatives; // derivative()'s symbols, made on first use
   SpectralDifferentiator::Spectrum uhat;                          // apply_many's transform
@@ -202,8 +214,21 @@ PetscErrorCode SpectralDifferentiator::setup(const Grid &grid, bool x_only) {
     PetscCheck(im->ny % 2 == 0, comm, PETSC_ERR_ARG_OUTOFRANGE,
                "Spectral differentiation needs an even number of points, got -da_grid_y %" PetscInt_FMT, im->ny);
   }
+  PetscInt replicate_max = 32768;
+  PetscOptionsBegin(comm, nullptr, "Spectral differentiation (FFTW)", "Spectral");
+  PetscCall(PetscOptionsInt("-spectral_replicate_max",
+                            "1D grids of up to this many points on several ranks: every rank gathers the whole field and "
+                            "transforms it serially (one MPI_Allgatherv per forward transform, no communication backward) "
+                            "instead of FFTW-MPI's distributed transform (0: always distributed)",
+                            "SpectralDifferentiator", replicate_max, &replicate_max, nullptr));
+  PetscOptionsEnd();
   ptrdiff_t alloc = 1;
-  if (grid.dim() == 1) {
+  if (grid.dim() == 1 && size > 1 && im->nx <= replicate_max) {
+    im->replicated = true;
+    im->fin = im->fout = im->bin = im->bout = Layout{0, (ptrdiff_t)im->nx};
+    im->norm = im->nx;
+    alloc = im->nx;
+  } else if (grid.dim() == 1) {
     ptrdiff_t ni, is, no, os, bni, bis, bno, bos;
     alloc = std::max(alloc, fftw_mpi_local_size_1d(im->nx, comm, FFTW_FORWARD, FFTW_ESTIMATE, &ni, &is, &no, &os));
     alloc = std::max(alloc, fftw_mpi_local_size_1d(im->nx, comm, FFTW_BACKWARD, FFTW_ESTIMATE, &bni, &bis, &bno, &bos));
@@ -226,7 +251,10 @@ PetscErrorCode SpectralDifferentiator::setup(const Grid &grid, bool x_only) {
   im->b_in = im->same_mid ? im->a_out : fftw_alloc_complex(alloc);
   im->b_out = fftw_alloc_complex(alloc);
   PetscCheck(im->a_in && im->a_out && im->b_in && im->b_out, comm, PETSC_ERR_MEM, "FFTW could not allocate its buffers");
-  if (grid.dim() == 1) {
+  if (im->replicated) {
+    im->fwd = fftw_plan_dft_1d((int)im->nx, im->a_in, im->a_out, FFTW_FORWARD, FFTW_ESTIMATE);
+    im->bwd = fftw_plan_dft_1d((int)im->nx, im->b_in, im->b_out, FFTW_BACKWARD, FFTW_ESTIMATE);
+  } else if (grid.dim() == 1) {
     im->fwd = fftw_mpi_plan_dft_1d(im->nx, im->a_in, im->a_out, comm, FFTW_FORWARD, FFTW_ESTIMATE);
     im->bwd = fftw_mpi_plan_dft_1d(im->nx, im->b_in, im->b_out, comm, FFTW_BACKWARD, FFTW_ESTIMATE);
   } else if (im->rank_dims == 2) {
@@ -243,6 +271,23 @@ PetscErrorCode SpectralDifferentiator::setup(const Grid &grid, bool x_only) {
              "FFTW-MPI cannot distribute a transform of %" PetscInt_FMT " x %" PetscInt_FMT " points over %d ranks; "
              "choose a number of points with small prime factors (e.g. a power of 2)",
              im->nx, im->ny, (int)size);
+  im->modes.resize((size_t)im->fout.count);
+  for (ptrdiff_t p = 0; p < im->fout.count; ++p) im->modes[p] = im->mode(im->fout.start + p);
+  im->pair_end = im->modes.size();
+  if (im->replicated) { // the gather's counts and offsets (reals: two per point), this rank's slice of the modes
+    const PetscMPIInt mine[2] = {(PetscMPIInt)(2 * grid.xm()), (PetscMPIInt)(2 * grid.xs())};
+    std::vector<PetscMPIInt> all(2 * (size_t)size);
+    PetscCallMPI(MPI_Allgather(mine, 2, MPI_INT, all.data(), 2, MPI_INT, comm));
+    im->counts.resize(size);
+    im->displs.resize(size);
+    for (PetscMPIInt r = 0; r < size; ++r) im->counts[r] = all[2 * r], im->displs[r] = all[2 * r + 1];
+    im->xs = grid.xs();
+    im->sendbuf.resize(2 * (size_t)grid.xm());
+    im->pair_begin = (size_t)grid.xs();
+    im->pair_end = (size_t)(grid.xs() + grid.xm());
+    impl_ = std::move(im);
+    PetscFunctionReturn(0);
+  }
 
   PetscCall(wrap(comm, im->a_in, im->fin, im->v_fin.out()));
   PetscCall(wrap(comm, im->a_out, im->fout, im->v_fout.out()));
@@ -290,14 +335,27 @@ PetscErrorCode SpectralDifferentiator::setup(const Grid &grid, bool x_only) {
     PetscCall(make_is(comm, both, is.out()));
     PetscCall(VecScatterCreate(im->v_fout, is, im->v_bin, is, im->relayout.out()));
   }
-  im->modes.resize((size_t)im->fout.count);
-  for (ptrdiff_t p = 0; p < im->fout.count; ++p) im->modes[p] = im->mode(im->fout.start + p);
   impl_ = std::move(im);
   PetscFunctionReturn(0);
 }
 
 PetscErrorCode SpectralDifferentiator::Impl::to_spectrum(Vec u, Vec v, PetscReal alpha) {
   PetscFunctionBeginUser;
+  if (replicated) { // this rank's points as complex values, gathered whole into a_in on every rank
+    const PetscScalar *x, *y = nullptr;
+    PetscReal *sb = sendbuf.data();
+    PetscCall(VecGetArrayRead(u, &x));
+    if (v) PetscCall(VecGetArrayRead(v, &y));
+    for (PetscInt p = 0; p < nlocal; ++p) {
+      sb[2 * p] = PetscRealPart(x[p]);
+      sb[2 * p + 1] = y ? alpha * PetscRealPart(y[p]) : 0.0;
+    }
+    if (v) PetscCall(VecRestoreArrayRead(v, &y));
+    PetscCall(VecRestoreArrayRead(u, &x));
+    PetscCallMPI(MPI_Allgatherv(sb, (PetscMPIInt)(2 * nlocal), MPIU_REAL, &a_in[0][0], counts.data(), displs.data(), MPIU_REAL, comm));
+    fftw_execute(fwd);
+    PetscFunctionReturn(0);
+  }
   if (direct) {
     const PetscScalar *x, *y;
     PetscReal *a = &a_in[0][0];
@@ -356,8 +414,8 @@ PetscErrorCode SpectralDifferentiator::Impl::from_spectrum(Vec y, Vec y_imag) {
     PetscCall(VecScatterEnd(relayout, v_fout, v_bin, INSERT_VALUES, SCATTER_FORWARD));
   }
   if (bwd) fftw_execute(bwd);
-  if (direct) {
-    const PetscReal *b = &b_out[0][0];
+  if (direct || replicated) { // (replicated: this rank's points of the whole transform)
+    const PetscReal *b = &b_out[0][0] + (replicated ? 2 * xs : 0);
     PetscScalar *re, *im = nullptr;
     PetscCall(VecGetArrayWrite(y, &re));
     if (y_imag) PetscCall(VecGetArrayWrite(y_imag, &im));
@@ -514,10 +572,10 @@ PetscErrorCode SpectralDifferentiator::backward_pair(const Symbol &s0, const Spe
 }
 
 PetscReal SpectralDifferentiator::pairing(const Symbol &s, const Spectrum &a, const Spectrum &b) const {
-  const size_t n = std::min({s.size(), a.size(), b.size()});
+  const size_t n = std::min({s.size(), a.size(), b.size(), impl_->pair_end});
   const PetscReal *f = reals(s), *u = reals(a), *v = reals(b);
   PetscReal sum = 0;
-  for (size_t p = 0; p < n; ++p) { // Re (f u conj(v))
+  for (size_t p = impl_->pair_begin; p < n; ++p) { // Re (f u conj(v))
     PetscReal re, im;
     cmul(f[2 * p], f[2 * p + 1], u[2 * p], u[2 * p + 1], re, im);
     sum += re * v[2 * p] + im * v[2 * p + 1];
@@ -526,10 +584,10 @@ PetscReal SpectralDifferentiator::pairing(const Symbol &s, const Spectrum &a, co
 }
 
 PetscReal SpectralDifferentiator::pairing_packed(const Symbol &s, const Spectrum &zhat, PetscReal alpha) const {
-  const size_t n = std::min(s.size(), zhat.size());
+  const size_t n = std::min({s.size(), zhat.size(), impl_->pair_end});
   const PetscReal *f = reals(s), *z = reals(zhat);
   PetscReal sum = 0;
-  for (size_t p = 0; p < n; ++p) sum += f[2 * p + 1] * (z[2 * p] * z[2 * p] + z[2 * p + 1] * z[2 * p + 1]);
+  for (size_t p = impl_->pair_begin; p < n; ++p) sum += f[2 * p + 1] * (z[2 * p] * z[2 * p] + z[2 * p + 1] * z[2 * p + 1]);
   return -sum / (2 * alpha);
 }
 
