@@ -5,13 +5,17 @@
 #   run/bench_models.sh              # markdown table on stdout
 #   REPS=3 run/bench_models.sh       # fewer repetitions
 #   NP=2 run/bench_models.sh         # on 2 ranks
+#   PROCS=3 run/bench_models.sh      # each case in 3 processes: medians, and the ratios' range
 #
 # Each line is one process, `flexipde -task gradient -timing_repeats REPS`: one gradient, then REPS
 # forward solves and REPS gradients alternately in the same process, and their medians. A gradient is
 # the whole value + gradient (forward solve storing the trajectory, then the adjoint). The default
 # scenes have the data made at the same parameters, so J = 0 there; the work is the same as at any
 # other parameters (the adjoint runs in full).
-# Environment: FLEXIPDE (build/flexipde), REPS (7), NP (1), MPIEXEC (mpiexec, --allow-run-as-root as root).
+# On a shared (virtual) machine one process can land 10-20 % away from the next one of the same case;
+# with PROCS > 1 each line is the median over PROCS processes (forward, gradient and ratio each), and
+# the last column gives the range of the per-process ratios.
+# Environment: FLEXIPDE (build/flexipde), REPS (7), NP (1), PROCS (1), MPIEXEC (mpiexec, --allow-run-as-root as root).
 set -euo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 FLEXIPDE=${FLEXIPDE:-$(dirname "$here")/build/flexipde}
@@ -20,18 +24,33 @@ NP=${NP:-1}
 MPIEXEC=${MPIEXEC:-mpiexec}
 [ "$(id -u)" = 0 ] && MPIEXEC="$MPIEXEC --allow-run-as-root"
 
-echo "| model | integrator | case | forward (s) | gradient (s) | gradient / forward |"
-echo "|---|---|---|---:|---:|---:|"
+PROCS=${PROCS:-1}
+if [ "$PROCS" -gt 1 ]; then
+  echo "| model | integrator | case | forward (s) | gradient (s) | gradient / forward | ratio range over $PROCS processes |"
+  echo "|---|---|---|---:|---:|---:|---|"
+else
+  echo "| model | integrator | case | forward (s) | gradient (s) | gradient / forward |"
+  echo "|---|---|---|---:|---:|---:|"
+fi
 run() {
   local model=$1 ts=$2 label=$3
   shift 3
-  local line
-  line=$($MPIEXEC -n "$NP" "$FLEXIPDE" "$@" -task gradient -timing_repeats "$REPS" 2>&1 | grep 'gradient/forward' || true)
-  if [ -z "$line" ]; then
-    echo "| $model | $ts | $label | | | failed |"
-    return
-  fi
-  sed -E "s/.*forward median ([0-9.]+).*gradient median ([0-9.]+).*gradient\/forward ([0-9.]+)/| $model | $ts | $label | \1 | \2 | \3 |/" <<<"$line"
+  local line lines=""
+  for _ in $(seq "$PROCS"); do
+    line=$($MPIEXEC -n "$NP" "$FLEXIPDE" "$@" -task gradient -timing_repeats "$REPS" 2>&1 | grep 'gradient/forward' || true)
+    if [ -z "$line" ]; then
+      echo "| $model | $ts | $label | | | failed |"
+      return
+    fi
+    lines+="$(sed -E 's/.*forward median ([0-9.]+).*gradient median ([0-9.]+).*gradient\/forward ([0-9.]+).*/\1 \2 \3/' <<<"$line")"$'\n'
+  done
+  # medians of each column (PROCS odd: the middle process; even: the mean of the two middle ones)
+  awk -v m="$model" -v t="$ts" -v l="$label" -v P="$PROCS" '
+    function med(a, n,   i, j, x) { for (i = 2; i <= n; ++i) { x = a[i]; for (j = i - 1; j >= 1 && a[j] > x; --j) a[j + 1] = a[j]; a[j + 1] = x }
+                                     return n % 2 ? a[(n + 1) / 2] : 0.5 * (a[n / 2] + a[n / 2 + 1]) }
+    NF == 3 { ++n; f[n] = $1 + 0; g[n] = $2 + 0; r[n] = $3 + 0; lo = (n == 1 || r[n] < lo) ? r[n] : lo; hi = (n == 1 || r[n] > hi) ? r[n] : hi }
+    END { if (P > 1) printf "| %s | %s | %s | %.6f | %.6f | %.3f | %.3f-%.3f |\n", m, t, l, med(f, n), med(g, n), med(r, n), lo, hi
+          else printf "| %s | %s | %s | %s | %s | %s |\n", m, t, l, f[1], g[1], r[1] }' <<<"$lines"
 }
 A="-model advection -grid_periodic 1 -da_grid_x 512"
 D="-advection_D 0.01 -ts_dt 1e-4 -ts_max_time 0.5" # explicit RK needs the small step with diffusion
