@@ -39,18 +39,20 @@ run() {
   for _ in $(seq "$PROCS"); do
     line=$($MPIEXEC -n "$NP" "$FLEXIPDE" "$@" -task gradient -timing_repeats "$REPS" 2>&1 | grep 'gradient/forward' || true)
     if [ -z "$line" ]; then
-      echo "| $model | $ts | $label | | | failed |"
+      echo "| $model | $ts | $label | | | failed |$([ "$PROCS" -gt 1 ] && echo " |")"
       return
     fi
     lines+="$(sed -E 's/.*forward median ([0-9.]+).*gradient median ([0-9.]+).*gradient\/forward ([0-9.]+).*/\1 \2 \3/' <<<"$line")"$'\n'
   done
-  # medians of each column (PROCS odd: the middle process; even: the mean of the two middle ones)
+  # medians of each column (PROCS odd: the middle process; even: the mean of the two middle ones); med
+  # sorts its array in place, so the ratios' range is then r[1] .. r[n]
   awk -v m="$model" -v t="$ts" -v l="$label" -v P="$PROCS" '
     function med(a, n,   i, j, x) { for (i = 2; i <= n; ++i) { x = a[i]; for (j = i - 1; j >= 1 && a[j] > x; --j) a[j + 1] = a[j]; a[j + 1] = x }
                                      return n % 2 ? a[(n + 1) / 2] : 0.5 * (a[n / 2] + a[n / 2 + 1]) }
-    NF == 3 { ++n; f[n] = $1 + 0; g[n] = $2 + 0; r[n] = $3 + 0; lo = (n == 1 || r[n] < lo) ? r[n] : lo; hi = (n == 1 || r[n] > hi) ? r[n] : hi }
-    END { if (P > 1) printf "| %s | %s | %s | %.6f | %.6f | %.3f | %.3f-%.3f |\n", m, t, l, med(f, n), med(g, n), med(r, n), lo, hi
-          else printf "| %s | %s | %s | %s | %s | %s |\n", m, t, l, f[1], g[1], r[1] }' <<<"$lines"
+    NF == 3 { ++n; f[n] = $1 + 0; g[n] = $2 + 0; r[n] = $3 + 0 }
+    END { if (P == 1) { printf "| %s | %s | %s | %s | %s | %s |\n", m, t, l, f[1], g[1], r[1]; exit }
+          mf = med(f, n); mg = med(g, n); mr = med(r, n)
+          printf "| %s | %s | %s | %.6f | %.6f | %.3f | %.3f-%.3f |\n", m, t, l, mf, mg, mr, r[1], r[n] }' <<<"$lines"
 }
 A="-model advection -grid_periodic 1 -da_grid_x 512"
 D="-advection_D 0.01 -ts_dt 1e-4 -ts_max_time 0.5" # explicit RK needs the small step with diffusion
