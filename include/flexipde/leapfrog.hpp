@@ -41,10 +41,22 @@ PetscErrorCode register_leapfrog_ts();
 PetscErrorCode leapfrog_set_pairs(TS ts, PetscInt m);
 bool is_leapfrog(TS ts);
 PetscInt leapfrog_pairs(TS ts); // m, or 0 for another TS type
-// Optional fused adjoint kick at one time level (Model::second_order_adjoint):
+// Optional fused adjoint kick at one time level (Model::second_order_adjoint): first
+//   lambda_p += drift lambda_q  (the transpose of the drift that ends at this level; drift = 0: none),
+// then
 //   lambda_q += w (da/dq)^T lambda_p,  mu += w (da/dtheta)^T lambda_p  (mu null: no parameters).
-// When set, the adjoint calls it instead of computing and applying the RHS Jacobians.
-using LeapfrogAdjointKick = PetscErrorCode (*)(void *ctx, PetscReal t, Vec U, Vec lambda, PetscReal w, Vec mu);
+// When set, the adjoint calls it instead of computing and applying the RHS Jacobians, and hands it
+// each step's drift instead of making a pass of its own (the model may fold it into its sweep).
+using LeapfrogAdjointKick = PetscErrorCode (*)(void *ctx, PetscReal t, Vec U, Vec lambda, PetscReal w, Vec mu, PetscReal drift);
+// The drift's transpose lambda_p += s lambda_q on the points [lo, hi) of an interleaved array of m
+// pairs per point (2m entries each), for kicks that apply it in a pass of their own.
+inline void leapfrog_drift_transpose(PetscScalar *lambda, PetscInt lo, PetscInt hi, PetscInt m, PetscReal s) {
+  if (m == 1)
+    for (PetscInt i = lo; i < hi; ++i) lambda[2 * i + 1] += s * lambda[2 * i];
+  else
+    for (PetscInt i = lo; i < hi; ++i)
+      for (PetscInt c = 0; c < m; ++c) lambda[2 * m * i + m + c] += s * lambda[2 * m * i + c];
+}
 // takes_positions: the kick also accepts the positions alone as U (Model::second_order_adjoint_takes_positions).
 PetscErrorCode leapfrog_set_adjoint_kick(TS ts, LeapfrogAdjointKick kick, void *ctx, bool takes_positions = false);
 // For a trajectory that stores the positions alone (m of every 2m components, contiguous): the next

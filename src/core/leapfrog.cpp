@@ -294,15 +294,18 @@ PetscErrorCode TSAdjointSetUp_Leapfrog(TS ts) {
 // with quadrature weight w_quad, then the half-kick of the step to its left (w_left), which sees the
 // complete dJ/dU at this level. Without an integrand both half-kicks see the same lambda_p and
 // take one product with weight w_right + w_left.
-PetscErrorCode half_kicks(TS ts, Mat J, PetscReal t, Vec X, PetscReal w) {
+// drift: the model's fused kick first applies the drift's transpose lambda_p += drift lambda_q (0 without one).
+PetscErrorCode half_kicks(TS ts, Mat J, PetscReal t, Vec X, PetscReal w, PetscReal drift = 0) {
   Leapfrog *lf = data(ts);
   PetscFunctionBegin;
-  if (w == 0) PetscFunctionReturn(0);
+  if (w == 0 && drift == 0) PetscFunctionReturn(0);
   if (lf->adjoint_kick) {
     for (PetscInt k = 0; k < ts->numcost; ++k)
-      PetscCall(lf->adjoint_kick(lf->adjoint_kick_ctx, t, X, ts->vecs_sensi[k], w, ts->vecs_sensip ? ts->vecs_sensip[k] : nullptr));
+      PetscCall(lf->adjoint_kick(lf->adjoint_kick_ctx, t, X, ts->vecs_sensi[k], w, ts->vecs_sensip ? ts->vecs_sensip[k] : nullptr,
+                                 drift));
     PetscFunctionReturn(0);
   }
+  PetscCheck(drift == 0, PetscObjectComm((PetscObject)ts), PETSC_ERR_PLIB, "leapfrog: a drift for a kick without the model's sweep");
   for (PetscInt k = 0; k < ts->numcost; ++k) {
     Vec lambda = ts->vecs_sensi[k];
     PetscCall(MatMultTranspose(J, lambda, lf->W)); // q rows: A^T lambda_p (G_q = p has no q)
@@ -315,7 +318,9 @@ PetscErrorCode half_kicks(TS ts, Mat J, PetscReal t, Vec X, PetscReal w) {
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode adjoint_level(TS ts, PetscReal t, Vec X, PetscReal w_right, PetscReal w_quad, PetscReal w_left) {
+// drift: the transpose of the drift that ends at this level, applied by the model's fused kick with the
+// first half-kick (0: already applied, or none).
+PetscErrorCode adjoint_level(TS ts, PetscReal t, Vec X, PetscReal w_right, PetscReal w_quad, PetscReal w_left, PetscReal drift = 0) {
   TS quadts = ts->quadraturets;
   Mat J = nullptr, Jpre, Jquad = nullptr;
   PetscScalar *col;
@@ -326,10 +331,10 @@ PetscErrorCode adjoint_level(TS ts, PetscReal t, Vec X, PetscReal w_right, Petsc
     if (ts->vecs_sensip) PetscCall(TSComputeRHSJacobianP(ts, t, X, ts->Jacprhs));
   }
   if (!quadts) {
-    PetscCall(half_kicks(ts, J, t, X, w_right + w_left));
+    PetscCall(half_kicks(ts, J, t, X, w_right + w_left, drift));
     PetscFunctionReturn(0);
   }
-  PetscCall(half_kicks(ts, J, t, X, w_right));
+  PetscCall(half_kicks(ts, J, t, X, w_right, drift));
   PetscCall(TSGetRHSJacobian(quadts, &Jquad, nullptr, nullptr, nullptr));
   PetscCall(TSComputeRHSJacobian(quadts, t, X, Jquad, nullptr));
   if (ts->vecs_sensip) PetscCall(TSComputeRHSJacobianP(quadts, t, X, quadts->Jacprhs));
@@ -359,10 +364,13 @@ PetscErrorCode TSAdjointStep_Leapfrog(TS ts) {
   const PetscReal dt = -ts->time_step, tk = ts->ptime;
   PetscFunctionBegin;
   if (ts->adjoint_steps == 0) PetscCall(adjoint_level(ts, tk, ts->vec_sol, 0, 0.5 * dt, 0.5 * dt));
-  for (PetscInt k = 0; k < ts->numcost; ++k) PetscCall(drift_transpose(*lf, ts->vecs_sensi[k], dt));
+  // the drift's transpose: in the model's kick at level k-1 when it has one (one sweep fewer), else here
+  const bool fuse_drift = lf->adjoint_kick != nullptr;
+  if (!fuse_drift)
+    for (PetscInt k = 0; k < ts->numcost; ++k) PetscCall(drift_transpose(*lf, ts->vecs_sensi[k], dt));
   // level k-1: the right half-kick of this step, then (except at t_0) the left one of the step before
   PetscCall(adjoint_level(ts, tk - dt, lf->Q_placed ? lf->Q : lf->Y0, 0.5 * dt, ts->steps == 0 ? 0.5 * dt : dt,
-                          ts->steps == 0 ? 0 : 0.5 * dt));
+                          ts->steps == 0 ? 0 : 0.5 * dt, fuse_drift ? dt : 0));
   if (lf->Q_placed) {
     PetscCall(VecResetArray(lf->Q));
     lf->Q_placed = false;

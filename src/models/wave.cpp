@@ -32,6 +32,7 @@
 //   (one command line)
 #include "flexipde/differentiator.hpp"
 #include "flexipde/halo.hpp"
+#include "flexipde/leapfrog.hpp"
 #include "flexipde/sweep_support.hpp"
 #include "flexipde/model.hpp"
 #include "flexipde/survey.hpp"
@@ -39,6 +40,9 @@
 #include <algorithm>
 #include <cmath>
 #include <vector>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 namespace flexipde {
 namespace {
@@ -96,6 +100,53 @@ void fused_kick_interior(PetscInt lo, PetscInt hi, const PetscReal *__restrict w
   }
 }
 
+#if defined(__SSE2__) && !defined(PETSC_USE_COMPLEX) && defined(PETSC_USE_REAL_DOUBLE)
+// The leapfrog's adjoint drift lambda_v += s lambda_q and then fused_kick_interior<1, ADD, 1>, in one sweep
+// over [lo, k), two points per step: each point's (q, v) pair is loaded once, drifted in registers with
+// its q from before the kick, and stored with the kicked q; a point's neighbours come from the vectors
+// of the steps before and after (shuffles), not from overlapping loads. The same operations in the same
+// order as the drift pass followed by the scalar loop: bitwise the same result. On entry point lo - 1 is
+// drifted already; returns k (k + 3 <= hi: the sweep reads two points ahead): points [k, hi) are neither
+// drifted nor kicked, point k - 1 is both.
+template <bool ADD>
+PetscInt drift_kick_pairs(PetscInt lo, PetscInt hi, const PetscReal *wt, const PetscScalar *__restrict u,
+                          PetscScalar *__restrict L, const PetscReal *__restrict c2, const PetscReal *__restrict dg,
+                          PetscReal *__restrict out, PetscReal w, PetscReal s) {
+  PetscInt i = lo;
+  if (hi - lo < 5) return lo;
+  const __m128d w0 = _mm_set1_pd(wt[0]), w1 = _mm_set1_pd(wt[1]), w2 = _mm_set1_pd(wt[2]), ws = _mm_set1_pd(w);
+  const __m128d ss = _mm_set1_pd(s), zero = _mm_setzero_pd();
+  // the previous pair's vectors: their high lanes hold point i - 1
+  __m128d up = _mm_loadh_pd(zero, u + i - 1), cp = _mm_loadh_pd(zero, c2 + i - 1), vp = _mm_loadh_pd(zero, L + 2 * i - 1);
+  __m128d uc = _mm_loadu_pd(u + i), cc = _mm_loadu_pd(c2 + i);
+  __m128d p0 = _mm_loadu_pd(L + 2 * i), p1 = _mm_loadu_pd(L + 2 * i + 2);
+  __m128d q = _mm_unpacklo_pd(p0, p1), v = _mm_add_pd(_mm_unpackhi_pd(p0, p1), _mm_mul_pd(ss, q));
+  for (; i + 3 <= hi; i += 2) {
+    const __m128d un = _mm_loadu_pd(u + i + 2), cn = _mm_loadu_pd(c2 + i + 2);
+    const __m128d p2 = _mm_loadu_pd(L + 2 * i + 4), p3 = _mm_loadu_pd(L + 2 * i + 6);
+    const __m128d qn = _mm_unpacklo_pd(p2, p3), vn = _mm_add_pd(_mm_unpackhi_pd(p2, p3), _mm_mul_pd(ss, qn));
+    const __m128d ul = _mm_shuffle_pd(up, uc, 1), ur = _mm_shuffle_pd(uc, un, 1);
+    const __m128d cl = _mm_shuffle_pd(cp, cc, 1), cr = _mm_shuffle_pd(cc, cn, 1);
+    const __m128d vl = _mm_shuffle_pd(vp, v, 1), vr = _mm_shuffle_pd(v, vn, 1);
+    __m128d du = _mm_add_pd(zero, _mm_mul_pd(w0, ul));
+    du = _mm_add_pd(du, _mm_mul_pd(w1, uc));
+    du = _mm_add_pd(du, _mm_mul_pd(w2, ur));
+    __m128d dz = _mm_add_pd(zero, _mm_mul_pd(_mm_mul_pd(w0, cl), vl));
+    dz = _mm_add_pd(dz, _mm_mul_pd(_mm_mul_pd(w1, cc), v));
+    dz = _mm_add_pd(dz, _mm_mul_pd(_mm_mul_pd(w2, cr), vr));
+    const __m128d gi = _mm_mul_pd(_mm_mul_pd(_mm_loadu_pd(dg + i), du), v);
+    const __m128d qk = _mm_add_pd(q, _mm_mul_pd(ws, dz));
+    if (ADD) _mm_storeu_pd(out + i, _mm_add_pd(_mm_loadu_pd(out + i), _mm_mul_pd(ws, gi)));
+    else _mm_storeu_pd(out + i, gi);
+    _mm_storeu_pd(L + 2 * i, _mm_unpacklo_pd(qk, v));
+    _mm_storeu_pd(L + 2 * i + 2, _mm_unpackhi_pd(qk, v));
+    up = uc, uc = un, cp = cc, cc = cn, vp = v, v = vn, q = qn;
+  }
+  return i;
+}
+#define FLEXIPDE_WAVE_DRIFT_KICK 1
+#endif
+
 class WaveModel final : public LinearModel {
 public:
   const char *name() const override { return "wave"; }
@@ -131,6 +182,10 @@ public:
                                "A scalar c's gradient: the fused adjoint sweeps accumulate its pointwise terms over the "
                                "whole adjoint and sum them once (else summed at every kick or stage)",
                                "Wave", defer_scalar_, &defer_scalar_, nullptr));
+    PetscCall(PetscOptionsBool("-wave_fused_drift",
+                               "The leapfrog adjoint's drift transpose folded into the kick's sweep (second-order "
+                               "stencil, stored positions; bitwise the same result), else a pass of its own",
+                               "Wave", fuse_drift_, &fuse_drift_, nullptr));
     PetscCall(PetscOptionsReal("-wave_c_min", "Smallest admissible speed: optimisers never go below it", "Wave", c_min_,
                                &c_min_, nullptr));
     PetscOptionsEnd();
@@ -176,9 +231,11 @@ public:
 
   bool has_second_order_adjoint() const override { return true; }
   bool second_order_adjoint_takes_positions() const override { return true; }
-  // lambda_u += w D2 (c^2 lambda_v) and mu += w 2 c (D2 u) lambda_v, in one sweep (wall rows of
-  // lambda_u untouched: the walls' columns are not in D2). U is a whole state or u alone.
-  PetscErrorCode second_order_adjoint(PetscReal, Vec U, Vec lambda, PetscReal w, Vec mu) override {
+  // lambda_v += drift lambda_u, then lambda_u += w D2 (c^2 lambda_v) and mu += w 2 c (D2 u) lambda_v, in
+  // one sweep (wall rows of lambda_u untouched: the walls' columns are not in D2). U is a whole state or
+  // u alone. The drift is folded into the interior sweep for the second-order stencil on stored
+  // positions (drift_kick_pairs; -wave_fused_drift), else applied in a pass of its own first.
+  PetscErrorCode second_order_adjoint(PetscReal, Vec U, Vec lambda, PetscReal w, Vec mu, PetscReal drift) override {
     const ParamInfo &pi = params_->info(c_index_);
     PetscReal local[4] = {0, 0, 0, 0}; // four partial sums: no single dependency chain through the sweep
     PetscInt su = 2;
@@ -189,6 +246,17 @@ public:
       Array l(lambda);
       PetscCall(u.error());
       PetscCall(l.error());
+      const PetscInt xm = grid_->xm();
+      bool fold = false; // the drift folded into the interior sweep
+#if defined(FLEXIPDE_WAVE_DRIFT_KICK)
+      fold = drift != 0 && fuse_drift_ && hw_ == 1 && su == 1;
+#endif
+      // the drift where the sweep does not apply it: everywhere, or the points outside the plain interior
+      // (among them those whose lambda_v the neighbours receive as ghosts, so they get it drifted)
+      if (drift != 0) {
+        leapfrog_drift_transpose(l.data(), 0, fold ? lo_ : xm, 1, drift);
+        if (fold) leapfrog_drift_transpose(l.data(), hi_, xm, 1, drift);
+      }
       PetscCall(begin_pair(u.data(), su, l.data())); // lambda_v does not change in the sweep
       PetscScalar *g = nullptr;
       if (mu && c_field_) PetscCall(VecGetArray(mu, &g));
@@ -206,7 +274,8 @@ public:
       };
       // the interior: added to acc, or through the scratch array gbuf_ into the local sums
       PetscReal *out = acc ? acc : gbuf_.data();
-      if (su == 1) kick_interior<1>(ua, L, c2, dg, out, w, acc != nullptr);
+      if (fold) drift_kick_interior(ua, L, c2, dg, out, w, acc != nullptr, drift);
+      else if (su == 1) kick_interior<1>(ua, L, c2, dg, out, w, acc != nullptr);
       else kick_interior<2>(ua, L, c2, dg, out, w, acc != nullptr);
       if (!acc)
         sum4(out, lo_, hi_, local);
@@ -452,6 +521,20 @@ private:
                       PetscScalar *Y, PetscReal *g) const {
     if (hw_ == 1) fused_transpose_interior<1, ADD, REC>(lo_, hi_, wt_, X, u, c2, dg, Y, g);
     else fused_transpose_interior<2, ADD, REC>(lo_, hi_, wt_, X, u, c2, dg, Y, g);
+  }
+  // The drift lambda_v += s lambda_u and the kick on the plain interior, second-order stencil, u the
+  // stored positions (points outside it drifted already): drift_kick_pairs, then the few points it left.
+  void drift_kick_interior(const PetscScalar *ua, PetscScalar *L, const PetscReal *c2, const PetscReal *dg, PetscReal *out,
+                           PetscReal w, bool add, PetscReal s) const {
+#if defined(FLEXIPDE_WAVE_DRIFT_KICK)
+    const PetscInt k = add ? drift_kick_pairs<true>(lo_, hi_, wt_, ua, L, c2, dg, out, w, s)
+                           : drift_kick_pairs<false>(lo_, hi_, wt_, ua, L, c2, dg, out, w, s);
+    leapfrog_drift_transpose(L, k, hi_, 1, s);
+    if (add) fused_kick_interior<1, true, 1>(k, hi_, wt_, ua, L, c2, dg, out, w);
+    else fused_kick_interior<1, false, 1>(k, hi_, wt_, ua, L, c2, dg, out, w);
+#else
+    (void)ua, (void)L, (void)c2, (void)dg, (void)out, (void)w, (void)add, (void)s;
+#endif
   }
   template <int SU>
   void kick_interior(const PetscScalar *ua, PetscScalar *L, const PetscReal *c2, const PetscReal *dg, PetscReal *out,
@@ -720,6 +803,7 @@ private:
   unsigned long columns_serial_ = 0;
   FusedGradient fused_;
   PetscBool fuse_adjoint_ = PETSC_TRUE;
+  PetscBool fuse_drift_ = PETSC_TRUE; // -wave_fused_drift
 };
 
 } // namespace

@@ -36,6 +36,7 @@
 //           -survey_receivers_spread 0.2,0.8,7 -survey_receivers_y 0.7 -ts_max_time 0.6 -ts_dt 2e-3
 //   (one command line)
 #include "flexipde/halo.hpp"
+#include "flexipde/leapfrog.hpp"
 #include "flexipde/sweep_support.hpp"
 #include "flexipde/model.hpp"
 #include "flexipde/survey.hpp"
@@ -262,12 +263,17 @@ public:
   bool second_order_adjoint_takes_positions() const override { return true; }
   // lambda_u += w L (c^2 lambda_v) at every point (edge columns included, as in A^T), and
   // mu += w 2 c (L u) lambda_v off the edges, in one sweep. U is a whole state or u alone.
-  PetscErrorCode second_order_adjoint(PetscReal, Vec U, Vec lambda, PetscReal w, Vec mu) override {
+  PetscErrorCode second_order_adjoint(PetscReal, Vec U, Vec lambda, PetscReal w, Vec mu, PetscReal drift) override {
     const ParamInfo &pi = params_->info(c_index_);
     PetscReal local[4] = {0, 0, 0, 0}; // four partial sums: no single dependency chain through the sweep
     PetscInt nu;
     PetscFunctionBeginUser;
     PetscCheck(sponge_width_ <= 0, grid_->comm(), PETSC_ERR_SUP, "wave2d: no fused leapfrog adjoint with a sponge");
+    if (drift != 0) { // the drift's transpose in a pass of its own, before lambda_v's ghosts are sent
+      Array l(lambda);
+      PetscCall(l.error());
+      leapfrog_drift_transpose(l.data(), 0, grid_->local_points(), 1, drift);
+    }
     PetscCall(VecGetLocalSize(U, &nu));
     if (nu == grid_->local_points()) PetscCall(kick<1>(U, lambda, w, mu, pi, local));
     else PetscCall(kick<2>(U, lambda, w, mu, pi, local));
