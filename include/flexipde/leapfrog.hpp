@@ -19,7 +19,9 @@
 // that meet at a time level k use the same lambda_p, so they are applied together, once per level,
 // with weight dt (dt/2 at t_0 and T): an adjoint step costs one product with (dG/dU)^T and one
 // with (dG/dtheta)^T, and needs only the state at the step's start (kept as the step's one
-// "stage", so PETSc's memory trajectory stores it and nothing is recomputed). Since G_q = p and
+// "stage", so PETSc's memory trajectory stores it and nothing is recomputed). With the model's fused kick
+// (Model::second_order_adjoint) the drift's transpose is handed to the kick, which may fold it into its
+// own sweep over lambda. Since G_q = p and
 // G_p does not depend on p, (dG/dU)^T lambda has A^T lambda_p in its q rows and (dG/dtheta)^T
 // lambda = (da/dtheta)^T lambda_p, so the full Jacobians serve without masking.
 //
