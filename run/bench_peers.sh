@@ -14,9 +14,11 @@
 #
 #   bash run/bench_peers.sh              # markdown on stdout, raw logs in $OUT
 #   REPS=5 SCALE=0 bash run/bench_peers.sh
+#   ROUNDS=5 SCALE=0 bash run/bench_peers.sh   # ... and the seed pair again in 5 alternating rounds
 #
 # Environment: FLEXIPDE (default build/flexipde), REPS (7), SCALE (1: also the large-grid part),
-# PYTHON (/usr/bin/python3), OUT (default a new /tmp/bench_peers.XXXXXX), MPIEXEC, PEERS_INSTALL (1).
+# PYTHON (/usr/bin/python3), OUT (default a new /tmp/bench_peers.XXXXXX), MPIEXEC, PEERS_INSTALL (1),
+# ROUNDS (0: the seed pair of flexipde and the hand-written loop once; N: also in N alternating rounds).
 set -euo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 root=$(dirname "$here")
@@ -71,5 +73,29 @@ if [ "$SCALE" = 1 ]; then
   "$OUT/reference_leapfrog_2d" 2000 100 2e-4 0.9 3 > "$OUT/reference_big2d.log"
 fi
 "$PYTHON" "$here/bench_peers.py" "$OUT" "$torch_status" "$SCALE"
+# ROUNDS > 0: the headline pair again, flexipde's seed leapfrog and the hand-written loop, in ROUNDS
+# alternating rounds of fresh processes: on a noisy machine one process each can land in different
+# minutes (seen: the same forward 9 ms in one, 14 ms in the next), a round's two processes rarely do.
+ROUNDS=${ROUNDS:-0}
+if [ "$ROUNDS" -gt 0 ]; then
+  rounds=""
+  for r in $(seq "$ROUNDS"); do
+    $MPIEXEC -n 1 "$FLEXIPDE" -task gradient $seed -timing_repeats "$REPS" > "$OUT/round${r}_flexipde.log"
+    "$OUT/reference_leapfrog" 1000 5000 5e-4 0.9 "$REPS" > "$OUT/round${r}_reference.log"
+    fl=$(sed -nE 's/.*forward median ([0-9.]+) s.*gradient median ([0-9.]+) s.*/\1 \2/p' "$OUT/round${r}_flexipde.log")
+    ref=$(sed -nE 's/.*value\+gradient median ([0-9.]+) s.*/\1/p' "$OUT/round${r}_reference.log")
+    rounds+="$fl $ref"$'\n'
+  done
+  echo
+  echo "### The seed pair in $ROUNDS alternating rounds (flexipde leapfrog, then the hand-written loop; $REPS repetitions each)"
+  echo
+  echo "| round | flexipde forward (s) | flexipde value + gradient (s) | hand-written (s) | flexipde / hand-written | gradient / forward |"
+  echo "|---|---|---|---|---|---|"
+  awk 'NF == 3 { ++n; printf "| %d | %.4f | %.4f | %.4f | %.2f | %.2f |\n", n, $1, $2, $3, $2 / $3, $2 / $1; h[n] = $2 / $3; q[n] = $2 / $1 }
+       function med(a, n,   i, j, x) { for (i = 2; i <= n; ++i) { x = a[i]; for (j = i - 1; j >= 1 && a[j] > x; --j) a[j + 1] = a[j]; a[j + 1] = x }
+                                        return n % 2 ? a[(n + 1) / 2] : 0.5 * (a[n / 2] + a[n / 2 + 1]) }
+       END { mh = med(h, n); mq = med(q, n)
+             printf "\n- Medians over the rounds: flexipde / hand-written **%.2f** (%.2f-%.2f), gradient / forward **%.2f** (%.2f-%.2f).\n", mh, h[1], h[n], mq, q[1], q[n] }' <<<"$rounds"
+fi
 echo
 echo "Raw logs: $OUT"
