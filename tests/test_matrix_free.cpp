@@ -131,14 +131,14 @@ TEST_P(MatrixFree, FusedAdjointKickEqualsAssembledTransposes) {
   PETSC_ASSERT_OK(VecCopy(lam, lam_q));
   PETSC_ASSERT_OK(VecDuplicate(mu, mu_q.out()));
   PETSC_ASSERT_OK(VecCopy(mu, mu_q));
-  PETSC_ASSERT_OK(scene.model->second_order_adjoint(0.0, U, lam, w, mu, 0.0));
+  PETSC_ASSERT_OK(scene.model->second_order_adjoint(0.0, U, lam, w, mu, 0.0, nullptr));
   EXPECT_LT(rel_diff(lam, expect), 1e-13);
   // given u alone (the stored positions, laid out like the grid's one-component Vecs), the same numbers
   ASSERT_TRUE(scene.model->second_order_adjoint_takes_positions());
   OwnedVec q;
   PETSC_ASSERT_OK(DMCreateGlobalVector(scene.grid.dm(), q.out()));
   PETSC_ASSERT_OK(VecStrideGather(U, 0, q, INSERT_VALUES));
-  PETSC_ASSERT_OK(scene.model->second_order_adjoint(0.0, q, lam_q, w, mu_q, 0.0));
+  PETSC_ASSERT_OK(scene.model->second_order_adjoint(0.0, q, lam_q, w, mu_q, 0.0, nullptr));
   EXPECT_LT(rel_diff(lam_q, lam), 1e-15);
   EXPECT_LT(rel_diff(mu_q, mu), 1e-15);
   PETSC_ASSERT_OK(VecAXPY(mu, -1.0, mu0));
@@ -175,8 +175,11 @@ TEST_P(MatrixFree, FusedAdjointKickAppliesTheDrift) {
       for (PetscInt i = 0; i < n; i += 2) r[i + 1] += s * r[i];
       PETSC_ASSERT_OK(VecRestoreArray(ref, &r));
     }
-    PETSC_ASSERT_OK(scene.model->second_order_adjoint(0.0, X, ref, w, mu_ref, 0.0));
-    PETSC_ASSERT_OK(scene.model->second_order_adjoint(0.0, X, lam, w, mu, s));
+    PETSC_ASSERT_OK(scene.model->second_order_adjoint(0.0, X, ref, w, mu_ref, 0.0, nullptr));
+    const PetscScalar *next; // some positions to prefetch (the hint must not change the numbers)
+    PETSC_ASSERT_OK(VecGetArrayRead(q, &next));
+    PETSC_ASSERT_OK(scene.model->second_order_adjoint(0.0, X, lam, w, mu, s, next));
+    PETSC_ASSERT_OK(VecRestoreArrayRead(q, &next));
     EXPECT_EQ(rel_diff(lam, ref), 0.0);
     EXPECT_EQ(rel_diff(mu, mu_ref), 0.0);
     // ... and both moved lambda_p: the drift was applied

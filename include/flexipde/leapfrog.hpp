@@ -49,9 +49,18 @@ PetscInt leapfrog_pairs(TS ts); // m, or 0 for another TS type
 //   lambda_q += w (da/dq)^T lambda_p,  mu += w (da/dtheta)^T lambda_p  (mu null: no parameters).
 // When set, the adjoint calls it instead of computing and applying the RHS Jacobians, and hands it
 // each step's drift instead of making a pass of its own (the model may fold it into its sweep).
-using LeapfrogAdjointKick = PetscErrorCode (*)(void *ctx, PetscReal t, Vec U, Vec lambda, PetscReal w, Vec mu, PetscReal drift);
+// `prefetch`: the stored positions the next adjoint step will read (leapfrog_place_positions), for the
+// kick to prefetch while it sweeps (null: none).
+using LeapfrogAdjointKick = PetscErrorCode (*)(void *ctx, PetscReal t, Vec U, Vec lambda, PetscReal w, Vec mu, PetscReal drift,
+                                               const PetscScalar *prefetch);
 // The drift's transpose lambda_p += s lambda_q on the points [lo, hi) of an interleaved array of m
 // pairs per point (2m entries each), for kicks that apply it in a pass of their own.
+// One prefetch per cache line of the n entries at q (null: nothing), for kicks that do not spread them.
+inline void leapfrog_prefetch(const PetscScalar *q, PetscInt n) {
+  if (!q) return;
+  const char *b = reinterpret_cast<const char *>(q);
+  for (size_t o = 0; o < sizeof(PetscScalar) * (size_t)n; o += 64) __builtin_prefetch(b + o, 0, 3);
+}
 inline void leapfrog_drift_transpose(PetscScalar *lambda, PetscInt lo, PetscInt hi, PetscInt m, PetscReal s) {
   if (m == 1)
     for (PetscInt i = lo; i < hi; ++i) lambda[2 * i + 1] += s * lambda[2 * i];
@@ -64,7 +73,8 @@ PetscErrorCode leapfrog_set_adjoint_kick(TS ts, LeapfrogAdjointKick kick, void *
 // For a trajectory that stores the positions alone (m of every 2m components, contiguous): the next
 // adjoint step's level k-1 reads them from q in place when the kick takes positions (*placed), else
 // the trajectory must fill the stage with U_{k-1} itself. q must stay valid until that step is done.
-PetscErrorCode leapfrog_place_positions(TS ts, const PetscScalar *q, bool *placed);
+// `next`: the positions the step after it will read (null: none), handed to the kick to prefetch.
+PetscErrorCode leapfrog_place_positions(TS ts, const PetscScalar *q, const PetscScalar *next, bool *placed);
 // For a trajectory that stores the positions alone: the next step also writes the positions it
 // produces to q (one pass with the drift, non-temporal stores), when it can (m = 1, q 16-byte
 // aligned, no stage copy); leapfrog_sunk_positions then returns q, else null.

@@ -34,6 +34,7 @@ struct Leapfrog {
   bool kick_takes_positions = false;
   Vec Q = nullptr;
   bool Q_placed = false;
+  const PetscScalar *Q_next = nullptr; // the positions the step after that reads, for the kick to prefetch
   // Where the next step also writes the positions it produces (a full-storage trajectory's next slot,
   // leapfrog_sink_positions), with non-temporal stores; consumed by that one step. `sunk` = where the
   // last step wrote them (null: nowhere).
@@ -295,14 +296,15 @@ PetscErrorCode TSAdjointSetUp_Leapfrog(TS ts) {
 // complete dJ/dU at this level. Without an integrand both half-kicks see the same lambda_p and
 // take one product with weight w_right + w_left.
 // drift: the model's fused kick first applies the drift's transpose lambda_p += drift lambda_q (0 without one).
-PetscErrorCode half_kicks(TS ts, Mat J, PetscReal t, Vec X, PetscReal w, PetscReal drift = 0) {
+PetscErrorCode half_kicks(TS ts, Mat J, PetscReal t, Vec X, PetscReal w, PetscReal drift = 0,
+                          const PetscScalar *prefetch = nullptr) {
   Leapfrog *lf = data(ts);
   PetscFunctionBegin;
   if (w == 0 && drift == 0) PetscFunctionReturn(0);
   if (lf->adjoint_kick) {
     for (PetscInt k = 0; k < ts->numcost; ++k)
       PetscCall(lf->adjoint_kick(lf->adjoint_kick_ctx, t, X, ts->vecs_sensi[k], w, ts->vecs_sensip ? ts->vecs_sensip[k] : nullptr,
-                                 drift));
+                                 drift, k == 0 ? prefetch : nullptr));
     PetscFunctionReturn(0);
   }
   PetscCheck(drift == 0, PetscObjectComm((PetscObject)ts), PETSC_ERR_PLIB, "leapfrog: a drift for a kick without the model's sweep");
@@ -319,8 +321,9 @@ PetscErrorCode half_kicks(TS ts, Mat J, PetscReal t, Vec X, PetscReal w, PetscRe
 }
 
 // drift: the transpose of the drift that ends at this level, applied by the model's fused kick with the
-// first half-kick (0: already applied, or none).
-PetscErrorCode adjoint_level(TS ts, PetscReal t, Vec X, PetscReal w_right, PetscReal w_quad, PetscReal w_left, PetscReal drift = 0) {
+// first half-kick (0: already applied, or none); prefetch: what the next level's kick reads (null: none).
+PetscErrorCode adjoint_level(TS ts, PetscReal t, Vec X, PetscReal w_right, PetscReal w_quad, PetscReal w_left, PetscReal drift = 0,
+                             const PetscScalar *prefetch = nullptr) {
   TS quadts = ts->quadraturets;
   Mat J = nullptr, Jpre, Jquad = nullptr;
   PetscScalar *col;
@@ -331,10 +334,10 @@ PetscErrorCode adjoint_level(TS ts, PetscReal t, Vec X, PetscReal w_right, Petsc
     if (ts->vecs_sensip) PetscCall(TSComputeRHSJacobianP(ts, t, X, ts->Jacprhs));
   }
   if (!quadts) {
-    PetscCall(half_kicks(ts, J, t, X, w_right + w_left, drift));
+    PetscCall(half_kicks(ts, J, t, X, w_right + w_left, drift, prefetch));
     PetscFunctionReturn(0);
   }
-  PetscCall(half_kicks(ts, J, t, X, w_right, drift));
+  PetscCall(half_kicks(ts, J, t, X, w_right, drift, prefetch));
   PetscCall(TSGetRHSJacobian(quadts, &Jquad, nullptr, nullptr, nullptr));
   PetscCall(TSComputeRHSJacobian(quadts, t, X, Jquad, nullptr));
   if (ts->vecs_sensip) PetscCall(TSComputeRHSJacobianP(quadts, t, X, quadts->Jacprhs));
@@ -370,11 +373,12 @@ PetscErrorCode TSAdjointStep_Leapfrog(TS ts) {
     for (PetscInt k = 0; k < ts->numcost; ++k) PetscCall(drift_transpose(*lf, ts->vecs_sensi[k], dt));
   // level k-1: the right half-kick of this step, then (except at t_0) the left one of the step before
   PetscCall(adjoint_level(ts, tk - dt, lf->Q_placed ? lf->Q : lf->Y0, 0.5 * dt, ts->steps == 0 ? 0.5 * dt : dt,
-                          ts->steps == 0 ? 0 : 0.5 * dt, fuse_drift ? dt : 0));
+                          ts->steps == 0 ? 0 : 0.5 * dt, fuse_drift ? dt : 0, lf->Q_placed ? lf->Q_next : nullptr));
   if (lf->Q_placed) {
     PetscCall(VecResetArray(lf->Q));
     lf->Q_placed = false;
   }
+  lf->Q_next = nullptr;
   PetscFunctionReturn(0);
 }
 
@@ -461,7 +465,7 @@ PetscErrorCode leapfrog_sink_positions(TS ts, PetscScalar *q) {
 
 const PetscScalar *leapfrog_sunk_positions(TS ts) { return is_leapfrog(ts) ? data(ts)->sunk : nullptr; }
 
-PetscErrorCode leapfrog_place_positions(TS ts, const PetscScalar *q, bool *placed) {
+PetscErrorCode leapfrog_place_positions(TS ts, const PetscScalar *q, const PetscScalar *next, bool *placed) {
   PetscFunctionBegin;
   *placed = false;
   if (!is_leapfrog(ts)) PetscFunctionReturn(0);
@@ -475,6 +479,7 @@ PetscErrorCode leapfrog_place_positions(TS ts, const PetscScalar *q, bool *place
   if (lf->Q_placed) PetscCall(VecResetArray(lf->Q));
   PetscCall(VecPlaceArray(lf->Q, q));
   lf->Q_placed = true;
+  lf->Q_next = next;
   *placed = true;
   PetscFunctionReturn(0);
 }

@@ -333,9 +333,11 @@ PetscErrorCode store_get(TSTrajectory tj, TS ts, PetscInt k, PetscReal *t) {
     PetscCall(TSGetStages(ts, nullptr, &Y));
     if (st->pairs) { // the model's kick reads the stored positions in place when it can
       bool placed;
-      PetscCall(leapfrog_place_positions(ts, at(*st, k - 1, 0), &placed));
+      // the kick reading them in place also prefetches the next slot while it sweeps (a burst of
+      // prefetches here, before it, holds up its own loads)
+      PetscCall(leapfrog_place_positions(ts, at(*st, k - 1, 0), st->prefetch && k >= 2 ? at(*st, k - 2, 0) : nullptr, &placed));
       if (!placed) PetscCall(copy_out(*st, k - 1, 0, Y[0]));
-      if (st->prefetch) prefetch_slot(*st, k - 2);
+      if (!placed && st->prefetch) prefetch_slot(*st, k - 2);
     } else { // the whole state is stored: the stage Vec reads it in place
       if (st->lf_placed) PetscCall(VecResetArray(Y[0]));
       PetscCall(VecPlaceArray(Y[0], at(*st, k - 1, 0)));

@@ -107,11 +107,12 @@ void fused_kick_interior(PetscInt lo, PetscInt hi, const PetscReal *__restrict w
 // of the steps before and after (shuffles), not from overlapping loads. The same operations in the same
 // order as the drift pass followed by the scalar loop: bitwise the same result. On entry point lo - 1 is
 // drifted already; returns k (k + 3 <= hi: the sweep reads two points ahead): points [k, hi) are neither
-// drifted nor kicked, point k - 1 is both.
+// drifted nor kicked, point k - 1 is both. pf (null: none): the next level's positions, one cache line
+// prefetched every eight points, spread over the sweep.
 template <bool ADD>
 PetscInt drift_kick_pairs(PetscInt lo, PetscInt hi, const PetscReal *wt, const PetscScalar *__restrict u,
                           PetscScalar *__restrict L, const PetscReal *__restrict c2, const PetscReal *__restrict dg,
-                          PetscReal *__restrict out, PetscReal w, PetscReal s) {
+                          PetscReal *__restrict out, PetscReal w, PetscReal s, const PetscScalar *pf) {
   PetscInt i = lo;
   if (hi - lo < 5) return lo;
   const __m128d w0 = _mm_set1_pd(wt[0]), w1 = _mm_set1_pd(wt[1]), w2 = _mm_set1_pd(wt[2]), ws = _mm_set1_pd(w);
@@ -122,6 +123,7 @@ PetscInt drift_kick_pairs(PetscInt lo, PetscInt hi, const PetscReal *wt, const P
   __m128d p0 = _mm_loadu_pd(L + 2 * i), p1 = _mm_loadu_pd(L + 2 * i + 2);
   __m128d q = _mm_unpacklo_pd(p0, p1), v = _mm_add_pd(_mm_unpackhi_pd(p0, p1), _mm_mul_pd(ss, q));
   for (; i + 3 <= hi; i += 2) {
+    if (pf && (i & 7) < 2) _mm_prefetch(reinterpret_cast<const char *>(pf + (i & ~(PetscInt)7)), _MM_HINT_T0);
     const __m128d un = _mm_loadu_pd(u + i + 2), cn = _mm_loadu_pd(c2 + i + 2);
     const __m128d p2 = _mm_loadu_pd(L + 2 * i + 4), p3 = _mm_loadu_pd(L + 2 * i + 6);
     const __m128d qn = _mm_unpacklo_pd(p2, p3), vn = _mm_add_pd(_mm_unpackhi_pd(p2, p3), _mm_mul_pd(ss, qn));
@@ -186,6 +188,10 @@ public:
                                "The leapfrog adjoint's drift transpose folded into the kick's sweep (second-order "
                                "stencil, stored positions; bitwise the same result), else a pass of its own",
                                "Wave", fuse_drift_, &fuse_drift_, nullptr));
+    PetscCall(PetscOptionsBool("-wave_spread_prefetch",
+                               "That folded sweep prefetches the next adjoint step's stored positions a cache line at "
+                               "a time as it goes, else all at once before it",
+                               "Wave", spread_prefetch_, &spread_prefetch_, nullptr));
     PetscCall(PetscOptionsReal("-wave_c_min", "Smallest admissible speed: optimisers never go below it", "Wave", c_min_,
                                &c_min_, nullptr));
     PetscOptionsEnd();
@@ -235,7 +241,8 @@ public:
   // one sweep (wall rows of lambda_u untouched: the walls' columns are not in D2). U is a whole state or
   // u alone. The drift is folded into the interior sweep for the second-order stencil on stored
   // positions (drift_kick_pairs; -wave_fused_drift), else applied in a pass of its own first.
-  PetscErrorCode second_order_adjoint(PetscReal, Vec U, Vec lambda, PetscReal w, Vec mu, PetscReal drift) override {
+  PetscErrorCode second_order_adjoint(PetscReal, Vec U, Vec lambda, PetscReal w, Vec mu, PetscReal drift,
+                                      const PetscScalar *prefetch) override {
     const ParamInfo &pi = params_->info(c_index_);
     PetscReal local[4] = {0, 0, 0, 0}; // four partial sums: no single dependency chain through the sweep
     PetscInt su = 2;
@@ -257,6 +264,13 @@ public:
         leapfrog_drift_transpose(l.data(), 0, fold ? lo_ : xm, 1, drift);
         if (fold) leapfrog_drift_transpose(l.data(), hi_, xm, 1, drift);
       }
+      // the next level's positions: spread over the folded sweep (its interior lines; the few lines
+      // around them here), else all at once
+      const PetscScalar *spread = fold && spread_prefetch_ ? prefetch : nullptr;
+      if (spread) {
+        leapfrog_prefetch(prefetch, lo_ + 8);
+        leapfrog_prefetch(prefetch + (hi_ - 8 > lo_ ? hi_ - 8 : lo_), xm - (hi_ - 8 > lo_ ? hi_ - 8 : lo_));
+      } else leapfrog_prefetch(prefetch, xm);
       PetscCall(begin_pair(u.data(), su, l.data())); // lambda_v does not change in the sweep
       PetscScalar *g = nullptr;
       if (mu && c_field_) PetscCall(VecGetArray(mu, &g));
@@ -274,7 +288,7 @@ public:
       };
       // the interior: added to acc, or through the scratch array gbuf_ into the local sums
       PetscReal *out = acc ? acc : gbuf_.data();
-      if (fold) drift_kick_interior(ua, L, c2, dg, out, w, acc != nullptr, drift);
+      if (fold) drift_kick_interior(ua, L, c2, dg, out, w, acc != nullptr, drift, spread);
       else if (su == 1) kick_interior<1>(ua, L, c2, dg, out, w, acc != nullptr);
       else kick_interior<2>(ua, L, c2, dg, out, w, acc != nullptr);
       if (!acc)
@@ -525,15 +539,15 @@ private:
   // The drift lambda_v += s lambda_u and the kick on the plain interior, second-order stencil, u the
   // stored positions (points outside it drifted already): drift_kick_pairs, then the few points it left.
   void drift_kick_interior(const PetscScalar *ua, PetscScalar *L, const PetscReal *c2, const PetscReal *dg, PetscReal *out,
-                           PetscReal w, bool add, PetscReal s) const {
+                           PetscReal w, bool add, PetscReal s, const PetscScalar *pf) const {
 #if defined(FLEXIPDE_WAVE_DRIFT_KICK)
-    const PetscInt k = add ? drift_kick_pairs<true>(lo_, hi_, wt_, ua, L, c2, dg, out, w, s)
-                           : drift_kick_pairs<false>(lo_, hi_, wt_, ua, L, c2, dg, out, w, s);
+    const PetscInt k = add ? drift_kick_pairs<true>(lo_, hi_, wt_, ua, L, c2, dg, out, w, s, pf)
+                           : drift_kick_pairs<false>(lo_, hi_, wt_, ua, L, c2, dg, out, w, s, pf);
     leapfrog_drift_transpose(L, k, hi_, 1, s);
     if (add) fused_kick_interior<1, true, 1>(k, hi_, wt_, ua, L, c2, dg, out, w);
     else fused_kick_interior<1, false, 1>(k, hi_, wt_, ua, L, c2, dg, out, w);
 #else
-    (void)ua, (void)L, (void)c2, (void)dg, (void)out, (void)w, (void)add, (void)s;
+    (void)ua, (void)L, (void)c2, (void)dg, (void)out, (void)w, (void)add, (void)s, (void)pf;
 #endif
   }
   template <int SU>
@@ -804,6 +818,7 @@ private:
   FusedGradient fused_;
   PetscBool fuse_adjoint_ = PETSC_TRUE;
   PetscBool fuse_drift_ = PETSC_TRUE; // -wave_fused_drift
+  PetscBool spread_prefetch_ = PETSC_TRUE; // -wave_spread_prefetch
 };
 
 } // namespace

@@ -263,12 +263,14 @@ public:
   bool second_order_adjoint_takes_positions() const override { return true; }
   // lambda_u += w L (c^2 lambda_v) at every point (edge columns included, as in A^T), and
   // mu += w 2 c (L u) lambda_v off the edges, in one sweep. U is a whole state or u alone.
-  PetscErrorCode second_order_adjoint(PetscReal, Vec U, Vec lambda, PetscReal w, Vec mu, PetscReal drift) override {
+  PetscErrorCode second_order_adjoint(PetscReal, Vec U, Vec lambda, PetscReal w, Vec mu, PetscReal drift,
+                                      const PetscScalar *prefetch) override {
     const ParamInfo &pi = params_->info(c_index_);
     PetscReal local[4] = {0, 0, 0, 0}; // four partial sums: no single dependency chain through the sweep
     PetscInt nu;
     PetscFunctionBeginUser;
     PetscCheck(sponge_width_ <= 0, grid_->comm(), PETSC_ERR_SUP, "wave2d: no fused leapfrog adjoint with a sponge");
+    leapfrog_prefetch(prefetch, grid_->local_points()); // the next level's positions
     if (drift != 0) { // the drift's transpose in a pass of its own, before lambda_v's ghosts are sent
       Array l(lambda);
       PetscCall(l.error());
