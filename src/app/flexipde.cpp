@@ -12,7 +12,17 @@
 //   mpiexec -n 2 ./flexipde -task invert -wave_c_field 1 -true_wave_c_profile linear -true_wave_c_left 0.9 \
 //           -wave_c_profile linear -wave_c_left 0.85 -inv_lower 0.5 -inv_upper 2 -output results/fwi_linear.h5
 //   ./flexipde -help        lists every option of the chosen scene
+//
+// Timing (-task gradient): -timing_repeats N times N more forward solves and gradients in this process
+// and prints their medians; with -timing_compare "OPTIONS" each repetition also times the same scene
+// with OPTIONS added (in force during its own solves only; a second Scene set up with them), and
+// prints the medians of the per-repetition ratios: on a machine whose speed changes from one minute to
+// the next, two variants measured side by side in one process compare far better than two processes.
+//   ./flexipde -task gradient -ts_type leapfrog -wave_c_field 1 -timing_repeats 21 -timing_compare wave_fused_drift=0
+//   ./flexipde -task gradient -wave_c_field 1 -timing_repeats 11 -timing_compare ts_type=rk,ts_rk_type=4
 #include <algorithm>
+#include <cctype>
+#include <cstdlib>
 #include "flexipde/inversion.hpp"
 #include "flexipde/io.hpp"
 #include "flexipde/scene.hpp"
@@ -65,38 +75,171 @@ static PetscErrorCode set_component_names(H5Writer &w, const Scene &scene) {
   PetscFunctionReturn(0);
 }
 
+// The options of -timing_compare, put in force and taken back around the alternative's solves: the
+// values they replace are restored (cleared where there were none). Items separated by commas or
+// spaces, each name=value (the leading '-' optional; on a command line a value cannot start with
+// '-'), or PETSc's own form -name [value] (value: the next item unless it is a name itself).
+class OptionSwap {
+public:
+  PetscErrorCode parse(MPI_Comm comm, const char *s) {
+    std::vector<std::string> tok;
+    std::string cur;
+    PetscFunctionBeginUser;
+    for (const char *c = s;; ++c) {
+      if (*c == 0 || *c == ',' || std::isspace((unsigned char)*c)) {
+        if (!cur.empty()) tok.push_back(cur);
+        cur.clear();
+        if (*c == 0) break;
+      } else cur += *c;
+    }
+    auto is_name = [](const std::string &t) {
+      if (t.size() < 2 || t[0] != '-') return false;
+      char *end;
+      std::strtod(t.c_str(), &end);
+      return *end != 0; // "-1.5" is a value
+    };
+    for (size_t i = 0; i < tok.size(); ++i) {
+      Entry e;
+      const size_t eq = tok[i].find('=');
+      if (eq != std::string::npos) {
+        e.name = tok[i].substr(0, eq);
+        if (e.name.empty() || e.name[0] != '-') e.name = "-" + e.name;
+        e.value = tok[i].substr(eq + 1), e.has_value = true;
+        PetscCheck(e.name.size() > 1, comm, PETSC_ERR_ARG_WRONG, "-timing_compare: no option name in \"%s\"", tok[i].c_str());
+      } else {
+        PetscCheck(is_name(tok[i]), comm, PETSC_ERR_ARG_WRONG,
+                   "-timing_compare: expected name=value or -name [value], got \"%s\"", tok[i].c_str());
+        e.name = tok[i];
+        if (i + 1 < tok.size() && !is_name(tok[i + 1]) && tok[i + 1].find('=') == std::string::npos)
+          e.value = tok[++i], e.has_value = true;
+      }
+      entries_.push_back(e);
+    }
+    PetscCheck(!entries_.empty(), comm, PETSC_ERR_ARG_WRONG, "-timing_compare: no options given");
+    PetscFunctionReturn(0);
+  }
+  PetscErrorCode apply() {
+    PetscFunctionBeginUser;
+    for (Entry &e : entries_) {
+      char v[PETSC_MAX_PATH_LEN] = "";
+      PetscBool set;
+      PetscCall(PetscOptionsGetString(nullptr, nullptr, e.name.c_str(), v, sizeof(v), &set));
+      e.had = set, e.old = v;
+      PetscCall(PetscOptionsSetValue(nullptr, e.name.c_str(), e.has_value ? e.value.c_str() : nullptr));
+    }
+    PetscFunctionReturn(0);
+  }
+  PetscErrorCode restore() {
+    PetscFunctionBeginUser;
+    for (const Entry &e : entries_) {
+      if (e.had) PetscCall(PetscOptionsSetValue(nullptr, e.name.c_str(), e.old.empty() ? nullptr : e.old.c_str()));
+      else PetscCall(PetscOptionsClearValue(nullptr, e.name.c_str()));
+    }
+    PetscFunctionReturn(0);
+  }
+
+private:
+  struct Entry {
+    std::string name, value, old;
+    bool has_value = false, had = false;
+  };
+  std::vector<Entry> entries_;
+};
+
+static double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n == 0 ? 0.0 : n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+// One timed repetition: a forward solve and a gradient, with the gradient's two parts.
+struct Timed {
+  double forward, gradient, storing, adjoint;
+};
+static PetscErrorCode time_once(MPI_Comm comm, Scene &scene, Vec p, Vec U, Vec g, Timed *t) {
+  PetscReal J;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Barrier(comm));
+  double t0 = MPI_Wtime();
+  PetscCall(scene.sim.forward(p, U));
+  PetscCallMPI(MPI_Barrier(comm));
+  double t1 = MPI_Wtime();
+  PetscCall(scene.gradient(p, &J, g));
+  PetscCallMPI(MPI_Barrier(comm));
+  *t = {t1 - t0, MPI_Wtime() - t1, scene.sim.stats().solve_seconds, scene.sim.stats().adjoint_seconds};
+  PetscFunctionReturn(0);
+}
+
 // Medians of `repeats` forward solves and of `repeats` gradients (value + dJ/dp), timed in this
-// process after a first gradient warmed everything up: no start-up, set-up or data generation.
-static PetscErrorCode time_repeats(MPI_Comm comm, Scene &scene, Vec p, PetscInt repeats) {
-  OwnedVec U, g;
-  std::vector<double> tf, tg, ts, ta;
+// process after a first gradient warmed everything up: no start-up, set-up or data generation. With
+// `compare` (non-empty), each repetition also times a second Scene set up with those options added
+// (synthetic data from the same p_true), right after the first.
+static PetscErrorCode time_repeats(MPI_Comm comm, Scene &scene, Vec p, Vec p_true, PetscInt repeats, const char *compare) {
+  OwnedVec U, g, gb, Ub;
+  std::vector<Timed> a, b;
+  Scene alt;
+  OptionSwap swap;
+  const bool cmp = compare && compare[0];
   PetscFunctionBeginUser;
   PetscCall(scene.sim.create_state(U.out()));
   PetscCall(VecDuplicate(p, g.out()));
-  for (PetscInt k = 0; k < repeats; ++k) {
+  if (cmp) {
+    PetscCall(swap.parse(comm, compare));
+    PetscCall(swap.apply());
+    PetscCall(alt.setup(comm));
+    PetscCheck(alt.params.global_size() == scene.params.global_size(), comm, PETSC_ERR_ARG_INCOMP,
+               "-timing_compare: with \"%s\" the scene has %" PetscInt_FMT " parameters, without %" PetscInt_FMT
+               ": the two must take the same parameters",
+               compare, alt.params.global_size(), scene.params.global_size());
+    PetscCall(alt.make_synthetic_data(p_true));
+    PetscCall(alt.sim.create_state(Ub.out()));
+    PetscCall(VecDuplicate(p, gb.out()));
     PetscReal J;
-    PetscCallMPI(MPI_Barrier(comm));
-    double t0 = MPI_Wtime();
-    PetscCall(scene.sim.forward(p, U));
-    PetscCallMPI(MPI_Barrier(comm));
-    double t1 = MPI_Wtime();
-    PetscCall(scene.gradient(p, &J, g));
-    PetscCallMPI(MPI_Barrier(comm));
-    tf.push_back(t1 - t0);
-    tg.push_back(MPI_Wtime() - t1);
-    ts.push_back(scene.sim.stats().solve_seconds);
-    ta.push_back(scene.sim.stats().adjoint_seconds);
+    PetscCall(alt.gradient(p, &J, gb)); // warm-up, like the scene's own first gradient
+    PetscCall(swap.restore());
   }
-  auto median = [](std::vector<double> v) {
-    std::sort(v.begin(), v.end());
-    const size_t n = v.size();
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+  for (PetscInt k = 0; k < repeats; ++k) {
+    Timed t;
+    PetscCall(time_once(comm, scene, p, U, g, &t));
+    a.push_back(t);
+    if (!cmp) continue;
+    PetscCall(swap.apply());
+    PetscCall(time_once(comm, alt, p, Ub, gb, &t));
+    PetscCall(swap.restore());
+    b.push_back(t);
+  }
+  auto col = [](const std::vector<Timed> &v, double Timed::*m) {
+    std::vector<double> c;
+    for (const Timed &t : v) c.push_back(t.*m);
+    return c;
   };
-  const double mf = median(tf), mg = median(tg);
+  auto minimum = [](const std::vector<double> &v) { return *std::min_element(v.begin(), v.end()); };
+  const double mf = median(col(a, &Timed::forward)), mg = median(col(a, &Timed::gradient));
   PetscCall(PetscPrintf(comm, "timing: %" PetscInt_FMT " repeats, forward median %.6f s (min %.6f), gradient median %.6f s (min %.6f), gradient/forward %.3f\n",
-                        repeats, mf, *std::min_element(tf.begin(), tf.end()), mg, *std::min_element(tg.begin(), tg.end()), mg / mf));
+                        repeats, mf, minimum(col(a, &Timed::forward)), mg, minimum(col(a, &Timed::gradient)), mg / mf));
   PetscCall(PetscPrintf(comm, "timing: gradient parts (rank 0), medians: forward solve storing the trajectory %.6f s, adjoint solve %.6f s\n",
-                        median(ts), median(ta)));
+                        median(col(a, &Timed::storing)), median(col(a, &Timed::adjoint))));
+  if (cmp) {
+    std::vector<double> rf, rg, ra, rr;
+    for (size_t k = 0; k < a.size(); ++k) {
+      rf.push_back(b[k].forward / a[k].forward);
+      rg.push_back(b[k].gradient / a[k].gradient);
+      ra.push_back(b[k].adjoint / a[k].adjoint);
+      rr.push_back((b[k].gradient / b[k].forward) / (a[k].gradient / a[k].forward));
+    }
+    PetscReal diff, nrm;
+    PetscCall(VecNorm(g, NORM_INFINITY, &nrm));
+    PetscCall(VecAXPY(gb, -1.0, g));
+    PetscCall(VecNorm(gb, NORM_INFINITY, &diff));
+    const double bf = median(col(b, &Timed::forward)), bg = median(col(b, &Timed::gradient));
+    PetscCall(PetscPrintf(comm, "timing compare \"%s\": forward median %.6f s, gradient median %.6f s, gradient/forward %.3f; "
+                                "storing %.6f s, adjoint %.6f s\n",
+                          compare, bf, bg, bg / bf, median(col(b, &Timed::storing)), median(col(b, &Timed::adjoint))));
+    PetscCall(PetscPrintf(comm, "timing compare: medians of the per-repetition ratios (with / without): forward %.4f, gradient %.4f "
+                                "(%.4f-%.4f), adjoint %.4f, gradient/forward %.4f; gradients differ by %.3e (relative, max norm)\n",
+                          median(rf), median(rg), *std::min_element(rg.begin(), rg.end()), *std::max_element(rg.begin(), rg.end()),
+                          median(ra), median(rr), nrm > 0 ? (double)(diff / nrm) : (double)diff));
+  }
   PetscFunctionReturn(0);
 }
 
@@ -107,6 +250,7 @@ static PetscErrorCode run(MPI_Comm comm) {
   PetscBool check_fd = PETSC_FALSE;
   PetscReal eps0 = 1e-2;
   PetscInt repeats = 0;
+  char compare[PETSC_MAX_PATH_LEN] = "";
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm, nullptr, "flexipde driver", "flexipde");
   PetscCall(PetscOptionsEList("-task", "What to run", "flexipde", tasks, 5, tasks[task], &task, nullptr));
@@ -117,8 +261,14 @@ static PetscErrorCode run(MPI_Comm comm) {
   PetscCall(PetscOptionsInt("-taylor_levels", "taylor: number of halvings", "flexipde", levels, &levels, nullptr));
   PetscCall(PetscOptionsInt("-timing_repeats", "gradient: time N more forward solves and N more gradients in this "
                             "process and print their medians (0: none)", "flexipde", repeats, &repeats, nullptr));
+  PetscCall(PetscOptionsString("-timing_compare", "gradient with -timing_repeats: also time the scene with these options "
+                               "added (name=value,name=value), alternating with it in this process, and print the "
+                               "per-repetition ratios",
+                               "flexipde", compare, compare, sizeof(compare), nullptr));
   PetscOptionsEnd();
   PetscCheck(repeats >= 0, comm, PETSC_ERR_ARG_OUTOFRANGE, "-timing_repeats must be non-negative");
+  PetscCheck(!compare[0] || (task == 1 && repeats > 0), comm, PETSC_ERR_ARG_WRONG,
+             "-timing_compare needs -task gradient and -timing_repeats N > 0");
 
   Scene scene;
   PetscCall(scene.setup(comm));
@@ -184,7 +334,7 @@ static PetscErrorCode run(MPI_Comm comm) {
       PetscCall(w.write_series("/gradient", "J", std::vector<PetscReal>{J}));
       PetscCall(w.close());
     }
-    if (repeats > 0) PetscCall(time_repeats(comm, scene, p, repeats));
+    if (repeats > 0) PetscCall(time_repeats(comm, scene, p, p_true, repeats, compare));
     if (check_fd) {
       const PetscReal h = 1e-6;
       OwnedVec q;
