@@ -85,5 +85,7 @@ for TS in rk4 cn; do
   [ $TS = rk4 ] && opt="-ts_type rk -ts_rk_type 4"
   run wave2d "$TS" "101^2, sponge, field c" -model wave2d -da_grid_x 101 -da_grid_y 101 $opt -wave2d_c_field 1
 done
+run wave2d leapfrog "101^2, walls, field c" -model wave2d -da_grid_x 101 -da_grid_y 101 -ts_type leapfrog -wave2d_sponge_width 0 \
+  -wave2d_ic pulse -wave2d_c_field 1 -wave2d_c 0.9 -true_wave2d_c 1
 run vlasov rk4 "Landau 128^2" -model vlasov -objective_type functional -da_grid_x 128 -da_grid_y 128 -ts_dt 0.02 -ts_max_time 2
 run vlasov cn "Landau 64^2" -model vlasov -objective_type functional -da_grid_x 64 -da_grid_y 64 -ts_type cn -ts_dt 0.1 -ts_max_time 2
