@@ -140,6 +140,10 @@ public:
     PetscCall(PetscOptionsReal("-wave2d_ic_x", "Centre x of the initial pulse", "Wave2D", ic_x_, &ic_x_, nullptr));
     PetscCall(PetscOptionsReal("-wave2d_ic_y", "Centre y of the initial pulse", "Wave2D", ic_y_, &ic_y_, nullptr));
     PetscCall(PetscOptionsReal("-wave2d_ic_width", "Width of the initial pulse", "Wave2D", ic_w_, &ic_w_, nullptr));
+    PetscCall(PetscOptionsBool("-wave2d_kick_ring",
+                               "The leapfrog adjoint's kick forms c^2 lambda_v once per point into a three-row ring "
+                               "(bitwise the same result), else reads it from lambda at every neighbour",
+                               "Wave2D", ring_, &ring_, nullptr));
     PetscOptionsEnd();
     PetscCheck(c_min_ > 0, grid.comm(), PETSC_ERR_ARG_OUTOFRANGE, "-wave2d_c_min must be positive, got %g",
                (double)c_min_);
@@ -311,9 +315,42 @@ public:
       // the interior: a field's gradient in place, a scalar's per-point terms into gbuf_, summed per row
       // (no reduction inside the loop, which keeps it vectorised)
       PetscReal *out = g ? g + pi.local_offset : gbuf_.data();
+      // The products c^2 lambda_v that the transpose's stencil reads at four neighbours are formed once per
+      // point, a row ahead, into a ring of three rows (contiguous, in L1), not four times from the
+      // interleaved lambda (-wave2d_kick_ring; the same products, so the same numbers: the centre's
+      // (a0 c^2) lambda_v keeps its own order).
+      if (ring_ && zring_.size() < (size_t)(3 * xm)) zring_.resize(3 * xm);
+      PetscReal *zr = zring_.data();
+      auto zrow = [&](PetscInt j) {
+        PetscReal *__restrict z = zr + (j % 3) * xm;
+        const PetscReal *__restrict cj = c2 + j * xm;
+        const PetscScalar *__restrict lj = L + 2 * j * xm;
+        for (PetscInt i = 0; i < xm; ++i) z[i] = cj[i] * PetscRealPart(lj[2 * i + 1]);
+      };
       auto interior = [&](auto add) {
         constexpr bool ADD = decltype(add)::value;
-        for (PetscInt jl = 1; jl < ym - 1; ++jl)
+        if (ring_ && ym > 2) {
+          zrow(0);
+          zrow(1);
+        }
+        for (PetscInt jl = 1; jl < ym - 1; ++jl) {
+          if (ring_) {
+            zrow(jl + 1);
+            const PetscReal *__restrict zm = zr + ((jl - 1) % 3) * xm, *__restrict z0 = zr + (jl % 3) * xm,
+                                        *__restrict zp = zr + ((jl + 1) % 3) * xm;
+            for (PetscInt i = 1; i < xm - 1; ++i) {
+              const PetscInt k = jl * xm + i;
+              const PetscReal lu = ax * PetscRealPart(ua[SU * (k - 1)] + ua[SU * (k + 1)]) +
+                                   ay * PetscRealPart(ua[SU * (k - xm)] + ua[SU * (k + xm)]) + a0 * PetscRealPart(ua[SU * k]);
+              const PetscReal v = PetscRealPart(L[2 * k + 1]);
+              const PetscReal lz = ax * (z0[i - 1] + z0[i + 1]) + ay * (zm[i] + zp[i]) + a0 * c2[k] * v;
+              L[2 * k] += w * lz;
+              const PetscReal gk = tc[k] * lu * v;
+              if (ADD) out[k] += w * gk;
+              else out[k] = gk;
+            }
+            continue;
+          }
           for (PetscInt k = jl * xm + 1; k < jl * xm + xm - 1; ++k) {
             const PetscReal lu = ax * PetscRealPart(ua[SU * (k - 1)] + ua[SU * (k + 1)]) +
                                  ay * PetscRealPart(ua[SU * (k - xm)] + ua[SU * (k + xm)]) + a0 * PetscRealPart(ua[SU * k]);
@@ -325,6 +362,7 @@ public:
             if (ADD) out[k] += w * gk;
             else out[k] = gk;
           }
+        }
       };
       if (g) interior(std::true_type{});
       else {
@@ -686,6 +724,8 @@ private:
   DM dm_ = nullptr;
   Parameters *params_ = nullptr;
   PetscBool c_field_ = PETSC_FALSE;
+  PetscBool ring_ = PETSC_TRUE;   // -wave2d_kick_ring
+  std::vector<PetscReal> zring_;  // its three rows
   PetscInt ic_ = 0, c_index_ = -1;
   PetscReal c_min_ = 0.01, cmax_ = 0, sponge_width_ = 0.15, sigma_max_ = 60.0;
   PetscReal ic_x_ = 0.5, ic_y_ = 0.5, ic_w_ = 0.05;
