@@ -140,6 +140,10 @@ public:
     PetscCall(PetscOptionsReal("-wave2d_ic_x", "Centre x of the initial pulse", "Wave2D", ic_x_, &ic_x_, nullptr));
     PetscCall(PetscOptionsReal("-wave2d_ic_y", "Centre y of the initial pulse", "Wave2D", ic_y_, &ic_y_, nullptr));
     PetscCall(PetscOptionsReal("-wave2d_ic_width", "Width of the initial pulse", "Wave2D", ic_w_, &ic_w_, nullptr));
+    PetscCall(PetscOptionsBool("-wave2d_fused_drift",
+                               "With that ring, the leapfrog adjoint's drift transpose folded into its pass (bitwise the "
+                               "same result), else a pass of its own",
+                               "Wave2D", fuse_drift_, &fuse_drift_, nullptr));
     PetscCall(PetscOptionsBool("-wave2d_kick_ring",
                                "The leapfrog adjoint's kick forms c^2 lambda_v once per point into a three-row ring "
                                "(bitwise the same result), else reads it from lambda at every neighbour",
@@ -275,25 +279,41 @@ public:
     PetscFunctionBeginUser;
     PetscCheck(sponge_width_ <= 0, grid_->comm(), PETSC_ERR_SUP, "wave2d: no fused leapfrog adjoint with a sponge");
     leapfrog_prefetch(prefetch, grid_->local_points()); // the next level's positions
-    if (drift != 0) { // the drift's transpose in a pass of its own, before lambda_v's ghosts are sent
+    // the drift's transpose: folded into the kick's ring pass, or in a pass of its own first
+    const bool fold = drift != 0 && fuse_drift_ && ring_ && grid_->xm() >= 3 && grid_->ym() >= 3;
+    if (drift != 0 && !fold) {
       Array l(lambda);
       PetscCall(l.error());
       leapfrog_drift_transpose(l.data(), 0, grid_->local_points(), 1, drift);
     }
     PetscCall(VecGetLocalSize(U, &nu));
-    if (nu == grid_->local_points()) PetscCall(kick<1>(U, lambda, w, mu, pi, local));
-    else PetscCall(kick<2>(U, lambda, w, mu, pi, local));
+    if (nu == grid_->local_points()) PetscCall(kick<1>(U, lambda, w, mu, pi, local, fold ? drift : 0));
+    else PetscCall(kick<2>(U, lambda, w, mu, pi, local, fold ? drift : 0));
     if (mu && !c_field_) PetscCall(params_->add_local_sum(mu, c_index_, w * (local[0] + local[1] + local[2] + local[3])));
     PetscFunctionReturn(0);
   }
 
   // The sweep of second_order_adjoint with u read at stride SU in U (2: a whole state, 1: u alone).
+  // s != 0 (with the ring, xm, ym >= 3): the drift lambda_v += s lambda_u folded in: the block's
+  // perimeter first (the points whose lambda_v the neighbours receive), the interior points by the ring
+  // pass, a row ahead of that row's kick and with its lambda_u from before it. Bitwise the same.
   template <int SU>
-  PetscErrorCode kick(Vec U, Vec lambda, PetscReal w, Vec mu, const ParamInfo &pi, PetscReal local[4]) {
+  PetscErrorCode kick(Vec U, Vec lambda, PetscReal w, Vec mu, const ParamInfo &pi, PetscReal local[4], PetscReal s) {
     const PetscInt xm = grid_->xm(), ym = grid_->ym();
     Halo &halo_u = SU == 1 ? halo_q_ : halo_u_;
     PetscFunctionBeginUser;
     PetscCall(halo_u.begin(U));
+    if (s != 0) {
+      Array l(lambda);
+      PetscCall(l.error());
+      PetscScalar *L = l.data();
+      leapfrog_drift_transpose(L, 0, xm, 1, s);
+      leapfrog_drift_transpose(L, (ym - 1) * xm, ym * xm, 1, s);
+      for (PetscInt jl = 1; jl < ym - 1; ++jl) {
+        leapfrog_drift_transpose(L, jl * xm, jl * xm + 1, 1, s);
+        leapfrog_drift_transpose(L, jl * xm + xm - 1, jl * xm + xm, 1, s);
+      }
+    }
     PetscCall(halo_v_.begin(lambda));
     {
       ConstArray u(U);
@@ -324,7 +344,16 @@ public:
       auto zrow = [&](PetscInt j) {
         PetscReal *__restrict z = zr + (j % 3) * xm;
         const PetscReal *__restrict cj = c2 + j * xm;
-        const PetscScalar *__restrict lj = L + 2 * j * xm;
+        PetscScalar *__restrict lj = L + 2 * j * xm;
+        if (s != 0 && j > 0 && j < ym - 1) { // an interior row: drift its interior points on the way
+          z[0] = cj[0] * PetscRealPart(lj[1]);
+          for (PetscInt i = 1; i < xm - 1; ++i) {
+            lj[2 * i + 1] += s * lj[2 * i];
+            z[i] = cj[i] * PetscRealPart(lj[2 * i + 1]);
+          }
+          z[xm - 1] = cj[xm - 1] * PetscRealPart(lj[2 * (xm - 1) + 1]);
+          return;
+        }
         for (PetscInt i = 0; i < xm; ++i) z[i] = cj[i] * PetscRealPart(lj[2 * i + 1]);
       };
       auto interior = [&](auto add) {
@@ -725,6 +754,7 @@ private:
   Parameters *params_ = nullptr;
   PetscBool c_field_ = PETSC_FALSE;
   PetscBool ring_ = PETSC_TRUE;   // -wave2d_kick_ring
+  PetscBool fuse_drift_ = PETSC_TRUE; // -wave2d_fused_drift
   std::vector<PetscReal> zring_;  // its three rows
   PetscInt ic_ = 0, c_index_ = -1;
   PetscReal c_min_ = 0.01, cmax_ = 0, sponge_width_ = 0.15, sigma_max_ = 60.0;
