@@ -53,14 +53,14 @@ PetscInt leapfrog_pairs(TS ts); // m, or 0 for another TS type
 // kick to prefetch while it sweeps (null: none).
 using LeapfrogAdjointKick = PetscErrorCode (*)(void *ctx, PetscReal t, Vec U, Vec lambda, PetscReal w, Vec mu, PetscReal drift,
                                                const PetscScalar *prefetch);
-// The drift's transpose lambda_p += s lambda_q on the points [lo, hi) of an interleaved array of m
-// pairs per point (2m entries each), for kicks that apply it in a pass of their own.
 // One prefetch per cache line of the n entries at q (null: nothing), for kicks that do not spread them.
 inline void leapfrog_prefetch(const PetscScalar *q, PetscInt n) {
   if (!q) return;
   const char *b = reinterpret_cast<const char *>(q);
   for (size_t o = 0; o < sizeof(PetscScalar) * (size_t)n; o += 64) __builtin_prefetch(b + o, 0, 3);
 }
+// The drift's transpose lambda_p += s lambda_q on the points [lo, hi) of an interleaved array of m
+// pairs per point (2m entries each), for kicks that apply it in a pass of their own.
 inline void leapfrog_drift_transpose(PetscScalar *lambda, PetscInt lo, PetscInt hi, PetscInt m, PetscReal s) {
   if (m == 1)
     for (PetscInt i = lo; i < hi; ++i) lambda[2 * i + 1] += s * lambda[2 * i];

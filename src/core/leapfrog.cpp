@@ -73,13 +73,6 @@ PetscErrorCode kick(const Leapfrog &lf, Vec U, Vec F, PetscReal s) {
   PetscFunctionReturn(0);
 }
 
-template <int M>
-void drift_transpose_loop(PetscScalar *__restrict l, PetscInt n, PetscInt m_rt, PetscReal s) {
-  const PetscInt m = M ? M : m_rt, d = 2 * m;
-  for (PetscInt i = 0; i < n; i += d)
-    for (PetscInt c = 0; c < m; ++c) l[i + m + c] += s * l[i + c];
-}
-
 // The drift's transpose on the adjoint: lambda_p += s * lambda_q (the forward drift is fused into
 // start_kick_drift).
 PetscErrorCode drift_transpose(const Leapfrog &lf, Vec lambda, PetscReal s) {
@@ -88,8 +81,7 @@ PetscErrorCode drift_transpose(const Leapfrog &lf, Vec lambda, PetscReal s) {
   PetscFunctionBegin;
   PetscCall(VecGetLocalSize(lambda, &n));
   PetscCall(VecGetArray(lambda, &l));
-  if (lf.pairs == 1) drift_transpose_loop<1>(l, n, 1, s);
-  else drift_transpose_loop<0>(l, n, lf.pairs, s);
+  leapfrog_drift_transpose(l, 0, n / lf.dof, lf.pairs, s);
   PetscCall(VecRestoreArray(lambda, &l));
   PetscFunctionReturn(0);
 }

@@ -152,10 +152,7 @@ PetscErrorCode copy_in(const StoreTrajectory &st, PetscInt k, PetscInt part, Vec
 // Ask the memory system for slot k ahead of its use (the adjoint reads the slots in reverse order,
 // which the hardware prefetchers follow poorly): one prefetch per cache line.
 void prefetch_slot(const StoreTrajectory &st, PetscInt k) {
-  if (k < 0) return;
-  const char *b = reinterpret_cast<const char *>(at(st, k, 0));
-  const size_t bytes = sizeof(PetscScalar) * (size_t)st.slot;
-  for (size_t o = 0; o < bytes; o += 64) __builtin_prefetch(b + o, 0, 3);
+  if (k >= 0) leapfrog_prefetch(at(st, k, 0), st.slot);
 }
 
 // The records of the step about to run are written to slot k (k < 0, or no records: none).

@@ -268,10 +268,12 @@ public:
       // around them here), else all at once
       const PetscScalar *spread = fold && spread_prefetch_ ? prefetch : nullptr;
       if (spread) {
-        leapfrog_prefetch(prefetch, lo_ + 8);
-        leapfrog_prefetch(prefetch + (hi_ - 8 > lo_ ? hi_ - 8 : lo_), xm - (hi_ - 8 > lo_ ? hi_ - 8 : lo_));
+        const PetscInt tail = std::max(hi_ - 8, lo_);
+        leapfrog_prefetch(prefetch, std::min(lo_ + 8, xm));
+        leapfrog_prefetch(prefetch + tail, xm - tail);
       } else leapfrog_prefetch(prefetch, xm);
-      PetscCall(begin_pair(u.data(), su, l.data())); // lambda_v does not change in the sweep
+      // (the sweep changes lambda_v only where it folds the drift in: not at the points sent as ghosts)
+      PetscCall(begin_pair(u.data(), su, l.data()));
       PetscScalar *g = nullptr;
       if (mu && c_field_) PetscCall(VecGetArray(mu, &g));
       // where the pointwise terms accumulate: a field's gradient in place; a scalar's pointwise sums

@@ -344,16 +344,9 @@ public:
       auto zrow = [&](PetscInt j) {
         PetscReal *__restrict z = zr + (j % 3) * xm;
         const PetscReal *__restrict cj = c2 + j * xm;
-        PetscScalar *__restrict lj = L + 2 * j * xm;
-        if (s != 0 && j > 0 && j < ym - 1) { // an interior row: drift its interior points on the way
-          z[0] = cj[0] * PetscRealPart(lj[1]);
-          for (PetscInt i = 1; i < xm - 1; ++i) {
-            lj[2 * i + 1] += s * lj[2 * i];
-            z[i] = cj[i] * PetscRealPart(lj[2 * i + 1]);
-          }
-          z[xm - 1] = cj[xm - 1] * PetscRealPart(lj[2 * (xm - 1) + 1]);
-          return;
-        }
+        const PetscScalar *lj = L + 2 * j * xm;
+        // an interior row: its interior points drifted first (the perimeter was, before the exchange)
+        if (s != 0 && j > 0 && j < ym - 1) leapfrog_drift_transpose(L, j * xm + 1, j * xm + xm - 1, 1, s);
         for (PetscInt i = 0; i < xm; ++i) z[i] = cj[i] * PetscRealPart(lj[2 * i + 1]);
       };
       auto interior = [&](auto add) {
