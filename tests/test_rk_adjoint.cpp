@@ -147,6 +147,22 @@ TEST(RkStageCombination, AdvectionSameGradientBitwise) {
     }
 }
 
+// A 2D field D with fd2 faces: the RK adjoint stage's one loop per row (field_stage_row_fd2, the fd2
+// weights written into its arithmetic) gives the gradient of the generic per-part loops
+// (-advection_fd2_row_loop 0) bitwise, for each advection scheme (taps of radius 1 and 2) and
+// tableaux with 1 to 3 later stages, on however many ranks the test runs.
+TEST(AdvectionRowLoop, SameGradientBitwise) {
+  const std::pair<const char *, const char *> tableaux[] = {{"4", "fd2"}, {"3", "fd4"}, {"4", "upwind"}, {"2a", "upwind"}};
+  for (const auto &[rk, scheme] : tableaux) {
+    SCOPED_TRACE(std::string("-ts_rk_type ") + rk + ", " + scheme);
+    RkScene s;
+    s.set_up({{"-model", "advection"}, {"-advection_dim", "2"}, {"-advection_scheme", scheme}, {"-grid_periodic", "1"},
+              {"-da_grid_x", "20"}, {"-da_grid_y", "14"}, {"-advection_D", "0.02"}, {"-advection_D_field", "1"},
+              {"-advection_b", "-0.6"}, {"-advection_ic_amplitude_param", "1"}, {"-ts_rk_type", rk}, {"-ts_dt", "1e-3"}});
+    flexipde_test::expect_same_gradient_other_setup(s.scene, s.p, {}, {{"-advection_fd2_row_loop", "0"}}, 1e-300);
+  }
+}
+
 // The wave's stages enter its adjoint through their records D2 u alone (Model::stage_record_size,
 // written by the RHS evaluations at the stages): full storage then keeps only those, half the memory
 // of whole stages, with the same gradient bitwise; and the fused stage products give the gradient of

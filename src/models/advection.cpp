@@ -352,6 +352,57 @@ void field_stage_faces_2d_rows(PetscInt xm, PetscInt ym, PetscInt sy, const Pets
   }
 }
 
+// A 2D field-D RK adjoint stage with fd2 faces, everything of row jl in one loop over its points: the
+// advection transpose with the velocities' terms (z0, z1 as sweep_sums_row writes them), the x faces on
+// either side of the point, the y face above it (written to the ring slot the next row reads as its
+// face below) and the y face below it (from the ring). The fd2 faces' weights are exact: B x = x_k -
+// x_{k-1} (grad = (-1, 1)) and I D = (D_{k-1} + D_k) / 2 (interp = (1/2, 1/2)), so the generic sums of
+// field_stage_faces_2d_rows reduce to
+//   y += s (F1_r - F1_l) (F1 = I D .* B x),   g += -(s F2_r + s F2_l) / 2 (F2 = B u .* B x)
+// per direction (s = 1/h^2), the same numbers as theirs (only the sign of a zero can differ: the
+// products with -1, 1 and 1/2 are exact and -(a + b) = -a - b), with fewer operations. An x face is
+// formed twice (as the right face of i and the left face of i + 1) instead of being stored and read
+// back. l: x at the row's first owned point (ghosted, rows sy apart); ub: u's row with one ghost on
+// either side (ub[0] = u(-1)); uu: u's row jl + 1; dfx: the row's x faces (xm + 1); dfy: the y faces
+// above the row (face row jl + 1); lo1, lo2: the ring's face row below; up1, up2: the ring slot for the
+// face row above. vx, vy: sweep_sums_row's taps, c0, c1 its coefficients.
+template <int R>
+__attribute__((optimize("tree-vectorize", "vect-cost-model=dynamic")))
+void field_stage_row_fd2(PetscInt xm, PetscInt sy, const PetscScalar *__restrict l, const PetscReal *vx,
+                         const PetscReal *vy, PetscReal c0, PetscReal c1, const PetscScalar *__restrict ub,
+                         const PetscScalar *__restrict uu, const PetscReal *__restrict dfx,
+                         const PetscReal *__restrict dfy, PetscReal sx, PetscReal syy, const PetscReal *__restrict lo1,
+                         const PetscReal *__restrict lo2, PetscReal *__restrict up1, PetscReal *__restrict up2,
+                         PetscReal *__restrict z0, PetscReal *__restrict z1, PetscScalar *__restrict y,
+                         PetscScalar *__restrict g) {
+  PetscReal tx[2 * R + 1], ty[2 * R + 1];
+  for (int k = 0; k < 2 * R + 1; ++k) tx[k] = vx[k], ty[k] = vy[k];
+  for (PetscInt i = 0; i < xm; ++i) {
+    // sweep_sums_row<R, 2, false>
+    PetscReal sxv = 0, syv = 0;
+#pragma GCC unroll 8
+    for (int k = -R; k <= R; ++k) sxv += tx[k + R] * PetscRealPart(l[i + k]);
+#pragma GCC unroll 8
+    for (int k = -R; k <= R; ++k) syv += ty[k + R] * PetscRealPart(l[i + k * sy]);
+    z0[i] = sxv;
+    z1[i] = syv;
+    const PetscReal x0 = PetscRealPart(l[i]), u0 = PetscRealPart(ub[i + 1]);
+    // the x faces i (left) and i + 1 (right)
+    const PetscReal bxl = x0 - PetscRealPart(l[i - 1]), bxr = PetscRealPart(l[i + 1]) - x0;
+    const PetscReal bul = u0 - PetscRealPart(ub[i]), bur = PetscRealPart(ub[i + 2]) - u0;
+    const PetscReal f1l = dfx[i] * bxl, f2l = bul * bxl, f1r = dfx[i + 1] * bxr, f2r = bur * bxr;
+    const PetscReal yx = (c0 * sxv + c1 * syv) + (f1r * sx - f1l * sx);
+    const PetscReal gx = PetscRealPart(g[i]) + (f2r * sx + f2l * sx) * -0.5;
+    // the y face above (rows jl, jl + 1), kept for the next row, and the one below
+    const PetscReal bxu = PetscRealPart(l[i + sy]) - x0, buu = PetscRealPart(uu[i]) - u0;
+    const PetscReal f1u = dfy[i] * bxu, f2u = buu * bxu;
+    up1[i] = f1u;
+    up2[i] = f2u;
+    y[i] = yx + (f1u * syy - lo1[i] * syy);
+    g[i] = gx + (f2u * syy + lo2[i] * syy) * -0.5;
+  }
+}
+
 class AdvectionModel final : public LinearModel {
 public:
   const char *name() const override { return "advection"; }
@@ -426,6 +477,10 @@ public:
                                "Finite differences, explicit RK adjoint: a stage's vector h W_i is formed straight into "
                                "the ghosted copy the sweeps read (else formed first, then copied)",
                                "Advection", fuse_combination_, &fuse_combination_, nullptr));
+    PetscCall(PetscOptionsBool("-advection_fd2_row_loop",
+                               "2D, field D with fd2 faces, RK adjoint stage: a row's transpose, faces and gradient in one "
+                               "loop over its points (else one loop per part; the same arithmetic)",
+                               "Advection", row_loop_, &row_loop_, nullptr));
     PetscCall(PetscOptionsReal("-advection_ic_width", "gaussian: width w of exp(-(d/w)^2); square: full width", "Advection",
                                width_, &width_, nullptr));
     PetscOptionsEnd();
@@ -1715,7 +1770,43 @@ private:
       sweep_sums_row<R, 2, false>(l0 + jl * sy, t.vx, t.vy, t.lx, t.ly, t.c, u + jl * xm, y + jl * xm, xm, sy, z, sums);
     });
   }
+  // fused_stage_2d with fd2 faces and a gradient, one loop per row (field_stage_row_fd2).
+  template <int R>
+  void fused_stage_2d_fd2(const PetscScalar *xl, const PetscScalar *u, PetscScalar *y, PetscScalar *g, PetscReal *sums) {
+    const Grid &gr = *grid_;
+    const PetscInt xm = gr.xm(), ym = gr.ym(), sy = stride_[1];
+    const PetscScalar *x0 = xl + ghost_index(gr.xs(), gr.ys());
+    // (the fd2 faces: face_stencil(2), grad = (-1, 1), interp = (1/2, 1/2), written into field_stage_row_fd2)
+    const PetscReal sx = 1.0 / (h_[0] * h_[0]), syy = 1.0 / (h_[1] * h_[1]);
+    const URows U{u, xm, ym, wrap_ ? nullptr : &halo2_};
+    if (ring_.size() < (size_t)(4 * xm)) ring_.resize(4 * xm);
+    if (urow_.size() < (size_t)(xm + 4)) urow_.resize(xm + 4);
+    PetscReal *R1 = ring_.data(), *R2 = R1 + 2 * xm, *z = stage_scratch_.data();
+    PetscScalar *ub = urow_.data();
+    const SweepSumsTaps t = sweep_sums_taps(); // (no Laplacian part: D is a field)
+    sums[0] = sums[1] = sums[2] = 0;
+    { // the face row below row 0 (rows -1 and 0) into ring slot 0
+      const PetscScalar *ur[2] = {U.row(-1), U.row(0)};
+      face_row_2d<2, true>(xm, sy, face_D_y_.data(), face_.grad.data(), x0 - sy, ur, R1, R2);
+    }
+    for (PetscInt jl = 0; jl < ym; ++jl) {
+      const PetscInt lo = jl % 2, up = 1 - lo;
+      U.ghosted_row(jl, 1, ub);
+      field_stage_row_fd2<R>(xm, sy, x0 + jl * sy, t.vx + 3 - R, t.vy + 3 - R, t.c[0], t.c[1], ub, U.row(jl + 1),
+                             face_D_.data() + jl * (xm + 1), face_D_y_.data() + (jl + 1) * xm, sx, syy, R1 + lo * xm,
+                             R2 + lo * xm, R1 + up * xm, R2 + up * xm, z, z + xm, y + jl * xm, g + jl * xm);
+      sums[0] += dot4(z, u + jl * xm, xm);
+      sums[1] += dot4(z + xm, u + jl * xm, xm);
+    }
+  }
   void fused_stage_2d(const PetscScalar *xl, const PetscScalar *u, PetscScalar *y, PetscScalar *g, PetscReal *sums) {
+    if (g && face_.width == 2 && row_loop_) {
+      switch (radius_) {
+      case 1: fused_stage_2d_fd2<1>(xl, u, y, g, sums); return;
+      case 2: fused_stage_2d_fd2<2>(xl, u, y, g, sums); return;
+      default: fused_stage_2d_fd2<3>(xl, u, y, g, sums); return;
+      }
+    }
     switch (radius_) {
     case 1: fused_stage_2d<1>(xl, u, y, g, sums); break;
     case 2: fused_stage_2d<2>(xl, u, y, g, sums); break;
@@ -1852,6 +1943,7 @@ private:
   bool lazy_ = false;
   PetscBool fuse_adjoint_ = PETSC_TRUE;
   PetscBool fuse_combination_ = PETSC_TRUE; // -advection_stage_combination
+  PetscBool row_loop_ = PETSC_TRUE;         // -advection_fd2_row_loop
   RecordedStage stage_;
   unsigned long columns_serial_ = 0;
   FusedProducts fused_;
