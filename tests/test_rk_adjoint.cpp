@@ -5,6 +5,7 @@
 // two must agree exactly). Each case's gradient is also nonzero, so the comparison means something.
 #include "flexipde/scene.hpp"
 #include "test_support.hpp"
+#include <array>
 #include <cstring>
 
 using namespace flexipde;
@@ -147,20 +148,24 @@ TEST(RkStageCombination, AdvectionSameGradientBitwise) {
     }
 }
 
-// A 2D field D with fd2 faces: the RK adjoint stage's one loop per row (field_stage_row_fd2, the fd2
-// weights written into its arithmetic) gives the gradient of the generic per-part loops
-// (-advection_fd2_row_loop 0) bitwise, for each advection scheme (taps of radius 1 and 2) and
-// tableaux with 1 to 3 later stages, on however many ranks the test runs.
+// A field D with fd2 faces: the RK adjoint stage's one loop per row (2D: field_stage_row_fd2; 1D:
+// field_stage_fd2_1d, the fd2 weights written into their arithmetic) gives the gradient of the generic
+// per-part loops (-advection_fd2_row_loop 0) bitwise, for each advection scheme (taps of radius 1 and
+// 2) and tableaux with 1 to 3 later stages, on however many ranks the test runs; fd4 faces (the
+// generic loops either way) as a control.
 TEST(AdvectionRowLoop, SameGradientBitwise) {
-  const std::pair<const char *, const char *> tableaux[] = {{"4", "fd2"}, {"3", "fd4"}, {"4", "upwind"}, {"2a", "upwind"}};
-  for (const auto &[rk, scheme] : tableaux) {
-    SCOPED_TRACE(std::string("-ts_rk_type ") + rk + ", " + scheme);
-    RkScene s;
-    s.set_up({{"-model", "advection"}, {"-advection_dim", "2"}, {"-advection_scheme", scheme}, {"-grid_periodic", "1"},
-              {"-da_grid_x", "20"}, {"-da_grid_y", "14"}, {"-advection_D", "0.02"}, {"-advection_D_field", "1"},
-              {"-advection_b", "-0.6"}, {"-advection_ic_amplitude_param", "1"}, {"-ts_rk_type", rk}, {"-ts_dt", "1e-3"}});
-    flexipde_test::expect_same_gradient_other_setup(s.scene, s.p, {}, {{"-advection_fd2_row_loop", "0"}}, 1e-300);
-  }
+  const std::array<const char *, 3> cases[] = {
+      {"4", "fd2", "2"}, {"3", "fd4", "2"}, {"4", "upwind", "2"}, {"2a", "upwind", "2"}, {"4", "fd4", "4"}};
+  for (const char *dim : {"1", "2"})
+    for (const auto &[rk, scheme, order] : cases) {
+      SCOPED_TRACE(std::string("dim ") + dim + ", -ts_rk_type " + rk + ", " + scheme + ", faces of order " + order);
+      RkScene s;
+      s.set_up({{"-model", "advection"}, {"-advection_dim", dim}, {"-advection_scheme", scheme}, {"-fd_order", order},
+                {"-grid_periodic", "1"}, {"-da_grid_x", "20"}, {"-da_grid_y", "14"}, {"-advection_D", "0.02"},
+                {"-advection_D_field", "1"}, {"-advection_b", "-0.6"}, {"-advection_ic_amplitude_param", "1"},
+                {"-ts_rk_type", rk}, {"-ts_dt", "1e-3"}});
+      flexipde_test::expect_same_gradient_other_setup(s.scene, s.p, {}, {{"-advection_fd2_row_loop", "0"}}, 1e-300);
+    }
 }
 
 // The wave's stages enter its adjoint through their records D2 u alone (Model::stage_record_size,

@@ -403,6 +403,31 @@ void field_stage_row_fd2(PetscInt xm, PetscInt sy, const PetscScalar *__restrict
   }
 }
 
+// The 1D field-D RK adjoint stage with fd2 faces in one loop over the points (field_stage_row_fd2's
+// 1D counterpart): z = D^T x (times h, sweep_row's sum), y = a z + s (F1_r - F1_l) and
+// g += -(s F2_r + s F2_l) / 2, the numbers of sweep_row + field_stage_faces<2, true> (up to the sign
+// of a zero). l, ul: x and u at the first owned point, ghosted; df: the faces (n + 1); t: the taps.
+template <int R>
+__attribute__((optimize("tree-vectorize", "vect-cost-model=dynamic")))
+void field_stage_fd2_1d(PetscInt n, const PetscScalar *__restrict l, const PetscScalar *__restrict ul, const PetscReal *t,
+                        const PetscReal *__restrict df, PetscReal s, PetscReal a, PetscReal *__restrict z,
+                        PetscScalar *__restrict y, PetscScalar *__restrict g) {
+  PetscReal tx[2 * R + 1];
+  for (int k = 0; k < 2 * R + 1; ++k) tx[k] = t[k];
+  for (PetscInt i = 0; i < n; ++i) {
+    PetscReal sw = 0;
+#pragma GCC unroll 8
+    for (int k = -R; k <= R; ++k) sw += tx[k + R] * PetscRealPart(l[i + k]);
+    z[i] = sw;
+    const PetscReal x0 = PetscRealPart(l[i]), u0 = PetscRealPart(ul[i]);
+    const PetscReal bxl = x0 - PetscRealPart(l[i - 1]), bxr = PetscRealPart(l[i + 1]) - x0;
+    const PetscReal bul = u0 - PetscRealPart(ul[i - 1]), bur = PetscRealPart(ul[i + 1]) - u0;
+    const PetscReal f1l = df[i] * bxl, f2l = bul * bxl, f1r = df[i + 1] * bxr, f2r = bur * bxr;
+    y[i] = a * sw + (f1r * s - f1l * s);
+    g[i] = PetscRealPart(g[i]) + (f2r * s + f2l * s) * -0.5;
+  }
+}
+
 class AdvectionModel final : public LinearModel {
 public:
   const char *name() const override { return "advection"; }
@@ -478,8 +503,8 @@ public:
                                "the ghosted copy the sweeps read (else formed first, then copied)",
                                "Advection", fuse_combination_, &fuse_combination_, nullptr));
     PetscCall(PetscOptionsBool("-advection_fd2_row_loop",
-                               "2D, field D with fd2 faces, RK adjoint stage: a row's transpose, faces and gradient in one "
-                               "loop over its points (else one loop per part; the same arithmetic)",
+                               "Field D with fd2 faces, RK adjoint stage: the transpose, faces and gradient of a row (1D: "
+                               "of the points) in one loop (else one loop per part; the same numbers)",
                                "Advection", row_loop_, &row_loop_, nullptr));
     PetscCall(PetscOptionsReal("-advection_ic_width", "gaussian: width w of exp(-(d/w)^2); square: full width", "Advection",
                                width_, &width_, nullptr));
@@ -1872,7 +1897,25 @@ private:
       Array Y(y);
       PetscCall(Y.error());
       PetscScalar *ya = Y.data();
-      if (nd == 1 && (!diffusion_ || field)) { // A^T = -(a / h) D^T (+ the field's faces): one sweep for both
+      if (nd == 1 && field && mu && face_.width == 2 && row_loop_) { // one loop (field_stage_fd2_1d)
+        const PetscScalar *ul;
+        PetscScalar *g;
+        PetscReal *z = stage_scratch_.data();
+        PetscCall(VecGetArrayRead(U_local_, &ul));
+        PetscCall(VecGetArray(mu, &g));
+        const PetscInt g0 = ghost_index(grid_->xs(), grid_->ys());
+        const PetscReal s = vel_[0] * (-1.0 / h_[0]), ih2 = 1.0 / (h_[0] * h_[0]);
+        PetscScalar *gD = g + params_->info(D_index_).local_offset;
+        const PetscReal *t = vel_taps_t_[0][0].data() + 3;
+        switch (radius_) {
+        case 1: field_stage_fd2_1d<1>(n, xl + g0, ul + g0, t - 1, face_D_.data(), ih2, s, z, ya, gD); break;
+        case 2: field_stage_fd2_1d<2>(n, xl + g0, ul + g0, t - 2, face_D_.data(), ih2, s, z, ya, gD); break;
+        default: field_stage_fd2_1d<3>(n, xl + g0, ul + g0, t - 3, face_D_.data(), ih2, s, z, ya, gD); break;
+        }
+        local[0] = -1.0 / h_[0] * dot4(z, u, n);
+        PetscCall(VecRestoreArray(mu, &g));
+        PetscCall(VecRestoreArrayRead(U_local_, &ul));
+      } else if (nd == 1 && (!diffusion_ || field)) { // A^T = -(a / h) D^T (+ the field's faces): one sweep for both
         sweep(xl, vel_taps_t_[0], ya);
         local[0] = -1.0 / h_[0] * dot4(ya, u, n);
         const PetscReal s = vel_[0] * (-1.0 / h_[0]);
@@ -1943,7 +1986,7 @@ private:
   bool lazy_ = false;
   PetscBool fuse_adjoint_ = PETSC_TRUE;
   PetscBool fuse_combination_ = PETSC_TRUE; // -advection_stage_combination
-  PetscBool row_loop_ = PETSC_TRUE;         // -advection_fd2_row_loop
+  PetscBool row_loop_ = PETSC_TRUE;         // -advection_fd2_row_loop (1D and 2D)
   RecordedStage stage_;
   unsigned long columns_serial_ = 0;
   FusedProducts fused_;
