@@ -8,6 +8,8 @@
 //     (-leapfrog_fused_adjoint 0), for a scalar speed (whose gradient is a sum over ranks) and a field,
 //     and full storage of positions only (the default; the kick reads them in place, and given u alone it
 //     gives the same numbers as given the whole state) the same as of whole states (-checkpoint_positions_only 0);
+//   * wave2d's kick from the record rhs_record writes (L u) gives bitwise its numbers from the state, and a
+//     leapfrog gradient through stored records bitwise that through stored positions (-leapfrog_records 0);
 //   * the matrix-free dG/dU (create_jacobian_matrix_free) applies J and J^T like the assembled one,
 //     and an RK4 gradient through it equals one through the assembled J (-sim_matrix_free_jacobian 0).
 //   * the 1D wave's matrix-free J^T also forms the dG/dc transpose of the same vector at the recorded
@@ -19,6 +21,7 @@
 #include "flexipde/scene.hpp"
 #include "test_support.hpp"
 #include <string>
+#include <vector>
 
 using namespace flexipde;
 using flexipde_test::dot;
@@ -131,14 +134,14 @@ TEST_P(MatrixFree, FusedAdjointKickEqualsAssembledTransposes) {
   PETSC_ASSERT_OK(VecCopy(lam, lam_q));
   PETSC_ASSERT_OK(VecDuplicate(mu, mu_q.out()));
   PETSC_ASSERT_OK(VecCopy(mu, mu_q));
-  PETSC_ASSERT_OK(scene.model->second_order_adjoint(0.0, U, lam, w, mu, 0.0, nullptr));
+  PETSC_ASSERT_OK(scene.model->second_order_adjoint(0.0, U, nullptr, lam, w, mu, 0.0, nullptr));
   EXPECT_LT(rel_diff(lam, expect), 1e-13);
   // given u alone (the stored positions, laid out like the grid's one-component Vecs), the same numbers
   ASSERT_TRUE(scene.model->second_order_adjoint_takes_positions());
   OwnedVec q;
   PETSC_ASSERT_OK(DMCreateGlobalVector(scene.grid.dm(), q.out()));
   PETSC_ASSERT_OK(VecStrideGather(U, 0, q, INSERT_VALUES));
-  PETSC_ASSERT_OK(scene.model->second_order_adjoint(0.0, q, lam_q, w, mu_q, 0.0, nullptr));
+  PETSC_ASSERT_OK(scene.model->second_order_adjoint(0.0, q, nullptr, lam_q, w, mu_q, 0.0, nullptr));
   EXPECT_LT(rel_diff(lam_q, lam), 1e-15);
   EXPECT_LT(rel_diff(mu_q, mu), 1e-15);
   PETSC_ASSERT_OK(VecAXPY(mu, -1.0, mu0));
@@ -175,10 +178,10 @@ TEST_P(MatrixFree, FusedAdjointKickAppliesTheDrift) {
       for (PetscInt i = 0; i < n; i += 2) r[i + 1] += s * r[i];
       PETSC_ASSERT_OK(VecRestoreArray(ref, &r));
     }
-    PETSC_ASSERT_OK(scene.model->second_order_adjoint(0.0, X, ref, w, mu_ref, 0.0, nullptr));
+    PETSC_ASSERT_OK(scene.model->second_order_adjoint(0.0, X, nullptr, ref, w, mu_ref, 0.0, nullptr));
     const PetscScalar *next; // some positions to prefetch (the hint must not change the numbers)
     PETSC_ASSERT_OK(VecGetArrayRead(q, &next));
-    PETSC_ASSERT_OK(scene.model->second_order_adjoint(0.0, X, lam, w, mu, s, next));
+    PETSC_ASSERT_OK(scene.model->second_order_adjoint(0.0, X, nullptr, lam, w, mu, s, next));
     PETSC_ASSERT_OK(VecRestoreArrayRead(q, &next));
     EXPECT_EQ(rel_diff(lam, ref), 0.0);
     EXPECT_EQ(rel_diff(mu, mu_ref), 0.0);
@@ -186,6 +189,36 @@ TEST_P(MatrixFree, FusedAdjointKickAppliesTheDrift) {
     PETSC_ASSERT_OK(VecStrideScale(lam, 0, 0.0));
     PETSC_ASSERT_OK(VecStrideScale(lam0, 0, 0.0));
     EXPECT_GT(rel_diff(lam, lam0), 0.1);
+  }
+}
+
+// A kick that takes the record rhs_record writes at U (Model::second_order_adjoint_takes_record: wave2d's
+// L u) gives, from that record alone, bitwise the numbers it gives from U, with and without a drift.
+TEST_P(MatrixFree, FusedAdjointKickFromRecord) {
+  if (!GetParam().fused || !scene.model->second_order_adjoint_takes_record()) {
+    EXPECT_NE(std::string(GetParam().name).rfind("wave2d_", 0) == 0, GetParam().fused); // wave2d without a sponge takes them
+    return;
+  }
+  std::vector<PetscScalar> record(scene.model->stage_record_size());
+  OwnedVec G;
+  PETSC_ASSERT_OK(VecDuplicate(U, G.out()));
+  PETSC_ASSERT_OK(scene.model->rhs_record(0.0, U, G, record.data()));
+  for (const PetscReal s : {0.0, 0.013}) {
+    SCOPED_TRACE(s);
+    OwnedVec lam, lam_r, mu, mu_r;
+    PETSC_ASSERT_OK(VecDuplicate(U, lam.out()));
+    PETSC_ASSERT_OK(fill_random(lam, -1.0, 1.0, 23));
+    PETSC_ASSERT_OK(VecDuplicate(lam, lam_r.out()));
+    PETSC_ASSERT_OK(VecCopy(lam, lam_r));
+    PETSC_ASSERT_OK(scene.params.create_vec(mu.out()));
+    PETSC_ASSERT_OK(fill_random(mu, -1.0, 1.0, 24));
+    PETSC_ASSERT_OK(VecDuplicate(mu, mu_r.out()));
+    PETSC_ASSERT_OK(VecCopy(mu, mu_r));
+    PETSC_ASSERT_OK(scene.model->second_order_adjoint(0.0, U, nullptr, lam, 0.37, mu, s, nullptr));
+    PETSC_ASSERT_OK(scene.model->second_order_adjoint(0.0, nullptr, record.data(), lam_r, 0.37, mu_r, s, nullptr));
+    EXPECT_EQ(rel_diff(lam_r, lam), 0.0);
+    EXPECT_EQ(rel_diff(mu_r, mu), 0.0);
+    EXPECT_GT(norm(mu), 0.0);
   }
 }
 
@@ -198,6 +231,9 @@ TEST_P(MatrixFree, LeapfrogGradientFusedEqualsJacobians) {
     expect_same_gradient_other_setup(scene, p, {{"-ts_type", "leapfrog"}}, {{"-wave_fused_drift", "0"}}, 1e-14);
   // full storage of whole states (read in place) gives the same gradient as of positions only (to round-off)
   expect_same_gradient(scene, p, {{"-ts_type", "leapfrog"}}, {{"-checkpoint_positions_only", "0"}}, 1e-14);
+  // full storage of the kick's records (wave2d: L u, written by the forward's evaluations of G) instead of
+  // the positions: bitwise the same gradient
+  expect_same_gradient(scene, p, {{"-ts_type", "leapfrog"}}, {{"-leapfrog_records", "0"}}, 1e-300);
 }
 
 TEST_P(MatrixFree, MatrixFreeJacobianEqualsAssembled) {

@@ -73,7 +73,8 @@ private:
   static PetscErrorCode rhs_cb(TS, PetscReal, Vec, Vec, void *);
   static PetscErrorCode rhs_jacobian_cb(TS, PetscReal, Vec, Mat, Mat, void *);
   static PetscErrorCode rhs_jacobian_p_cb(TS, PetscReal, Vec, Mat, void *);
-  static PetscErrorCode adjoint_kick_cb(void *, PetscReal, Vec, Vec, PetscReal, Vec, PetscReal, const PetscScalar *);
+  static PetscErrorCode adjoint_kick_cb(void *, PetscReal, Vec, const PetscScalar *, Vec, PetscReal, Vec, PetscReal,
+                                        const PetscScalar *);
   static PetscErrorCode stage_adjoint_cb(void *, PetscReal, Vec, const PetscScalar *, const StageCombination &, Vec, Vec);
   PetscErrorCode check_finite(Vec U, const char *what);
   static PetscErrorCode blowup_monitor(TS, PetscInt, PetscReal, Vec, void *);
@@ -82,6 +83,7 @@ private:
   PetscBool fused_adjoint_ = PETSC_TRUE;
   bool rk_stage_fused_ = false; // the last adjoint TS's RK stages call Model::stage_adjoint
   bool rk_stage_records_ = false; // ... and its RHS evaluations may record (Model::stage_record_size)
+  PetscBool leapfrog_records_option_ = PETSC_TRUE; // -leapfrog_records (Model::second_order_adjoint_takes_record)
   PetscBool matrix_free_jacobian_ = PETSC_TRUE; // -sim_matrix_free_jacobian // -leapfrog_fused_adjoint: the model's fused kick when it has one
   PetscErrorCode finish_solve(TS ts);
   bool adaptive_ = false;

@@ -241,12 +241,13 @@ public:
   // one sweep (wall rows of lambda_u untouched: the walls' columns are not in D2). U is a whole state or
   // u alone. The drift is folded into the interior sweep for the second-order stencil on stored
   // positions (drift_kick_pairs; -wave_fused_drift), else applied in a pass of its own first.
-  PetscErrorCode second_order_adjoint(PetscReal, Vec U, Vec lambda, PetscReal w, Vec mu, PetscReal drift,
-                                      const PetscScalar *prefetch) override {
+  PetscErrorCode second_order_adjoint(PetscReal, Vec U, const PetscScalar *record, Vec lambda, PetscReal w, Vec mu,
+                                      PetscReal drift, const PetscScalar *prefetch) override {
     const ParamInfo &pi = params_->info(c_index_);
     PetscReal local[4] = {0, 0, 0, 0}; // four partial sums: no single dependency chain through the sweep
     PetscInt su = 2;
     PetscFunctionBeginUser;
+    PetscCheck(!record, grid_->comm(), PETSC_ERR_PLIB, "wave: the kick takes no record");
     PetscCall(u_layout(U, &su));
     {
       ConstArray u(U);

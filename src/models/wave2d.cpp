@@ -269,10 +269,13 @@ public:
 
   bool has_second_order_adjoint() const override { return sponge_width_ <= 0; }
   bool second_order_adjoint_takes_positions() const override { return true; }
+  // The kick reads u only through L u off the edges: the record rhs_record writes (0 on the edges).
+  bool second_order_adjoint_takes_record() const override { return sponge_width_ <= 0; }
   // lambda_u += w L (c^2 lambda_v) at every point (edge columns included, as in A^T), and
-  // mu += w 2 c (L u) lambda_v off the edges, in one sweep. U is a whole state or u alone.
-  PetscErrorCode second_order_adjoint(PetscReal, Vec U, Vec lambda, PetscReal w, Vec mu, PetscReal drift,
-                                      const PetscScalar *prefetch) override {
+  // mu += w 2 c (L u) lambda_v off the edges, in one sweep. U is a whole state or u alone, or null with
+  // the state's record L u (no Laplacian of u then, and no exchange of its ghosts).
+  PetscErrorCode second_order_adjoint(PetscReal, Vec U, const PetscScalar *record, Vec lambda, PetscReal w, Vec mu,
+                                      PetscReal drift, const PetscScalar *prefetch) override {
     const ParamInfo &pi = params_->info(c_index_);
     PetscReal local[4] = {0, 0, 0, 0}; // four partial sums: no single dependency chain through the sweep
     PetscInt nu;
@@ -286,23 +289,28 @@ public:
       PetscCall(l.error());
       leapfrog_drift_transpose(l.data(), 0, grid_->local_points(), 1, drift);
     }
-    PetscCall(VecGetLocalSize(U, &nu));
-    if (nu == grid_->local_points()) PetscCall(kick<1>(U, lambda, w, mu, pi, local, fold ? drift : 0));
-    else PetscCall(kick<2>(U, lambda, w, mu, pi, local, fold ? drift : 0));
+    if (record) PetscCall(kick<0>(nullptr, record, lambda, w, mu, pi, local, fold ? drift : 0));
+    else {
+      PetscCall(VecGetLocalSize(U, &nu));
+      if (nu == grid_->local_points()) PetscCall(kick<1>(U, nullptr, lambda, w, mu, pi, local, fold ? drift : 0));
+      else PetscCall(kick<2>(U, nullptr, lambda, w, mu, pi, local, fold ? drift : 0));
+    }
     if (mu && !c_field_) PetscCall(params_->add_local_sum(mu, c_index_, w * (local[0] + local[1] + local[2] + local[3])));
     PetscFunctionReturn(0);
   }
 
-  // The sweep of second_order_adjoint with u read at stride SU in U (2: a whole state, 1: u alone).
+  // The sweep of second_order_adjoint with u read at stride SU in U (2: a whole state, 1: u alone), or
+  // (SU = 0, U null) with L u read from the record rec.
   // s != 0 (with the ring, xm, ym >= 3): the drift lambda_v += s lambda_u folded in: the block's
   // perimeter first (the points whose lambda_v the neighbours receive), the interior points by the ring
   // pass, a row ahead of that row's kick and with its lambda_u from before it. Bitwise the same.
   template <int SU>
-  PetscErrorCode kick(Vec U, Vec lambda, PetscReal w, Vec mu, const ParamInfo &pi, PetscReal local[4], PetscReal s) {
+  PetscErrorCode kick(Vec U, const PetscScalar *rec, Vec lambda, PetscReal w, Vec mu, const ParamInfo &pi, PetscReal local[4],
+                      PetscReal s) {
     const PetscInt xm = grid_->xm(), ym = grid_->ym();
     Halo &halo_u = SU == 1 ? halo_q_ : halo_u_;
     PetscFunctionBeginUser;
-    PetscCall(halo_u.begin(U));
+    if (SU) PetscCall(halo_u.begin(U));
     if (s != 0) {
       Array l(lambda);
       PetscCall(l.error());
@@ -316,13 +324,13 @@ public:
     }
     PetscCall(halo_v_.begin(lambda));
     {
-      ConstArray u(U);
+      ConstArray u(SU ? U : nullptr);
       Array l(lambda);
-      PetscCall(u.error());
+      if (SU) PetscCall(u.error());
       PetscCall(l.error());
       PetscScalar *g = nullptr;
       if (mu && c_field_) PetscCall(VecGetArray(mu, &g));
-      const PetscScalar *ua = u.data();
+      const PetscScalar *ua = SU ? u.data() : rec;
       PetscScalar *L = l.data();
       const PetscReal *c2 = c2m_.data(), *tc = two_c_.data();
       const PetscReal ax = ihx2_, ay = ihy2_, a0 = -2 * (ihx2_ + ihy2_);
@@ -362,8 +370,10 @@ public:
                                         *__restrict zp = zr + ((jl + 1) % 3) * xm;
             for (PetscInt i = 1; i < xm - 1; ++i) {
               const PetscInt k = jl * xm + i;
-              const PetscReal lu = ax * PetscRealPart(ua[SU * (k - 1)] + ua[SU * (k + 1)]) +
-                                   ay * PetscRealPart(ua[SU * (k - xm)] + ua[SU * (k + xm)]) + a0 * PetscRealPart(ua[SU * k]);
+              const PetscReal lu = SU == 0 ? PetscRealPart(ua[k])
+                                           : ax * PetscRealPart(ua[SU * (k - 1)] + ua[SU * (k + 1)]) +
+                                                 ay * PetscRealPart(ua[SU * (k - xm)] + ua[SU * (k + xm)]) +
+                                                 a0 * PetscRealPart(ua[SU * k]);
               const PetscReal v = PetscRealPart(L[2 * k + 1]);
               const PetscReal lz = ax * (z0[i - 1] + z0[i + 1]) + ay * (zm[i] + zp[i]) + a0 * c2[k] * v;
               L[2 * k] += w * lz;
@@ -374,8 +384,10 @@ public:
             continue;
           }
           for (PetscInt k = jl * xm + 1; k < jl * xm + xm - 1; ++k) {
-            const PetscReal lu = ax * PetscRealPart(ua[SU * (k - 1)] + ua[SU * (k + 1)]) +
-                                 ay * PetscRealPart(ua[SU * (k - xm)] + ua[SU * (k + xm)]) + a0 * PetscRealPart(ua[SU * k]);
+            const PetscReal lu = SU == 0 ? PetscRealPart(ua[k])
+                                         : ax * PetscRealPart(ua[SU * (k - 1)] + ua[SU * (k + 1)]) +
+                                               ay * PetscRealPart(ua[SU * (k - xm)] + ua[SU * (k + xm)]) +
+                                               a0 * PetscRealPart(ua[SU * k]);
             const PetscReal lz = ax * (c2[k - 1] * PetscRealPart(L[2 * (k - 1) + 1]) + c2[k + 1] * PetscRealPart(L[2 * (k + 1) + 1])) +
                                  ay * (c2[k - xm] * PetscRealPart(L[2 * (k - xm) + 1]) + c2[k + xm] * PetscRealPart(L[2 * (k + xm) + 1])) +
                                  a0 * c2[k] * PetscRealPart(L[2 * k + 1]);
@@ -391,7 +403,7 @@ public:
         interior(std::false_type{});
         for (PetscInt jl = 1; jl < ym - 1; ++jl) sum4(out, jl * xm + 1, jl * xm + xm - 1, local);
       }
-      PetscCall(halo_u.end(U));
+      if (SU) PetscCall(halo_u.end(U));
       PetscCall(halo_v_.end(lambda));
       PetscCall(perimeter_laps<SU>(ua, L, halo_u, body));
       if (g) PetscCall(VecRestoreArray(mu, &g));
@@ -592,7 +604,10 @@ private:
     return for_perimeter([&](PetscInt il, PetscInt jl) {
       const PetscInt k = jl * xm + il;
       const PetscReal lz = ax * (zat(il - 1, jl) + zat(il + 1, jl)) + ay * (zat(il, jl - 1) + zat(il, jl + 1)) + a0 * zat(il, jl);
-      const PetscReal lu = edge_[k] ? 0.0 : ax * (uat(il - 1, jl) + uat(il + 1, jl)) + ay * (uat(il, jl - 1) + uat(il, jl + 1)) + a0 * uat(il, jl);
+      // (SU = 0: ua is the record L u, 0 on the edges)
+      const PetscReal lu = SU == 0 ? PetscRealPart(ua[k])
+                           : edge_[k] ? 0.0
+                                      : ax * (uat(il - 1, jl) + uat(il + 1, jl)) + ay * (uat(il, jl - 1) + uat(il, jl + 1)) + a0 * uat(il, jl);
       f(k, lu, lz);
       return PetscErrorCode(0);
     });
