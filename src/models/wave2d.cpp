@@ -41,6 +41,10 @@
 #include "flexipde/model.hpp"
 #include "flexipde/survey.hpp"
 #include <cmath>
+#include <cstring>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 #include <type_traits>
 #include <vector>
 
@@ -148,6 +152,10 @@ public:
                                "The leapfrog adjoint's kick forms c^2 lambda_v once per point into a three-row ring "
                                "(bitwise the same result), else reads it from lambda at every neighbour",
                                "Wave2D", ring_, &ring_, nullptr));
+    PetscCall(PetscOptionsBool("-wave2d_stream_records",
+                               "The records of L u that full storage keeps (RK stages, leapfrog levels) are written "
+                               "with non-temporal stores (past the caches: the adjoint reads them much later)",
+                               "Wave2D", stream_records_, &stream_records_, nullptr));
     PetscOptionsEnd();
     PetscCheck(c_min_ > 0, grid.comm(), PETSC_ERR_ARG_OUTOFRANGE, "-wave2d_c_min must be positive, got %g",
                (double)c_min_);
@@ -235,16 +243,33 @@ public:
       PetscCall(g.error());
       PetscScalar *ga = g.data();
       const PetscReal *sig = sigma_.data(), *c2 = c2m_.data();
+      // a record entry, with a non-temporal store when asked (8 bytes at a time: the sweep emits points one
+      // by one, the interior's in order)
+      const bool stream = REC && stream_records_;
+      auto put = [&](PetscInt k, PetscReal v) {
+#if defined(__SSE2__) && !defined(PETSC_USE_COMPLEX) && defined(PETSC_USE_REAL_DOUBLE)
+        if (stream) {
+          long long bits;
+          std::memcpy(&bits, &v, sizeof bits);
+          _mm_stream_si64(reinterpret_cast<long long *>(record + k), bits);
+          return;
+        }
+#endif
+        record[k] = v;
+      };
       PetscCall(sweep_lap(U, [&](PetscInt k, PetscReal lu, const PetscScalar *u) {
         if (edge_[k]) {
           ga[2 * k] = ga[2 * k + 1] = 0;
-          if (REC) record[k] = 0;
+          if (REC) put(k, 0.0);
         } else {
           ga[2 * k] = u[2 * k + 1];
           ga[2 * k + 1] = c2[k] * lu - sig[k] * u[2 * k + 1];
-          if (REC) record[k] = lu;
+          if (REC) put(k, lu);
         }
       }));
+#if defined(__SSE2__)
+      if (stream) _mm_sfence();
+#endif
     }
     if (source_ && source_->stencil.n) {
       Array g(G);
@@ -763,6 +788,7 @@ private:
   PetscBool c_field_ = PETSC_FALSE;
   PetscBool ring_ = PETSC_TRUE;   // -wave2d_kick_ring
   PetscBool fuse_drift_ = PETSC_TRUE; // -wave2d_fused_drift
+  PetscBool stream_records_ = PETSC_TRUE; // -wave2d_stream_records
   std::vector<PetscReal> zring_;  // its three rows
   PetscInt ic_ = 0, c_index_ = -1;
   PetscReal c_min_ = 0.01, cmax_ = 0, sponge_width_ = 0.15, sigma_max_ = 60.0;
