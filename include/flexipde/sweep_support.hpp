@@ -6,8 +6,33 @@
 #include "flexipde/petsc.hpp"
 #include <petsc/private/petscimpl.h> // PetscObjectStateGet
 #include <algorithm>
+#include <cstring>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 namespace flexipde {
+
+// *p = v, with a non-temporal store when `stream` (8 bytes past the caches: for records that full
+// storage keeps and the adjoint reads much later, written point by point by a sweep); stream_fence()
+// after the last of them.
+inline void record_store(PetscScalar *p, PetscReal v, bool stream) {
+#if defined(__SSE2__) && !defined(PETSC_USE_COMPLEX) && defined(PETSC_USE_REAL_DOUBLE)
+  if (stream) {
+    long long bits;
+    std::memcpy(&bits, &v, sizeof bits);
+    _mm_stream_si64(reinterpret_cast<long long *>(p), bits);
+    return;
+  }
+#endif
+  (void)stream;
+  *p = v;
+}
+inline void stream_fence() {
+#if defined(__SSE2__)
+  _mm_sfence();
+#endif
+}
 
 // The state U that rhs_jacobian_p was last given, kept by reference instead of copied: dG/dp is
 // evaluated at it only when applied (or fused into the transpose of dG/dU, see FusedProducts). Every

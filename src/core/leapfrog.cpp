@@ -311,7 +311,7 @@ PetscErrorCode half_kicks(TS ts, Mat J, PetscReal t, Vec X, PetscReal w, PetscRe
   if (w == 0 && drift == 0) PetscFunctionReturn(0);
   if (lf->adjoint_kick) {
     for (PetscInt k = 0; k < ts->numcost; ++k)
-      PetscCall(lf->adjoint_kick(lf->adjoint_kick_ctx, t, X ? X : nullptr, X ? nullptr : lf->R, ts->vecs_sensi[k], w,
+      PetscCall(lf->adjoint_kick(lf->adjoint_kick_ctx, t, X, X ? nullptr : lf->R, ts->vecs_sensi[k], w,
                                  ts->vecs_sensip ? ts->vecs_sensip[k] : nullptr, drift, k == 0 ? prefetch : nullptr));
     PetscFunctionReturn(0);
   }

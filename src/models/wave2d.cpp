@@ -22,7 +22,9 @@
 // serves implicit integrators and PETSc's RK/theta adjoints. Without a sponge the model also offers
 // the leapfrog's fused adjoint (Model::second_order_adjoint): one sweep gives
 // lambda_u += w L (c^2 lambda_v) (c^2 taken as 0 on the edge rows, which A does not have) and
-// mu += w 2 c (L u) lambda_v. For the explicit RK adjoint it offers the stage products fused
+// mu += w 2 c (L u) lambda_v; with full storage it reads L u from the record that the forward's
+// evaluation of G wrote at that level (Model::second_order_adjoint_takes_record), one Laplacian instead
+// of two. For the explicit RK adjoint it offers the stage products fused
 // (Model::stage_adjoint, sponge or not): one sweep gives y = (dG/dU)^T x and mu += (dG/dc)^T x, the
 // numbers of the two transposes above; without a sponge they also take a stage's u alone, so that
 // full storage keeps only the stages' positions (half the memory).
@@ -41,10 +43,6 @@
 #include "flexipde/model.hpp"
 #include "flexipde/survey.hpp"
 #include <cmath>
-#include <cstring>
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
 #include <type_traits>
 #include <vector>
 
@@ -243,33 +241,19 @@ public:
       PetscCall(g.error());
       PetscScalar *ga = g.data();
       const PetscReal *sig = sigma_.data(), *c2 = c2m_.data();
-      // a record entry, with a non-temporal store when asked (8 bytes at a time: the sweep emits points one
-      // by one, the interior's in order)
+      // (the records with non-temporal stores when asked: the sweep emits the points one by one)
       const bool stream = REC && stream_records_;
-      auto put = [&](PetscInt k, PetscReal v) {
-#if defined(__SSE2__) && !defined(PETSC_USE_COMPLEX) && defined(PETSC_USE_REAL_DOUBLE)
-        if (stream) {
-          long long bits;
-          std::memcpy(&bits, &v, sizeof bits);
-          _mm_stream_si64(reinterpret_cast<long long *>(record + k), bits);
-          return;
-        }
-#endif
-        record[k] = v;
-      };
       PetscCall(sweep_lap(U, [&](PetscInt k, PetscReal lu, const PetscScalar *u) {
         if (edge_[k]) {
           ga[2 * k] = ga[2 * k + 1] = 0;
-          if (REC) put(k, 0.0);
+          if (REC) record_store(record + k, 0.0, stream);
         } else {
           ga[2 * k] = u[2 * k + 1];
           ga[2 * k + 1] = c2[k] * lu - sig[k] * u[2 * k + 1];
-          if (REC) put(k, lu);
+          if (REC) record_store(record + k, lu, stream);
         }
       }));
-#if defined(__SSE2__)
-      if (stream) _mm_sfence();
-#endif
+      if (stream) stream_fence();
     }
     if (source_ && source_->stencil.n) {
       Array g(G);
