@@ -1621,6 +1621,20 @@ private:
   // A^T x = sum_d a_d D_d x + D L x, and (dG/da_d)^T x = <-D_d u, x> = <u, D_d x>, (dG/dD)^T x = <u, L x>:
   // one forward transform of x and one backward transform per two derivatives (apply_pair, apply_many)
   // give the product and the parameters' sums together (the Jacobian path transforms u as well at every stage).
+  // y = sum_{j < M} c_j v_j, each sum from 0 in the order of j.
+  template <int M>
+  __attribute__((optimize("tree-vectorize", "vect-cost-model=dynamic")))
+  static void combine_parts(PetscInt n, const PetscReal *c, const PetscScalar *const *v, PetscScalar *__restrict y) {
+    PetscReal cc[M];
+    const PetscScalar *__restrict w[M];
+    for (int j = 0; j < M; ++j) cc[j] = c[j], w[j] = v[j];
+    for (PetscInt il = 0; il < n; ++il) {
+      PetscReal s = 0;
+#pragma GCC unroll 3
+      for (int j = 0; j < M; ++j) s += cc[j] * PetscRealPart(w[j][il]);
+      y[il] = s;
+    }
+  }
   PetscErrorCode spectral_stage_adjoint(PetscReal t, Vec U, Vec x, Vec y, Vec mu) {
     PetscReal local[3] = {0, 0, 0};
     const PetscInt n = grid_->local_points(), nd = dim_;
@@ -1650,10 +1664,10 @@ private:
         Array Y(y);
         PetscCall(Y.error());
         PetscScalar *ya = Y.data();
-        for (PetscInt il = 0; il < n; ++il) {
-          PetscReal s = 0;
-          for (PetscInt j = 0; j < m; ++j) s += c[j] * PetscRealPart(v[j][il]);
-          ya[il] = s;
+        switch (m) { // (the number of parts fixed at compile time, so that the loop vectorises)
+        case 1: combine_parts<1>(n, c, v, ya); break;
+        case 2: combine_parts<2>(n, c, v, ya); break;
+        default: combine_parts<3>(n, c, v, ya); break;
         }
       }
       if (mu)
