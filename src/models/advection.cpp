@@ -1617,10 +1617,6 @@ private:
     face_sweeps(face_.grad.data(), face_.grad.data(), face_.interp.data(), u, xl, true, gD);
   }
 
-  // The spectral stage (scalar coefficients): with D_d skew and the Laplacian L symmetric,
-  // A^T x = sum_d a_d D_d x + D L x, and (dG/da_d)^T x = <-D_d u, x> = <u, D_d x>, (dG/dD)^T x = <u, L x>:
-  // one forward transform of x and one backward transform per two derivatives (apply_pair, apply_many)
-  // give the product and the parameters' sums together (the Jacobian path transforms u as well at every stage).
   // y = sum_{j < M} c_j v_j, each sum from 0 in the order of j.
   template <int M>
   __attribute__((optimize("tree-vectorize", "vect-cost-model=dynamic")))
@@ -1635,6 +1631,10 @@ private:
       y[il] = s;
     }
   }
+  // The spectral stage (scalar coefficients): with D_d skew and the Laplacian L symmetric,
+  // A^T x = sum_d a_d D_d x + D L x, and (dG/da_d)^T x = <-D_d u, x> = <u, D_d x>, (dG/dD)^T x = <u, L x>:
+  // one forward transform of x and one backward transform per two derivatives (apply_pair, apply_many)
+  // give the product and the parameters' sums together (the Jacobian path transforms u as well at every stage).
   PetscErrorCode spectral_stage_adjoint(PetscReal t, Vec U, Vec x, Vec y, Vec mu) {
     PetscReal local[3] = {0, 0, 0};
     const PetscInt n = grid_->local_points(), nd = dim_;
