@@ -6,6 +6,7 @@
 #include "flexipde/petsc.hpp"
 #include <petsc/private/petscimpl.h> // PetscObjectStateGet
 #include <algorithm>
+#include <cstdint>
 #include <cstring>
 #if defined(__SSE2__)
 #include <emmintrin.h>
@@ -31,6 +32,18 @@ inline void record_store(PetscScalar *p, PetscReal v, bool stream) {
 inline void stream_fence() {
 #if defined(__SSE2__)
   _mm_sfence();
+#endif
+}
+// b[0, n) = x[0, n) with non-temporal stores (two entries at a time from the first 16-byte boundary of b);
+// stream_fence() after the last of them.
+inline void stream_copy_records(PetscScalar *b, const PetscScalar *x, PetscInt n) {
+#if defined(__SSE2__) && !defined(PETSC_USE_COMPLEX) && defined(PETSC_USE_REAL_DOUBLE)
+  PetscInt i = 0;
+  if (n > 0 && reinterpret_cast<uintptr_t>(b) % 16) record_store(b, x[0], true), i = 1;
+  for (; i + 1 < n; i += 2) _mm_stream_pd(b + i, _mm_loadu_pd(x + i));
+  for (; i < n; ++i) record_store(b + i, x[i], true);
+#else
+  std::copy(x, x + n, b);
 #endif
 }
 

@@ -150,6 +150,10 @@ public:
                                "The leapfrog adjoint's kick forms c^2 lambda_v once per point into a three-row ring "
                                "(bitwise the same result), else reads it from lambda at every neighbour",
                                "Wave2D", ring_, &ring_, nullptr));
+    PetscCall(PetscOptionsBool("-wave2d_row_loops",
+                               "G and the leapfrog adjoint's kick run each row's interior points in a loop of their own "
+                               "that vectorises (the same numbers), else point by point",
+                               "Wave2D", row_loop_, &row_loop_, nullptr));
     PetscCall(PetscOptionsBool("-wave2d_stream_records",
                                "The records of L u that full storage keeps (RK stages, leapfrog levels) are written "
                                "with non-temporal stores (past the caches: the adjoint reads them much later)",
@@ -243,7 +247,7 @@ public:
       const PetscReal *sig = sigma_.data(), *c2 = c2m_.data();
       // (the records with non-temporal stores when asked: the sweep emits the points one by one)
       const bool stream = REC && stream_records_;
-      PetscCall(sweep_lap(U, [&](PetscInt k, PetscReal lu, const PetscScalar *u) {
+      auto emit = [&](PetscInt k, PetscReal lu, const PetscScalar *u) {
         if (edge_[k]) {
           ga[2 * k] = ga[2 * k + 1] = 0;
           if (REC) record_store(record + k, 0.0, stream);
@@ -252,7 +256,20 @@ public:
           ga[2 * k + 1] = c2[k] * lu - sig[k] * u[2 * k + 1];
           if (REC) record_store(record + k, lu, stream);
         }
-      }));
+      };
+      // the block's interior rows in a loop of their own that vectorises (rhs_row); records to be written
+      // with non-temporal stores go to a row buffer first and are streamed from there
+      const PetscInt xm = grid_->xm();
+      const PetscReal ax = ihx2_, ay = ihy2_, a0 = -2 * (ihx2_ + ihy2_);
+      if (stream && rec_row_.size() < (size_t)xm) rec_row_.resize(xm);
+      PetscScalar *rb = stream ? rec_row_.data() : nullptr;
+      if (row_loop_)
+        PetscCall(sweep<false>(U, emit, [&](PetscInt jl, const PetscScalar *u) {
+          rhs_row<REC>(xm, u + 2 * jl * xm, ga + 2 * jl * xm, c2 + jl * xm, sig + jl * xm,
+                       REC ? (stream ? rb : record + jl * xm) : nullptr, ax, ay, a0);
+          if (REC && stream) stream_copy_records(record + jl * xm + 1, rb + 1, xm - 2);
+        }));
+      else PetscCall(sweep_lap(U, emit));
       if (stream) stream_fence();
     }
     if (source_ && source_->stencil.n) {
@@ -265,6 +282,21 @@ public:
       }
     }
     PetscFunctionReturn(0);
+  }
+
+  // G at the interior points [1, xm - 1) of one row (arrays at the row's first point, rows xm points
+  // apart): the expressions of rhs_sweep's emit off the edges, in a loop the compiler vectorises.
+  template <bool REC>
+  __attribute__((optimize("tree-vectorize", "vect-cost-model=dynamic")))
+  static void rhs_row(PetscInt xm, const PetscScalar *__restrict u, PetscScalar *__restrict g, const PetscReal *__restrict c2,
+                      const PetscReal *__restrict sig, PetscScalar *__restrict rec, PetscReal ax, PetscReal ay, PetscReal a0) {
+    for (PetscInt i = 1; i < xm - 1; ++i) {
+      const PetscReal lu = ax * (PetscRealPart(u[2 * (i - 1)]) + PetscRealPart(u[2 * (i + 1)])) +
+                           ay * (PetscRealPart(u[2 * (i - xm)]) + PetscRealPart(u[2 * (i + xm)])) + a0 * PetscRealPart(u[2 * i]);
+      g[2 * i] = u[2 * i + 1];
+      g[2 * i + 1] = c2[i] * lu - sig[i] * u[2 * i + 1];
+      if (REC) rec[i] = lu;
+    }
   }
 
   // Records (L u)_k at this state for the shell dG/dc (0 on the edges).
@@ -308,6 +340,26 @@ public:
     PetscFunctionReturn(0);
   }
 
+  // One row's interior points [1, xm - 1) of kick's ring pass (arrays at the row's first point; the row of u
+  // xm apart from its neighbours, z's three rows from the ring).
+  template <int SU, bool ADD>
+  __attribute__((optimize("tree-vectorize", "vect-cost-model=dynamic")))
+  static void kick_row(PetscInt xm, const PetscScalar *__restrict ua, PetscScalar *__restrict L, const PetscReal *__restrict c2,
+                       const PetscReal *__restrict tc, const PetscReal *__restrict zm, const PetscReal *__restrict z0,
+                       const PetscReal *__restrict zp, PetscScalar *__restrict out, PetscReal ax, PetscReal ay, PetscReal a0,
+                       PetscReal w) {
+    for (PetscInt i = 1; i < xm - 1; ++i) {
+      const PetscReal lu = SU == 0 ? PetscRealPart(ua[i])
+                                   : ax * PetscRealPart(ua[SU * (i - 1)] + ua[SU * (i + 1)]) +
+                                         ay * PetscRealPart(ua[SU * (i - xm)] + ua[SU * (i + xm)]) + a0 * PetscRealPart(ua[SU * i]);
+      const PetscReal v = PetscRealPart(L[2 * i + 1]);
+      const PetscReal lz = ax * (z0[i - 1] + z0[i + 1]) + ay * (zm[i] + zp[i]) + a0 * c2[i] * v;
+      L[2 * i] += w * lz;
+      const PetscReal gk = tc[i] * lu * v;
+      if (ADD) out[i] += w * gk;
+      else out[i] = gk;
+    }
+  }
   // The sweep of second_order_adjoint with u read at stride SU in U (2: a whole state, 1: u alone), or
   // (SU = 0, U null) with L u read from the record rec.
   // s != 0 (with the ring, xm, ym >= 3): the drift lambda_v += s lambda_u folded in: the block's
@@ -377,6 +429,11 @@ public:
             zrow(jl + 1);
             const PetscReal *__restrict zm = zr + ((jl - 1) % 3) * xm, *__restrict z0 = zr + (jl % 3) * xm,
                                         *__restrict zp = zr + ((jl + 1) % 3) * xm;
+            if (row_loop_) {
+              kick_row<SU, ADD>(xm, ua + (SU ? SU : 1) * jl * xm, L + 2 * jl * xm, c2 + jl * xm, tc + jl * xm, zm, z0, zp,
+                                out + jl * xm, ax, ay, a0, w);
+              continue;
+            }
             for (PetscInt i = 1; i < xm - 1; ++i) {
               const PetscInt k = jl * xm + i;
               const PetscReal lu = SU == 0 ? PetscRealPart(ua[k])
@@ -628,8 +685,11 @@ private:
   }
   // Z = false: emit(k, (L u)_k, x); Z = true: emit(k, (L z)_k, x) with z = c^2 v, 0 on the edges;
   // for every owned point (u, v the components of X).
-  template <bool Z, class Emit>
-  PetscErrorCode sweep(Vec X, Emit &&emit) {
+  // Row (not null): row(jl, x) does the interior points of row jl itself (the same numbers as emit would
+  // get there; the block's interior holds no edge point: the walls are the grid's first and last rows and
+  // columns, on the perimeter of the blocks that have them).
+  template <bool Z, class Emit, class Row = std::nullptr_t>
+  PetscErrorCode sweep(Vec X, Emit &&emit, Row row = nullptr) {
     const PetscInt xm = grid_->xm(), ym = grid_->ym();
     const PetscReal ax = ihx2_, ay = ihy2_, a0 = -2 * (ihx2_ + ihy2_);
     Halo &halo = Z ? halo_v_ : halo_u_;
@@ -640,9 +700,13 @@ private:
     PetscCall(x.error());
     const PetscScalar *xa = x.data();
     auto own = [&](PetscInt k) { return Z ? c2[k] * PetscRealPart(xa[2 * k + 1]) : PetscRealPart(xa[2 * k]); };
-    for (PetscInt jl = 1; jl < ym - 1; ++jl)
-      for (PetscInt k = jl * xm + 1; k < jl * xm + xm - 1; ++k)
-        emit(k, ax * (own(k - 1) + own(k + 1)) + ay * (own(k - xm) + own(k + xm)) + a0 * own(k), xa);
+    if constexpr (!std::is_same_v<Row, std::nullptr_t>) {
+      for (PetscInt jl = 1; jl < ym - 1; ++jl) row(jl, xa);
+    } else {
+      for (PetscInt jl = 1; jl < ym - 1; ++jl)
+        for (PetscInt k = jl * xm + 1; k < jl * xm + xm - 1; ++k)
+          emit(k, ax * (own(k - 1) + own(k + 1)) + ay * (own(k - xm) + own(k + xm)) + a0 * own(k), xa);
+    }
     PetscCall(halo.end(X));
     auto at = [&](PetscInt il, PetscInt jl) -> PetscReal {
       if (inside(il, jl)) return own(jl * xm + il);
@@ -773,6 +837,8 @@ private:
   PetscBool ring_ = PETSC_TRUE;   // -wave2d_kick_ring
   PetscBool fuse_drift_ = PETSC_TRUE; // -wave2d_fused_drift
   PetscBool stream_records_ = PETSC_TRUE; // -wave2d_stream_records
+  PetscBool row_loop_ = PETSC_TRUE;       // -wave2d_row_loops
+  std::vector<PetscScalar> rec_row_;      // rhs_sweep's row of records to be streamed
   std::vector<PetscReal> zring_;  // its three rows
   PetscInt ic_ = 0, c_index_ = -1;
   PetscReal c_min_ = 0.01, cmax_ = 0, sponge_width_ = 0.15, sigma_max_ = 60.0;
