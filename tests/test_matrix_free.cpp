@@ -10,7 +10,7 @@
 //     gives the same numbers as given the whole state) the same as of whole states (-checkpoint_positions_only 0);
 //   * wave2d's kick from the record rhs_record writes (L u) gives bitwise its numbers from the state, and a
 //     leapfrog gradient through stored records bitwise that through stored positions (-leapfrog_records 0);
-//     its row loops (G, the kick) give the gradients of the point-by-point sweeps (-wave2d_row_loops 0);
+//     its G by rows gives the gradients of the point-by-point sweep (-wave2d_row_loops 0);
 //   * the matrix-free dG/dU (create_jacobian_matrix_free) applies J and J^T like the assembled one,
 //     and an RK4 gradient through it equals one through the assembled J (-sim_matrix_free_jacobian 0).
 //   * the 1D wave's matrix-free J^T also forms the dG/dc transpose of the same vector at the recorded
@@ -235,8 +235,8 @@ TEST_P(MatrixFree, LeapfrogGradientFusedEqualsJacobians) {
   // full storage of the kick's records (wave2d: L u, written by the forward's evaluations of G) instead of
   // the positions: bitwise the same gradient
   expect_same_gradient(scene, p, {{"-ts_type", "leapfrog"}}, {{"-leapfrog_records", "0"}}, 1e-300);
-  // wave2d's G and kick with each row's interior in a loop of its own (rhs_row, kick_row, vectorised) give
-  // the numbers of the point-by-point sweeps (-wave2d_row_loops 0), also with an RK integrator (whose stage
+  // wave2d's G with each row's interior in a loop of its own (rhs_row, vectorised) gives the numbers of
+  // the point-by-point sweep (-wave2d_row_loops 0), also with an RK integrator (whose stage
   // records go through the row buffer, streamed). A second Scene (the option is read at set-up) differs
   // from the first in round-off here even with the same options (1.6e-16), so the bound is 1e-14;
   // `flexipde -timing_compare wave2d_row_loops=0` reports 0 on 1-4 ranks.

@@ -34,9 +34,9 @@ inline void stream_fence() {
   _mm_sfence();
 #endif
 }
-// b[0, n) = x[0, n) with non-temporal stores (two entries at a time from the first 16-byte boundary of b);
-// stream_fence() after the last of them.
-inline void stream_copy_records(PetscScalar *b, const PetscScalar *x, PetscInt n) {
+// b[0, n) = x[0, n) with non-temporal stores (two entries at a time from the first 16-byte boundary of b;
+// for buffers written once and read much later); stream_fence() after the last of them.
+inline void stream_copy(PetscScalar *b, const PetscScalar *x, PetscInt n) {
 #if defined(__SSE2__) && !defined(PETSC_USE_COMPLEX) && defined(PETSC_USE_REAL_DOUBLE)
   PetscInt i = 0;
   if (n > 0 && reinterpret_cast<uintptr_t>(b) % 16) record_store(b, x[0], true), i = 1;

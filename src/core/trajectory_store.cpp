@@ -21,6 +21,7 @@
 #include "flexipde/checkpoint.hpp"
 #include "flexipde/leapfrog.hpp"
 #include "flexipde/rk_adjoint.hpp"
+#include "flexipde/sweep_support.hpp"
 #include <algorithm>
 #include <cstdint>
 #include <cstring>
@@ -116,18 +117,6 @@ PetscErrorCode copy_out(const StoreTrajectory &st, PetscInt k, PetscInt part, Ve
   PetscFunctionReturn(0);
 }
 
-// b[0..n) = x[0..n) with non-temporal stores: the buffer is written once and read back only by the
-// adjoint, so the stores bypass the caches instead of first reading every line in (half the memory
-// traffic of a plain copy).
-void stream_copy(PetscScalar *b, const PetscScalar *x, PetscInt n) {
-  static_assert(sizeof(PetscScalar) == sizeof(double), "non-temporal copies written for real double PetscScalar");
-  PetscInt i = 0;
-  if (reinterpret_cast<uintptr_t>(b) % 16) b[0] = x[0], i = 1;
-  for (; i + 1 < n; i += 2) _mm_stream_pd(b + i, _mm_loadu_pd(x + i));
-  for (; i < n; ++i) b[i] = x[i];
-  _mm_sfence();
-}
-
 // b = the first m of every d components of x (npt points); streaming stores when asked.
 void copy_positions(PetscScalar *b, const PetscScalar *x, PetscInt m, PetscInt d, PetscInt npt, bool stream) {
   if (m == 1 && stream && reinterpret_cast<uintptr_t>(b) % 16 == 0) {
@@ -147,7 +136,10 @@ PetscErrorCode copy_in(const StoreTrajectory &st, PetscInt k, PetscInt part, Vec
   PetscFunctionBegin;
   PetscCall(VecGetArrayRead(X, &x));
   if (st.pairs) copy_positions(at(st, k, part), x, st.pairs, st.dof, st.nlocal / st.dof, st.use_stream);
-  else if (st.use_stream) stream_copy(at(st, k, part), x, st.nlocal);
+  else if (st.use_stream) {
+    stream_copy(at(st, k, part), x, st.nlocal); // (past the caches: the adjoint reads it much later)
+    stream_fence();
+  }
   else std::memcpy(at(st, k, part), x, sizeof(PetscScalar) * st.nlocal);
   PetscCall(VecRestoreArrayRead(X, &x));
   PetscFunctionReturn(0);

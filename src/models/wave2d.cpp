@@ -151,8 +151,8 @@ public:
                                "(bitwise the same result), else reads it from lambda at every neighbour",
                                "Wave2D", ring_, &ring_, nullptr));
     PetscCall(PetscOptionsBool("-wave2d_row_loops",
-                               "G and the leapfrog adjoint's kick run each row's interior points in a loop of their own "
-                               "that vectorises (the same numbers), else point by point",
+                               "G runs each row's interior points in a loop of its own that vectorises (the same "
+                               "numbers), else point by point",
                                "Wave2D", row_loop_, &row_loop_, nullptr));
     PetscCall(PetscOptionsBool("-wave2d_stream_records",
                                "The records of L u that full storage keeps (RK stages, leapfrog levels) are written "
@@ -267,7 +267,7 @@ public:
         PetscCall(sweep<false>(U, emit, [&](PetscInt jl, const PetscScalar *u) {
           rhs_row<REC>(xm, u + 2 * jl * xm, ga + 2 * jl * xm, c2 + jl * xm, sig + jl * xm,
                        REC ? (stream ? rb : record + jl * xm) : nullptr, ax, ay, a0);
-          if (REC && stream) stream_copy_records(record + jl * xm + 1, rb + 1, xm - 2);
+          if (REC && stream) stream_copy(record + jl * xm + 1, rb + 1, xm - 2);
         }));
       else PetscCall(sweep_lap(U, emit));
       if (stream) stream_fence();
@@ -340,6 +340,14 @@ public:
     PetscFunctionReturn(0);
   }
 
+  // (L u) at point k of the kick: from u read at stride SU (k's neighbours xm apart in y), or with SU = 0
+  // the record L u itself.
+  template <int SU>
+  static PetscReal kick_lu(const PetscScalar *ua, PetscInt k, PetscInt xm, PetscReal ax, PetscReal ay, PetscReal a0) {
+    if (SU == 0) return PetscRealPart(ua[k]);
+    return ax * PetscRealPart(ua[SU * (k - 1)] + ua[SU * (k + 1)]) + ay * PetscRealPart(ua[SU * (k - xm)] + ua[SU * (k + xm)]) +
+           a0 * PetscRealPart(ua[SU * k]);
+  }
   // kick's ring row: lambda_v += s lambda_u at the row's interior points [1, xm - 1) (s != 0: the folded
   // drift, leapfrog_drift_transpose's expression), then z = c^2 lambda_v at all xm points; loops that vectorise.
   __attribute__((optimize("tree-vectorize", "vect-cost-model=dynamic")))
@@ -357,9 +365,7 @@ public:
                        const PetscReal *__restrict zp, PetscScalar *__restrict out, PetscReal ax, PetscReal ay, PetscReal a0,
                        PetscReal w) {
     for (PetscInt i = 1; i < xm - 1; ++i) {
-      const PetscReal lu = SU == 0 ? PetscRealPart(ua[i])
-                                   : ax * PetscRealPart(ua[SU * (i - 1)] + ua[SU * (i + 1)]) +
-                                         ay * PetscRealPart(ua[SU * (i - xm)] + ua[SU * (i + xm)]) + a0 * PetscRealPart(ua[SU * i]);
+      const PetscReal lu = kick_lu<SU>(ua, i, xm, ax, ay, a0);
       const PetscReal v = PetscRealPart(L[2 * i + 1]);
       const PetscReal lz = ax * (z0[i - 1] + z0[i + 1]) + ay * (zm[i] + zp[i]) + a0 * c2[i] * v;
       L[2 * i] += w * lz;
@@ -420,16 +426,8 @@ public:
       PetscReal *zr = zring_.data();
       auto zrow = [&](PetscInt j) {
         PetscReal *__restrict z = zr + (j % 3) * xm;
-        const PetscReal *__restrict cj = c2 + j * xm;
-        const PetscScalar *lj = L + 2 * j * xm;
         // an interior row: its interior points drifted first (the perimeter was, before the exchange)
-        const bool drift = s != 0 && j > 0 && j < ym - 1;
-        if (row_loop_) {
-          ring_row(xm, L + 2 * j * xm, cj, z, drift ? s : 0);
-          return;
-        }
-        if (drift) leapfrog_drift_transpose(L, j * xm + 1, j * xm + xm - 1, 1, s);
-        for (PetscInt i = 0; i < xm; ++i) z[i] = cj[i] * PetscRealPart(lj[2 * i + 1]);
+        ring_row(xm, L + 2 * j * xm, c2 + j * xm, z, s != 0 && j > 0 && j < ym - 1 ? s : 0);
       };
       auto interior = [&](auto add) {
         constexpr bool ADD = decltype(add)::value;
@@ -442,31 +440,12 @@ public:
             zrow(jl + 1);
             const PetscReal *__restrict zm = zr + ((jl - 1) % 3) * xm, *__restrict z0 = zr + (jl % 3) * xm,
                                         *__restrict zp = zr + ((jl + 1) % 3) * xm;
-            if (row_loop_) {
-              kick_row<SU, ADD>(xm, ua + (SU ? SU : 1) * jl * xm, L + 2 * jl * xm, c2 + jl * xm, tc + jl * xm, zm, z0, zp,
-                                out + jl * xm, ax, ay, a0, w);
-              continue;
-            }
-            for (PetscInt i = 1; i < xm - 1; ++i) {
-              const PetscInt k = jl * xm + i;
-              const PetscReal lu = SU == 0 ? PetscRealPart(ua[k])
-                                           : ax * PetscRealPart(ua[SU * (k - 1)] + ua[SU * (k + 1)]) +
-                                                 ay * PetscRealPart(ua[SU * (k - xm)] + ua[SU * (k + xm)]) +
-                                                 a0 * PetscRealPart(ua[SU * k]);
-              const PetscReal v = PetscRealPart(L[2 * k + 1]);
-              const PetscReal lz = ax * (z0[i - 1] + z0[i + 1]) + ay * (zm[i] + zp[i]) + a0 * c2[k] * v;
-              L[2 * k] += w * lz;
-              const PetscReal gk = tc[k] * lu * v;
-              if (ADD) out[k] += w * gk;
-              else out[k] = gk;
-            }
+            kick_row<SU, ADD>(xm, ua + (SU ? SU : 1) * jl * xm, L + 2 * jl * xm, c2 + jl * xm, tc + jl * xm, zm, z0, zp,
+                              out + jl * xm, ax, ay, a0, w);
             continue;
           }
           for (PetscInt k = jl * xm + 1; k < jl * xm + xm - 1; ++k) {
-            const PetscReal lu = SU == 0 ? PetscRealPart(ua[k])
-                                         : ax * PetscRealPart(ua[SU * (k - 1)] + ua[SU * (k + 1)]) +
-                                               ay * PetscRealPart(ua[SU * (k - xm)] + ua[SU * (k + xm)]) +
-                                               a0 * PetscRealPart(ua[SU * k]);
+            const PetscReal lu = kick_lu<SU>(ua, k, xm, ax, ay, a0);
             const PetscReal lz = ax * (c2[k - 1] * PetscRealPart(L[2 * (k - 1) + 1]) + c2[k + 1] * PetscRealPart(L[2 * (k + 1) + 1])) +
                                  ay * (c2[k - xm] * PetscRealPart(L[2 * (k - xm) + 1]) + c2[k + xm] * PetscRealPart(L[2 * (k + xm) + 1])) +
                                  a0 * c2[k] * PetscRealPart(L[2 * k + 1]);
@@ -850,7 +829,7 @@ private:
   PetscBool ring_ = PETSC_TRUE;   // -wave2d_kick_ring
   PetscBool fuse_drift_ = PETSC_TRUE; // -wave2d_fused_drift
   PetscBool stream_records_ = PETSC_TRUE; // -wave2d_stream_records
-  PetscBool row_loop_ = PETSC_TRUE;       // -wave2d_row_loops
+  PetscBool row_loop_ = PETSC_TRUE;       // -wave2d_row_loops (G; the kick's ring pass always runs by rows)
   std::vector<PetscScalar> rec_row_;      // rhs_sweep's row of records to be streamed
   std::vector<PetscReal> zring_;  // its three rows
   PetscInt ic_ = 0, c_index_ = -1;
