@@ -84,6 +84,27 @@ void stage_interior_row(PetscInt k0, PetscInt k1, PetscInt xm, PetscReal ax, Pet
   }
 }
 
+// The interior points [1, xm - 1) of one interior row with z = c^2 x_v of it and of the rows below and
+// above formed once per point into a ring (zm, z0, zp, contiguous: the same products stage_interior_row
+// forms at every neighbour, so the same numbers): X, Y, u, c2... point at the row's first point.
+template <bool REC, bool SPONGE, bool ADD>
+void stage_ring_row(PetscInt xm, PetscReal ax, PetscReal ay, PetscReal a0, const PetscReal *__restrict zm,
+                    const PetscReal *__restrict z0, const PetscReal *__restrict zp, const PetscScalar *__restrict X,
+                    const PetscScalar *__restrict u, const PetscReal *__restrict tc, const PetscReal *__restrict sig,
+                    PetscScalar *__restrict Y, PetscReal *__restrict g) {
+  for (PetscInt i = 1; i < xm - 1; ++i) {
+    const PetscReal lu = REC ? PetscRealPart(u[i])
+                             : ax * (PetscRealPart(u[2 * (i - 1)]) + PetscRealPart(u[2 * (i + 1)])) +
+                                   ay * (PetscRealPart(u[2 * (i - xm)]) + PetscRealPart(u[2 * (i + xm)])) +
+                                   a0 * PetscRealPart(u[2 * i]);
+    const PetscReal xv = PetscRealPart(X[2 * i + 1]);
+    Y[2 * i] = ax * (z0[i - 1] + z0[i + 1]) + ay * (zm[i] + zp[i]) + a0 * z0[i];
+    Y[2 * i + 1] = SPONGE ? X[2 * i] - sig[i] * X[2 * i + 1] : X[2 * i];
+    if (ADD) g[i] += tc[i] * lu * xv;
+    else g[i] = tc[i] * lu * xv;
+  }
+}
+
 // The same for n points of a row whose operands z = c^2 x_v and u were made contiguous (stage_operands,
 // ghosts included): rows m, 0, p below, at and above it, z0[-1] and z0[n] its left and right neighbours.
 // REC: u0 is the row of the record L u (um, up unread).
@@ -154,6 +175,10 @@ public:
                                "G runs each row's interior points in a loop of its own that vectorises (the same "
                                "numbers), else point by point",
                                "Wave2D", row_loop_, &row_loop_, nullptr));
+    PetscCall(PetscOptionsBool("-wave2d_stage_ring",
+                               "The RK adjoint stage forms c^2 x_v once per point into a three-row ring (the same "
+                               "numbers), else at every neighbour from the interleaved x",
+                               "Wave2D", stage_ring_, &stage_ring_, nullptr));
     PetscCall(PetscOptionsBool("-wave2d_stream_records",
                                "The records of L u that full storage keeps (RK stages, leapfrog levels) are written "
                                "with non-temporal stores (past the caches: the adjoint reads them much later)",
@@ -517,15 +542,31 @@ public:
       // A field's gradient is added in place; a scalar's per-point terms are written to gbuf_ and
       // summed per row (no reduction inside the loop, which keeps it vectorised).
       PetscReal *g = gm ? gm + params_->info(c_index_).local_offset : gbuf_.data();
-      // the interior (all four neighbours owned), while the ghosts travel
+      // the interior (all four neighbours owned), while the ghosts travel; with the ring (-wave2d_stage_ring)
+      // z = c^2 x_v of each row formed once, a row ahead, into three contiguous rows (zring_)
+      const bool ring = stage_ring_ && ym > 2 && xm > 2;
+      if (ring && zring_.size() < (size_t)(3 * xm)) zring_.resize(3 * xm);
+      PetscReal *zq = zring_.data();
+      auto zrow = [&](PetscInt j) {
+        PetscReal *__restrict z = zq + (j % 3) * xm;
+        const PetscScalar *__restrict xr = X + 2 * j * xm;
+        const PetscReal *__restrict cr = c2 + j * xm;
+        for (PetscInt i = 0; i < xm; ++i) z[i] = cr[i] * PetscRealPart(xr[2 * i + 1]);
+      };
+      if (ring) zrow(0), zrow(1);
       for (PetscInt jl = 1; jl < ym - 1; ++jl) {
         const PetscInt k0 = jl * xm + 1, k1 = jl * xm + xm - 1;
         if (k1 <= k0) break;
-        if (gm) stage_interior_row<REC, SPONGE, true>(k0, k1, xm, ax, ay, a0, X, ua, c2, tc, sig, Y, g);
-        else {
-          stage_interior_row<REC, SPONGE, false>(k0, k1, xm, ax, ay, a0, X, ua, c2, tc, sig, Y, g);
-          if (mu) sum4(g, k0, k1, local);
-        }
+        if (ring) {
+          zrow(jl + 1);
+          const PetscReal *zm = zq + ((jl - 1) % 3) * xm, *z0 = zq + (jl % 3) * xm, *zp = zq + ((jl + 1) % 3) * xm;
+          const PetscInt r = jl * xm;
+          const PetscScalar *ur = ua + (REC ? r : 2 * r);
+          if (gm) stage_ring_row<REC, SPONGE, true>(xm, ax, ay, a0, zm, z0, zp, X + 2 * r, ur, tc + r, sig + r, Y + 2 * r, g + r);
+          else stage_ring_row<REC, SPONGE, false>(xm, ax, ay, a0, zm, z0, zp, X + 2 * r, ur, tc + r, sig + r, Y + 2 * r, g + r);
+        } else if (gm) stage_interior_row<REC, SPONGE, true>(k0, k1, xm, ax, ay, a0, X, ua, c2, tc, sig, Y, g);
+        else stage_interior_row<REC, SPONGE, false>(k0, k1, xm, ax, ay, a0, X, ua, c2, tc, sig, Y, g);
+        if (!gm && mu) sum4(g, k0, k1, local);
       }
       if (!REC) PetscCall(halo_u.end(U));
       PetscCall(halo_v_.end(x));
@@ -827,6 +868,7 @@ private:
   Parameters *params_ = nullptr;
   PetscBool c_field_ = PETSC_FALSE;
   PetscBool ring_ = PETSC_TRUE;   // -wave2d_kick_ring
+  PetscBool stage_ring_ = PETSC_TRUE; // -wave2d_stage_ring
   PetscBool fuse_drift_ = PETSC_TRUE; // -wave2d_fused_drift
   PetscBool stream_records_ = PETSC_TRUE; // -wave2d_stream_records
   PetscBool row_loop_ = PETSC_TRUE;       // -wave2d_row_loops (G; the kick's ring pass always runs by rows)
