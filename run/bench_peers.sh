@@ -8,6 +8,7 @@
 #   torch      run/peer_torch.py: the same scheme in PyTorch autograd (python3-torch, installed by
 #              run/setup.sh --peers when missing; skipped if it cannot be)
 # The gradients are compared entry by entry (flexipde vs reference must agree to <= 1e-8).
+# The 2D wave at the model survey's size (101^2, 5000 steps) against the hand-written 2D loop.
 # Then scale: forward and gradient throughput (grid-point updates per second) of the 1D wave with
 # 10^6 points and the 2D wave with 2000^2 points against hand-written loops (run/reference_leapfrog*.c),
 # and gradient time with 1 versus 10^6 (4e6) parameters, on 1 and 2 ranks.
@@ -48,6 +49,12 @@ for np in 1 2; do
   done
 done
 "$OUT/reference_leapfrog" 1000 5000 5e-4 0.9 "$REPS" "$OUT/reference_gradient.txt" > "$OUT/reference.log"
+# the 2D wave at the model survey's size (run/bench_models.sh: 101^2, walls, 5000 leapfrog steps, field c)
+# against the hand-written 2D loop at the same size: both gradients and both forwards alone
+cc -O3 -o "$OUT/reference_leapfrog_2d" "$here/reference_leapfrog_2d.c" -lm
+$MPIEXEC -n 1 "$FLEXIPDE" -task gradient -model wave2d -da_grid_x 101 -da_grid_y 101 -ts_type leapfrog -wave2d_sponge_width 0 \
+  -wave2d_ic pulse -wave2d_c_field 1 -wave2d_c 0.9 -true_wave2d_c 1 -timing_repeats "$REPS" > "$OUT/small2d.log"
+"$OUT/reference_leapfrog_2d" 101 5000 5e-4 0.9 "$REPS" > "$OUT/reference_small2d.log"
 torch_status=0
 # PyTorch is installed from Debian (run/setup.sh --peers) when it is missing and Debian's python3 runs
 # the peer; PEERS_INSTALL=0 skips that (the peer is then reported as skipped).
@@ -63,7 +70,6 @@ if [ "$SCALE" = 1 ]; then
   done
   "$OUT/reference_leapfrog" 1000000 200 2.5e-7 0.9 5 > "$OUT/reference_big.log"
   # 2D: 2000 x 2000 points, 100 leapfrog steps, no sponge (the leapfrog's form), c scalar or a 4e6 field
-  cc -O3 -o "$OUT/reference_leapfrog_2d" "$here/reference_leapfrog_2d.c" -lm
   big2d="-model wave2d -da_grid_x 2000 -da_grid_y 2000 -ts_type leapfrog -wave2d_sponge_width 0 -wave2d_ic pulse
          -ts_dt 2e-4 -ts_max_time 2e-2 -wave2d_c 0.9 -true_wave2d_c 1"
   for np in 1 2; do

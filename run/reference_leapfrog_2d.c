@@ -9,6 +9,9 @@
  *
  *   cc -O3 -o /tmp/reference_leapfrog_2d run/reference_leapfrog_2d.c -lm
  *   /tmp/reference_leapfrog_2d [n=2000] [steps=100] [dt=2e-4] [c0=0.9] [repeats=3]
+ * prints J, ||dJ/dc|| and the median wall time of value+gradient (the forward stores every u_k, like
+ * flexipde's full storage), then the median of a value alone (three rolling levels, nothing stored:
+ * what a gradient's cost is compared with) and their ratio.
  */
 #include <math.h>
 #include <stdio.h>
@@ -49,6 +52,33 @@ static void forward(int n, int steps, double dt, const double *c, double *U) {
         up[j * n + i] = 2 * uk[j * n + i] - um[j * n + i] + dt2 * c[j * n + i] * c[j * n + i] * LAP(uk, i, j);
     }
   }
+}
+
+/* J alone: the same recurrence on three rolling levels (a, b, n_ of N each), nothing stored */
+static double value(int n, int steps, double dt, const double *c, const double *u0, const double *d, double *a,
+                    double *b, double *nx) {
+  const double h = 1.0 / (n - 1), h2 = 1.0 / (h * h), dt2 = dt * dt;
+  const size_t N = (size_t)n * n;
+  memcpy(a, u0, sizeof(double) * N);
+  memset(b, 0, sizeof(double) * N);
+  memset(nx, 0, sizeof(double) * N);
+  for (int j = 1; j < n - 1; ++j)
+    for (int i = 1; i < n - 1; ++i) b[j * n + i] = a[j * n + i] + 0.5 * dt2 * c[j * n + i] * c[j * n + i] * LAP(a, i, j);
+  for (int k = 1; k < steps; ++k) {
+    const double *um = a, *uk = b;
+    double *up = nx;
+    for (int j = 1; j < n - 1; ++j)
+      for (int i = 1; i < n - 1; ++i)
+        up[j * n + i] = 2 * uk[j * n + i] - um[j * n + i] + dt2 * c[j * n + i] * c[j * n + i] * LAP(uk, i, j);
+    double *t = a;
+    a = b;
+    b = nx;
+    nx = t;
+  }
+  const double *un = steps >= 1 ? b : a;
+  double J = 0;
+  for (size_t p = 0; p < N; ++p) J += 0.5 * (un[p] - d[p]) * (un[p] - d[p]);
+  return J;
 }
 
 static double gradient(int n, int steps, double dt, const double *c, const double *d, double *U, double *g, double *la,
@@ -121,6 +151,23 @@ int main(int argc, char **argv) {
   const double median = m % 2 ? times[m / 2] : 0.5 * (times[m / 2 - 1] + times[m / 2]);
   printf("reference 2d: n %d x %d, %d steps of %g, J = %.12e, ||dJ/dc|| = %.12e, value+gradient median %.6f s (min %.6f) over %d\n",
          n, n, steps, dt, J, sqrt(gn), median, times[0], m);
+  double Jv = 0;
+  double *u0 = malloc(sizeof(double) * N);
+  if (!u0) {
+    fprintf(stderr, "reference_leapfrog_2d: out of memory\n");
+    return 1;
+  }
+  memcpy(u0, U, sizeof(double) * N);
+  for (int r = 0; r < m; ++r) {
+    const double t0 = now();
+    Jv = value(n, steps, dt, c, u0, d, la, lb, lc);
+    times[r] = now() - t0;
+  }
+  qsort(times, m, sizeof(double), cmp);
+  const double fmed = m % 2 ? times[m / 2] : 0.5 * (times[m / 2 - 1] + times[m / 2]);
+  printf("reference 2d forward: J = %.12e, forward median %.6f s (min %.6f), value+gradient / forward %.2f\n", Jv, fmed,
+         times[0], median / fmed);
+  free(u0);
   free(c), free(ct), free(d), free(g), free(la), free(lb), free(lc), free(w), free(U), free(times);
   return 0;
 }
