@@ -10,7 +10,8 @@
 //     gives the same numbers as given the whole state) the same as of whole states (-checkpoint_positions_only 0);
 //   * wave2d's kick from the record rhs_record writes (L u) gives bitwise its numbers from the state, and a
 //     leapfrog gradient through stored records bitwise that through stored positions (-leapfrog_records 0);
-//     its G by rows gives the gradients of the point-by-point sweep (-wave2d_row_loops 0);
+//     its G by rows gives the gradients of the point-by-point sweep (-wave2d_row_loops 0), and its kick's
+//     perimeter by rows those of the point-by-point accessor (-wave2d_perimeter_rows 0);
 //   * the matrix-free dG/dU (create_jacobian_matrix_free) applies J and J^T like the assembled one,
 //     and an RK4 gradient through it equals one through the assembled J (-sim_matrix_free_jacobian 0).
 //   * the 1D wave's matrix-free J^T also forms the dG/dc transpose of the same vector at the recorded
@@ -243,6 +244,12 @@ TEST_P(MatrixFree, LeapfrogGradientFusedEqualsJacobians) {
   if (std::string(GetParam().name).rfind("wave2d_", 0) == 0) {
     expect_same_gradient_other_setup(scene, p, {{"-ts_type", "leapfrog"}}, {{"-wave2d_row_loops", "0"}}, 1e-14);
     expect_same_gradient_other_setup(scene, p, {{"-ts_type", "rk"}, {"-ts_rk_type", "4"}}, {{"-wave2d_row_loops", "0"}}, 1e-14);
+    // the kick's block perimeter from rows of c^2 lambda_v formed once per point, or point by point through
+    // the ghost-aware accessor (-wave2d_perimeter_rows 0): the same numbers in the same order (a scalar's
+    // per-point terms too), from the records and from stored positions
+    expect_same_gradient_other_setup(scene, p, {{"-ts_type", "leapfrog"}}, {{"-wave2d_perimeter_rows", "0"}}, 1e-14);
+    expect_same_gradient_other_setup(scene, p, {{"-ts_type", "leapfrog"}, {"-leapfrog_records", "0"}},
+                                     {{"-wave2d_perimeter_rows", "0"}}, 1e-14);
   }
 }
 

@@ -179,6 +179,11 @@ public:
                                "The RK adjoint stage forms c^2 x_v once per point into a three-row ring (the same "
                                "numbers), else at every neighbour from the interleaved x",
                                "Wave2D", stage_ring_, &stage_ring_, nullptr));
+    PetscCall(PetscOptionsBool("-wave2d_perimeter_rows",
+                               "The leapfrog adjoint kick's block perimeter reads c^2 lambda_v of its first and last "
+                               "rows from rows formed once per point (the same numbers), else point by point through "
+                               "the ghost-aware accessor",
+                               "Wave2D", perimeter_rows_, &perimeter_rows_, nullptr));
     PetscCall(PetscOptionsBool("-wave2d_stream_records",
                                "The records of L u that full storage keeps (RK stages, leapfrog levels) are written "
                                "with non-temporal stores (past the caches: the adjoint reads them much later)",
@@ -700,16 +705,51 @@ private:
       const PetscReal c = PetscRealPart(halo_c_(il, jl));
       return c * c * PetscRealPart(halo_v_(il, jl));
     };
-    return for_perimeter([&](PetscInt il, PetscInt jl) {
-      const PetscInt k = jl * xm + il;
-      const PetscReal lz = ax * (zat(il - 1, jl) + zat(il + 1, jl)) + ay * (zat(il, jl - 1) + zat(il, jl + 1)) + a0 * zat(il, jl);
-      // (SU = 0: ua is the record L u, 0 on the edges)
-      const PetscReal lu = SU == 0 ? PetscRealPart(ua[k])
-                           : edge_[k] ? 0.0
-                                      : ax * (uat(il - 1, jl) + uat(il + 1, jl)) + ay * (uat(il, jl - 1) + uat(il, jl + 1)) + a0 * uat(il, jl);
-      f(k, lu, lz);
-      return PetscErrorCode(0);
-    });
+    // (SU = 0: ua is the record L u, 0 on the edges)
+    auto lu_at = [&](PetscInt il, PetscInt jl, PetscInt k) {
+      return SU == 0 ? PetscRealPart(ua[k])
+             : edge_[k] ? 0.0
+                        : ax * (uat(il - 1, jl) + uat(il + 1, jl)) + ay * (uat(il, jl - 1) + uat(il, jl + 1)) + a0 * uat(il, jl);
+    };
+    if (!perimeter_rows_)
+      return for_perimeter([&](PetscInt il, PetscInt jl) {
+        const PetscInt k = jl * xm + il;
+        const PetscReal lz = ax * (zat(il - 1, jl) + zat(il + 1, jl)) + ay * (zat(il, jl - 1) + zat(il, jl + 1)) + a0 * zat(il, jl);
+        f(k, lu_at(il, jl, k), lz);
+        return PetscErrorCode(0);
+      });
+    // -wave2d_perimeter_rows: the same numbers in for_perimeter's order, z of the first and last rows and of
+    // the rows beyond them formed once per point into three rows of xm + 2 (entry 1 + il, the ends for the
+    // ghosts: zat only where a point is not owned), the columns between them reading owned z directly
+    const PetscInt ym = grid_->ym(), w = xm + 2;
+    if (pbuf_.size() < (size_t)(3 * w)) pbuf_.resize(3 * w);
+    PetscReal *zb = pbuf_.data();
+    auto zown = [&](PetscInt k) { return c2[k] * PetscRealPart(V[2 * k + 1]); };
+    auto row = [&](PetscInt jl) {
+      for (PetscInt d = -1; d <= 1; ++d) {
+        const PetscInt j = jl + d;
+        PetscReal *z = zb + (d + 1) * w + 1;
+        const bool own = j >= 0 && j < ym;
+        for (PetscInt il = 0; il < xm; ++il) z[il] = own ? zown(j * xm + il) : zat(il, j);
+        if (d == 0) z[-1] = zat(-1, j), z[xm] = zat(xm, j);
+      }
+      const PetscReal *zm = zb + 1, *z0 = zb + w + 1, *zp = zb + 2 * w + 1;
+      for (PetscInt il = 0; il < xm; ++il) {
+        const PetscInt k = jl * xm + il;
+        f(k, lu_at(il, jl, k), ax * (z0[il - 1] + z0[il + 1]) + ay * (zm[il] + zp[il]) + a0 * z0[il]);
+      }
+    };
+    row(0);
+    for (PetscInt jl = 1; jl < ym - 1; ++jl) {
+      for (PetscInt il : {(PetscInt)0, xm - 1}) {
+        const PetscInt k = jl * xm + il;
+        const PetscReal zl = il > 0 ? zown(k - 1) : zat(il - 1, jl), zr = il < xm - 1 ? zown(k + 1) : zat(il + 1, jl);
+        f(k, lu_at(il, jl, k), ax * (zl + zr) + ay * (zown(k - xm) + zown(k + xm)) + a0 * zown(k));
+        if (xm == 1) break;
+      }
+    }
+    if (ym > 1) row(ym - 1);
+    return 0;
   }
   // emit(k, (L u)_k, u) for every owned point (edges included: the caller masks them).
   template <class Emit>
@@ -869,6 +909,8 @@ private:
   PetscBool c_field_ = PETSC_FALSE;
   PetscBool ring_ = PETSC_TRUE;   // -wave2d_kick_ring
   PetscBool stage_ring_ = PETSC_TRUE; // -wave2d_stage_ring
+  PetscBool perimeter_rows_ = PETSC_TRUE; // -wave2d_perimeter_rows
+  mutable std::vector<PetscReal> pbuf_;   // its three rows of z
   PetscBool fuse_drift_ = PETSC_TRUE; // -wave2d_fused_drift
   PetscBool stream_records_ = PETSC_TRUE; // -wave2d_stream_records
   PetscBool row_loop_ = PETSC_TRUE;       // -wave2d_row_loops (G; the kick's ring pass always runs by rows)
