@@ -725,13 +725,20 @@ private:
     if (pbuf_.size() < (size_t)(3 * w)) pbuf_.resize(3 * w);
     PetscReal *zb = pbuf_.data();
     auto zown = [&](PetscInt k) { return c2[k] * PetscRealPart(V[2 * k + 1]); };
+    // a row or column of ghosts beyond a wall (not periodic): the halo holds 0 there, c too, so zat gives 0
+    const bool beyond_y[2] = {!grid_->periodic_y() && grid_->ys() == 0, !grid_->periodic_y() && grid_->ys() + ym == grid_->ny()};
+    const bool beyond_x[2] = {!grid_->periodic() && grid_->xs() == 0, !grid_->periodic() && grid_->xs() + xm == grid_->n()};
     auto row = [&](PetscInt jl) {
       for (PetscInt d = -1; d <= 1; ++d) {
         const PetscInt j = jl + d;
         PetscReal *z = zb + (d + 1) * w + 1;
-        const bool own = j >= 0 && j < ym;
-        for (PetscInt il = 0; il < xm; ++il) z[il] = own ? zown(j * xm + il) : zat(il, j);
-        if (d == 0) z[-1] = zat(-1, j), z[xm] = zat(xm, j);
+        if (j >= 0 && j < ym)
+          for (PetscInt il = 0; il < xm; ++il) z[il] = zown(j * xm + il);
+        else if (beyond_y[j < 0 ? 0 : 1])
+          for (PetscInt il = 0; il < xm; ++il) z[il] = 0.0;
+        else
+          for (PetscInt il = 0; il < xm; ++il) z[il] = zat(il, j);
+        if (d == 0) z[-1] = beyond_x[0] ? 0.0 : zat(-1, j), z[xm] = beyond_x[1] ? 0.0 : zat(xm, j);
       }
       const PetscReal *zm = zb + 1, *z0 = zb + w + 1, *zp = zb + 2 * w + 1;
       for (PetscInt il = 0; il < xm; ++il) {
@@ -743,7 +750,8 @@ private:
     for (PetscInt jl = 1; jl < ym - 1; ++jl) {
       for (PetscInt il : {(PetscInt)0, xm - 1}) {
         const PetscInt k = jl * xm + il;
-        const PetscReal zl = il > 0 ? zown(k - 1) : zat(il - 1, jl), zr = il < xm - 1 ? zown(k + 1) : zat(il + 1, jl);
+        const PetscReal zl = il > 0 ? zown(k - 1) : beyond_x[0] ? 0.0 : zat(il - 1, jl);
+        const PetscReal zr = il < xm - 1 ? zown(k + 1) : beyond_x[1] ? 0.0 : zat(il + 1, jl);
         f(k, lu_at(il, jl, k), ax * (zl + zr) + ay * (zown(k - xm) + zown(k + xm)) + a0 * zown(k));
         if (xm == 1) break;
       }
