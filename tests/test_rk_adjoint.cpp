@@ -277,6 +277,8 @@ TEST_P(RkRecordsWave2D, RecordsMemorySameGradient) { expect_records_memory(scene
 TEST_P(RkRecordsWave2D, StageRingSameGradient) {
   expect_same_gradient_other_setup(scene, p, {}, {{"-wave2d_stage_ring", "0"}}, 1e-14);
   expect_same_gradient_other_setup(scene, p, {{"-checkpoint_positions_only", "0"}}, {{"-wave2d_stage_ring", "0"}}, 1e-14);
+  // ghosts beyond a wall taken as 0 directly, or through the ghost-aware accessor (-wave2d_perimeter_rows 0)
+  expect_same_gradient_other_setup(scene, p, {}, {{"-wave2d_perimeter_rows", "0"}}, 1e-14);
 }
 
 INSTANTIATE_TEST_SUITE_P(Wave2D, RkRecordsWave2D, ::testing::ValuesIn(wave2d_stage_cases()), wave2d_stage_name);

@@ -181,8 +181,9 @@ public:
                                "Wave2D", stage_ring_, &stage_ring_, nullptr));
     PetscCall(PetscOptionsBool("-wave2d_perimeter_rows",
                                "The leapfrog adjoint kick's block perimeter reads c^2 lambda_v of its first and last "
-                               "rows from rows formed once per point (the same numbers), else point by point through "
-                               "the ghost-aware accessor",
+                               "rows from rows formed once per point, and it and the RK adjoint stage take ghosts beyond "
+                               "a wall as 0 directly (the same numbers), else point by point through the ghost-aware "
+                               "accessor",
                                "Wave2D", perimeter_rows_, &perimeter_rows_, nullptr));
     PetscCall(PetscOptionsBool("-wave2d_stream_records",
                                "The records of L u that full storage keeps (RK stages, leapfrog levels) are written "
@@ -576,7 +577,14 @@ public:
       if (!REC) PetscCall(halo_u.end(U));
       PetscCall(halo_v_.end(x));
       // ghost z: 0 at an edge point (and beyond a wall, where the halo reads 0), else c^2 x_v
+      // (-wave2d_perimeter_rows: a ghost beyond a wall, not periodic, is 0 without the accessor; the halo holds
+      // 0 there, c too)
+      const bool pr = perimeter_rows_;
+      const bool beyond_y[2] = {pr && !grid_->periodic_y() && grid_->ys() == 0, pr && !grid_->periodic_y() && grid_->ys() + ym == grid_->ny()};
+      const bool beyond_x[2] = {pr && !grid_->periodic() && grid_->xs() == 0, pr && !grid_->periodic() && grid_->xs() + xm == grid_->n()};
       auto zg = [&](PetscInt il, PetscInt jl) {
+        if ((il < 0 && beyond_x[0]) || (il >= xm && beyond_x[1]) || (jl < 0 && beyond_y[0]) || (jl >= ym && beyond_y[1]))
+          return 0.0;
         if (edge_point(grid_->xs() + il, grid_->ys() + jl)) return 0.0;
         const PetscReal c = PetscRealPart(halo_c_(il, jl));
         return c * c * PetscRealPart(halo_v_(il, jl));
