@@ -253,6 +253,31 @@ TEST_P(MatrixFree, LeapfrogGradientFusedEqualsJacobians) {
   }
 }
 
+// wave2d's fused RK stage products (Model::stage_adjoint) against the assembled transposes, every entry
+// (the edge rows and columns too): y = J^T x, and mu (on top of what it holds) += (dG/dc)^T x at the stage
+// U; with and without the sponge, on blocks whose perimeters lie on walls and between ranks.
+TEST_P(MatrixFree, StageAdjointEqualsAssembledTransposes) {
+  if (std::string(GetParam().name).rfind("wave2d_", 0) != 0) return;
+  ASSERT_TRUE(scene.model->has_stage_adjoint());
+  OwnedVec x, y, y_ref, mu, mu_ref, G;
+  PETSC_ASSERT_OK(VecDuplicate(U, x.out()));
+  PETSC_ASSERT_OK(fill_random(x, -1.0, 1.0, 31));
+  PETSC_ASSERT_OK(VecDuplicate(U, y.out()));
+  PETSC_ASSERT_OK(VecDuplicate(U, y_ref.out()));
+  PETSC_ASSERT_OK(MatMultTranspose(J, x, y_ref));
+  PETSC_ASSERT_OK(VecDuplicate(U, G.out()));
+  PETSC_ASSERT_OK(scene.model->rhs(0.0, U, G)); // (dG/dc's shell reads L u of the last evaluation)
+  PETSC_ASSERT_OK(scene.model->rhs_jacobian_p(0.0, U, Jp));
+  PETSC_ASSERT_OK(scene.params.create_vec(mu_ref.out()));
+  PETSC_ASSERT_OK(MatMultTranspose(Jp, x, mu_ref));
+  PETSC_ASSERT_OK(scene.params.create_vec(mu.out()));
+  PETSC_ASSERT_OK(fill_random(mu, -1.0, 1.0, 32));
+  PETSC_ASSERT_OK(VecAXPY(mu_ref, 1.0, mu));
+  PETSC_ASSERT_OK(scene.model->stage_adjoint(0.0, U, nullptr, x, y, mu));
+  EXPECT_LT(rel_diff(y, y_ref), 1e-13);
+  EXPECT_LT(rel_diff(mu, mu_ref), 1e-13);
+}
+
 TEST_P(MatrixFree, MatrixFreeJacobianEqualsAssembled) {
   OwnedMat Jmf;
   PETSC_ASSERT_OK(scene.model->create_jacobian_matrix_free(Jmf.out()));
