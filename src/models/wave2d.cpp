@@ -186,8 +186,9 @@ public:
                                "accessor",
                                "Wave2D", perimeter_rows_, &perimeter_rows_, nullptr));
     PetscCall(PetscOptionsBool("-wave2d_stream_records",
-                               "The records of L u that full storage keeps (RK stages, leapfrog levels) are written "
-                               "with non-temporal stores (past the caches: the adjoint reads them much later)",
+                               "The records of L u that full storage keeps (RK stages, leapfrog levels) are formed in "
+                               "a buffer of the block and written from it with non-temporal stores, whole cache lines "
+                               "(past the caches: the adjoint reads them much later)",
                                "Wave2D", stream_records_, &stream_records_, nullptr));
     PetscOptionsEnd();
     PetscCheck(c_min_ > 0, grid.comm(), PETSC_ERR_ARG_OUTOFRANGE, "-wave2d_c_min must be positive, got %g",
@@ -276,32 +277,38 @@ public:
       PetscCall(g.error());
       PetscScalar *ga = g.data();
       const PetscReal *sig = sigma_.data(), *c2 = c2m_.data();
-      // (the records with non-temporal stores when asked: the sweep emits the points one by one)
+      // Records to be written with non-temporal stores (-wave2d_stream_records) are formed in a buffer of
+      // the whole block first (in cache) and streamed from there in one contiguous pass after the sweep:
+      // whole cache lines, not the pieces that the interior rows and, later, the perimeter would write
+      // (a line written in parts by non-temporal stores is flushed in parts: measured slower than plain
+      // stores).
       const bool stream = REC && stream_records_;
+      const PetscInt n = grid_->local_points();
+      if (stream && rec_stage_.size() < (size_t)n) rec_stage_.resize(n);
+      PetscScalar *rec = stream ? rec_stage_.data() : record;
       auto emit = [&](PetscInt k, PetscReal lu, const PetscScalar *u) {
         if (edge_[k]) {
           ga[2 * k] = ga[2 * k + 1] = 0;
-          if (REC) record_store(record + k, 0.0, stream);
+          if (REC) rec[k] = 0.0;
         } else {
           ga[2 * k] = u[2 * k + 1];
           ga[2 * k + 1] = c2[k] * lu - sig[k] * u[2 * k + 1];
-          if (REC) record_store(record + k, lu, stream);
+          if (REC) rec[k] = lu;
         }
       };
-      // the block's interior rows in a loop of their own that vectorises (rhs_row); records to be written
-      // with non-temporal stores go to a row buffer first and are streamed from there
+      // the block's interior rows in a loop of their own that vectorises (rhs_row)
       const PetscInt xm = grid_->xm();
       const PetscReal ax = ihx2_, ay = ihy2_, a0 = -2 * (ihx2_ + ihy2_);
-      if (stream && rec_row_.size() < (size_t)xm) rec_row_.resize(xm);
-      PetscScalar *rb = stream ? rec_row_.data() : nullptr;
       if (row_loop_)
         PetscCall(sweep<false>(U, emit, [&](PetscInt jl, const PetscScalar *u) {
-          rhs_row<REC>(xm, u + 2 * jl * xm, ga + 2 * jl * xm, c2 + jl * xm, sig + jl * xm,
-                       REC ? (stream ? rb : record + jl * xm) : nullptr, ax, ay, a0);
-          if (REC && stream) stream_copy(record + jl * xm + 1, rb + 1, xm - 2);
+          rhs_row<REC>(xm, u + 2 * jl * xm, ga + 2 * jl * xm, c2 + jl * xm, sig + jl * xm, REC ? rec + jl * xm : nullptr,
+                       ax, ay, a0);
         }));
       else PetscCall(sweep_lap(U, emit));
-      if (stream) stream_fence();
+      if (stream) {
+        stream_copy(record, rec, n);
+        stream_fence();
+      }
     }
     if (source_ && source_->stencil.n) {
       Array g(G);
@@ -930,7 +937,7 @@ private:
   PetscBool fuse_drift_ = PETSC_TRUE; // -wave2d_fused_drift
   PetscBool stream_records_ = PETSC_TRUE; // -wave2d_stream_records
   PetscBool row_loop_ = PETSC_TRUE;       // -wave2d_row_loops (G; the kick's ring pass always runs by rows)
-  std::vector<PetscScalar> rec_row_;      // rhs_sweep's row of records to be streamed
+  std::vector<PetscScalar> rec_stage_;    // rhs_sweep's records of the block, to be streamed
   std::vector<PetscReal> zring_;  // its three rows
   PetscInt ic_ = 0, c_index_ = -1;
   PetscReal c_min_ = 0.01, cmax_ = 0, sponge_width_ = 0.15, sigma_max_ = 60.0;
