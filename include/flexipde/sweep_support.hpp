@@ -14,9 +14,8 @@
 
 namespace flexipde {
 
-// *p = v, with a non-temporal store when `stream` (8 bytes past the caches: for records that full
-// storage keeps and the adjoint reads much later, written point by point by a sweep); stream_fence()
-// after the last of them.
+// *p = v, with a non-temporal store when `stream` (8 bytes past the caches; stream_copy's entries before
+// its first and after its last 16-byte pair); stream_fence() after the last of them.
 inline void record_store(PetscScalar *p, PetscReal v, bool stream) {
 #if defined(__SSE2__) && !defined(PETSC_USE_COMPLEX) && defined(PETSC_USE_REAL_DOUBLE)
   if (stream) {

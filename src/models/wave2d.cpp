@@ -213,6 +213,10 @@ public:
     ihy2_ = 1.0 / (grid.hy() * grid.hy());
     gbuf_.assign(n, 0.0);
     rows_.assign(6 * (grid.xm() + 2), 0.0);
+    walls_[0] = !grid.periodic() && grid.xs() == 0;
+    walls_[1] = !grid.periodic() && grid.xs() + grid.xm() == grid.n();
+    walls_[2] = !grid.periodic_y() && grid.ys() == 0;
+    walls_[3] = !grid.periodic_y() && grid.ys() + grid.ym() == grid.ny();
     sigma_.assign(n, 0.0);
     for (PetscInt k = 0; k < n; ++k) {
       const PetscInt i = grid.xs() + k % grid.xm(), j = grid.ys() + k / grid.xm();
@@ -583,19 +587,7 @@ public:
       }
       if (!REC) PetscCall(halo_u.end(U));
       PetscCall(halo_v_.end(x));
-      // ghost z: 0 at an edge point (and beyond a wall, where the halo reads 0), else c^2 x_v
-      // (-wave2d_perimeter_rows: a ghost beyond a wall, not periodic, is 0 without the accessor; the halo holds
-      // 0 there, c too)
-      const bool pr = perimeter_rows_;
-      const bool beyond_y[2] = {pr && !grid_->periodic_y() && grid_->ys() == 0, pr && !grid_->periodic_y() && grid_->ys() + ym == grid_->ny()};
-      const bool beyond_x[2] = {pr && !grid_->periodic() && grid_->xs() == 0, pr && !grid_->periodic() && grid_->xs() + xm == grid_->n()};
-      auto zg = [&](PetscInt il, PetscInt jl) {
-        if ((il < 0 && beyond_x[0]) || (il >= xm && beyond_x[1]) || (jl < 0 && beyond_y[0]) || (jl >= ym && beyond_y[1]))
-          return 0.0;
-        if (edge_point(grid_->xs() + il, grid_->ys() + jl)) return 0.0;
-        const PetscReal c = PetscRealPart(halo_c_(il, jl));
-        return c * c * PetscRealPart(halo_v_(il, jl));
-      };
+      auto zg = [&](PetscInt il, PetscInt jl) { return ghost_z(il, jl, perimeter_rows_); };
       // The first and last rows whole, from their rows of z = c^2 x_v and u and those below and above
       // made contiguous with their ghosts (stage_operands; three rows of xm + 2, entry 1 + il, the two
       // ends for the ghosts; with REC the record's own row only).
@@ -703,6 +695,20 @@ private:
     }
     PetscFunctionReturn(0);
   }
+  // The ghost (il, jl) (local indices, within one point of the block) lies beyond a wall: outside the grid
+  // in a direction that is not periodic (walls_: which sides of this block have one, set up once).
+  bool beyond_wall(PetscInt il, PetscInt jl) const {
+    return (il < 0 && walls_[0]) || (il >= grid_->xm() && walls_[1]) || (jl < 0 && walls_[2]) || (jl >= grid_->ym() && walls_[3]);
+  }
+  // z = c^2 v at the ghost point (il, jl) of the block (v from halo_v_, c from halo_c_): 0 at an edge point,
+  // and beyond a wall (not periodic), where the halo holds 0, c too; with `walls`
+  // (-wave2d_perimeter_rows) such a ghost is 0 without reading the halo, the same number.
+  PetscReal ghost_z(PetscInt il, PetscInt jl, bool walls) const {
+    if (walls && beyond_wall(il, jl)) return 0.0;
+    if (edge_point(grid_->xs() + il, grid_->ys() + jl)) return 0.0;
+    const PetscReal c = PetscRealPart(halo_c_(il, jl));
+    return c * c * PetscRealPart(halo_v_(il, jl));
+  }
   // f(k, (L u)_k, (L z)_k) at every owned point on the block's perimeter, z = c^2 v (0 on the edges)
   // with v component 1 of the interleaved V (ghosts: halo_v_, filled from V's Vec), u read at stride
   // SU in ua (ghosts: halo_u); (L u)_k = 0 on the edges (where no gradient is taken).
@@ -715,10 +721,7 @@ private:
       return PetscRealPart(inside(il, jl) ? ua[SU * (jl * xm + il)] : halo_u(il, jl));
     };
     auto zat = [&](PetscInt il, PetscInt jl) {
-      if (inside(il, jl)) return c2[jl * xm + il] * PetscRealPart(V[2 * (jl * xm + il) + 1]);
-      if (edge_point(grid_->xs() + il, grid_->ys() + jl)) return 0.0;
-      const PetscReal c = PetscRealPart(halo_c_(il, jl));
-      return c * c * PetscRealPart(halo_v_(il, jl));
+      return inside(il, jl) ? c2[jl * xm + il] * PetscRealPart(V[2 * (jl * xm + il) + 1]) : ghost_z(il, jl, perimeter_rows_);
     };
     // (SU = 0: ua is the record L u, 0 on the edges)
     auto lu_at = [&](PetscInt il, PetscInt jl, PetscInt k) {
@@ -735,25 +738,22 @@ private:
       });
     // -wave2d_perimeter_rows: the same numbers in for_perimeter's order, z of the first and last rows and of
     // the rows beyond them formed once per point into three rows of xm + 2 (entry 1 + il, the ends for the
-    // ghosts: zat only where a point is not owned), the columns between them reading owned z directly
+    // ghosts: ghost_z only where a point is not owned), the columns between them reading owned z directly
     const PetscInt ym = grid_->ym(), w = xm + 2;
     if (pbuf_.size() < (size_t)(3 * w)) pbuf_.resize(3 * w);
     PetscReal *zb = pbuf_.data();
     auto zown = [&](PetscInt k) { return c2[k] * PetscRealPart(V[2 * k + 1]); };
-    // a row or column of ghosts beyond a wall (not periodic): the halo holds 0 there, c too, so zat gives 0
-    const bool beyond_y[2] = {!grid_->periodic_y() && grid_->ys() == 0, !grid_->periodic_y() && grid_->ys() + ym == grid_->ny()};
-    const bool beyond_x[2] = {!grid_->periodic() && grid_->xs() == 0, !grid_->periodic() && grid_->xs() + xm == grid_->n()};
     auto row = [&](PetscInt jl) {
       for (PetscInt d = -1; d <= 1; ++d) {
         const PetscInt j = jl + d;
         PetscReal *z = zb + (d + 1) * w + 1;
         if (j >= 0 && j < ym)
           for (PetscInt il = 0; il < xm; ++il) z[il] = zown(j * xm + il);
-        else if (beyond_y[j < 0 ? 0 : 1])
+        else if (beyond_wall(0, j)) // (a row of ghosts beyond a wall: ghost_z's 0)
           for (PetscInt il = 0; il < xm; ++il) z[il] = 0.0;
         else
-          for (PetscInt il = 0; il < xm; ++il) z[il] = zat(il, j);
-        if (d == 0) z[-1] = beyond_x[0] ? 0.0 : zat(-1, j), z[xm] = beyond_x[1] ? 0.0 : zat(xm, j);
+          for (PetscInt il = 0; il < xm; ++il) z[il] = ghost_z(il, j, true);
+        if (d == 0) z[-1] = zat(-1, j), z[xm] = zat(xm, j);
       }
       const PetscReal *zm = zb + 1, *z0 = zb + w + 1, *zp = zb + 2 * w + 1;
       for (PetscInt il = 0; il < xm; ++il) {
@@ -765,8 +765,7 @@ private:
     for (PetscInt jl = 1; jl < ym - 1; ++jl) {
       for (PetscInt il : {(PetscInt)0, xm - 1}) {
         const PetscInt k = jl * xm + il;
-        const PetscReal zl = il > 0 ? zown(k - 1) : beyond_x[0] ? 0.0 : zat(il - 1, jl);
-        const PetscReal zr = il < xm - 1 ? zown(k + 1) : beyond_x[1] ? 0.0 : zat(il + 1, jl);
+        const PetscReal zl = il > 0 ? zown(k - 1) : zat(il - 1, jl), zr = il < xm - 1 ? zown(k + 1) : zat(il + 1, jl);
         f(k, lu_at(il, jl, k), ax * (zl + zr) + ay * (zown(k - xm) + zown(k + xm)) + a0 * zown(k));
         if (xm == 1) break;
       }
@@ -934,6 +933,7 @@ private:
   PetscBool stage_ring_ = PETSC_TRUE; // -wave2d_stage_ring
   PetscBool perimeter_rows_ = PETSC_TRUE; // -wave2d_perimeter_rows
   mutable std::vector<PetscReal> pbuf_;   // its three rows of z
+  bool walls_[4] = {false, false, false, false}; // a wall beyond this block's left, right, lower, upper side
   PetscBool fuse_drift_ = PETSC_TRUE; // -wave2d_fused_drift
   PetscBool stream_records_ = PETSC_TRUE; // -wave2d_stream_records
   PetscBool row_loop_ = PETSC_TRUE;       // -wave2d_row_loops (G; the kick's ring pass always runs by rows)
