@@ -116,6 +116,24 @@ TEST_P(RkAdjoint, SameGradientAsPetscRk) {
 
 INSTANTIATE_TEST_SUITE_P(Models, RkAdjoint, ::testing::ValuesIn(rk_cases()), rk_name);
 
+// The RK adjoint's lambda_n = lambda_{n+1} + sum_i dLambda_i in its own vectorised pass (add_stages) gives
+// the gradient of VecMAXPY's (-rk_adjoint_own_sum 0) bitwise, for 1 to 4 stages (rk1fe and rk2a on upwind
+// advection with a field D, rk3 and rk4 on the wave with a field c: every non-FSAL tableau flexipde
+// offers), with the models' stage products and with their Jacobians.
+TEST(RkAdjointOwnSum, SameGradientBitwise) {
+  for (const char *rk : {"1fe", "2a", "3", "4"})
+    for (const char *stage : {"1", "0"}) {
+      SCOPED_TRACE(std::string("-ts_rk_type ") + rk + ", -rk_stage_adjoint " + stage);
+      RkScene s;
+      if (rk[0] == '1' || rk[0] == '2')
+        s.set_up({{"-model", "advection"}, {"-grid_periodic", "1"}, {"-da_grid_x", "64"}, {"-advection_scheme", "upwind"},
+                  {"-advection_D", "0.01"}, {"-advection_D_field", "1"}, {"-ts_rk_type", rk}, {"-rk_stage_adjoint", stage}});
+      else
+        s.set_up({{"-da_grid_x", "61"}, {"-wave_c_field", "1"}, {"-ts_rk_type", rk}, {"-rk_stage_adjoint", stage}});
+      expect_same_gradient(s.scene, s.p, {{"-rk_adjoint_own_sum", "1"}}, {{"-rk_adjoint_own_sum", "0"}}, 1e-300);
+    }
+}
+
 // A scalar c's gradient from the wave's fused sweeps: its pointwise terms accumulated over the whole
 // adjoint and summed once (the default) or summed at every kick or stage (-wave_scalar_sum_once 0):
 // the same sum in another order, so equal to round-off, for the RK stage and the leapfrog kick, both

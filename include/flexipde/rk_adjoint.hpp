@@ -57,8 +57,10 @@ struct RkStageNeeds {
 
 // After the TS's type is final: if it is TSRK, its adjoint step becomes the one above (idempotent).
 // With a stage hook, each stage calls it instead of evaluating and applying the two Jacobians.
+// own_sum: lambda_n = lambda_{n+1} + sum_i dLambda_i in a vectorisable pass of its own for s <= 4 (the
+// same numbers as VecMAXPY's, whose pointer loop is not vectorised), else VecMAXPY.
 PetscErrorCode rk_adjoint_install(TS ts, RkStageAdjoint stage = nullptr, void *stage_ctx = nullptr,
-                                  RkStageNeeds needs = {});
+                                  RkStageNeeds needs = {}, bool own_sum = true);
 // What the installed adjoint can work from for a non-FSAL tableau without a cost integrand and with a
 // stage hook (else all zero: whole stages needed, no records).
 PetscErrorCode rk_adjoint_stage_needs(TS ts, RkStageNeeds *needs);

@@ -394,7 +394,8 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
     PetscCall(TSGetTrajectory(ts, &tj));
     PetscCall(store_trajectory_use_buffer(tj, &trajectory_buffer_));
   }
-  PetscBool rk_fused = PETSC_TRUE, rk_stage = PETSC_TRUE, rk_records = PETSC_TRUE, theta_direct = PETSC_TRUE, theta_factor_t = PETSC_TRUE;
+  PetscBool rk_fused = PETSC_TRUE, rk_stage = PETSC_TRUE, rk_records = PETSC_TRUE, theta_direct = PETSC_TRUE, theta_factor_t = PETSC_TRUE,
+            rk_own_sum = PETSC_TRUE;
   PetscOptionsBegin(comm, nullptr, "Simulation", "Simulation");
   PetscCall(PetscOptionsBool("-sim_stability_check", "Refuse explicit steps beyond the stability limit", "Simulation",
                              stability_check, &stability_check, nullptr));
@@ -427,6 +428,9 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
                              "of G record at every stage what the model's adjoint stage would recompute (Model::"
                              "stage_record_size: the waves' L u, Vlasov's field E), and the adjoint reads it",
                              "Simulation", rk_records, &rk_records, nullptr));
+  PetscCall(PetscOptionsBool("-rk_adjoint_own_sum", "That adjoint adds a step's stage increments to lambda in a pass "
+                             "of its own (the same numbers as VecMAXPY, vectorised), else VecMAXPY", "Simulation",
+                             rk_own_sum, &rk_own_sum, nullptr));
   PetscOptionsEnd();
   PetscCheck(blowup_every_ >= 0, comm, PETSC_ERR_ARG_OUTOFRANGE, "-sim_blowup_check_every must be non-negative");
   if (blowup_every_ > 0) PetscCall(TSMonitorSet(ts, blowup_monitor, this, nullptr));
@@ -494,7 +498,7 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
       needs.record_size = model_->stage_record_size();
       needs.record_replaces = model_->stage_record_replaces_state();
     }
-    PetscCall(rk_adjoint_install(ts, rk_stage_fused_ ? stage_adjoint_cb : nullptr, this, needs));
+    PetscCall(rk_adjoint_install(ts, rk_stage_fused_ ? stage_adjoint_cb : nullptr, this, needs, rk_own_sum));
   }
   if (with_adjoint && Jp_ && !std::strcmp(type, TSRK)) {
     // PETSc 3.18's TSAdjointStep_RK skips dG/dp for a stage whose weight b_i is zero (it rescales
