@@ -4,9 +4,12 @@
 // operator (sequential LU on 1 rank, redundant LU on 2), a matrix-free spectral operator (GMRES),
 // the nonlinear Vlasov-Poisson model (GMRES on its Jacobian shell), field and scalar parameters,
 // and binomial checkpointing (forward steps re-run inside the adjoint); and full storage (for the
-// endpoint forms only the solutions) against PETSc's memory trajectory. Both steps do the same
-// arithmetic, so the tolerance is round-off; each gradient is checked to be nonzero, so the
-// comparison means something.
+// endpoint forms only the solutions) against PETSc's memory trajectory. For the linear models
+// flexipde's step takes A^T nu from the transposed solve's equation (-theta_adjoint_reuse_solve, the
+// default) where PETSc's applies A^T; the cases with it off check the applying path too. Both steps
+// are the same discrete adjoint, so the tolerance is round-off (a 1e-6 change of the endpoint update's
+// coefficient, or a sign in the midpoint's, fails nine cases); each gradient is checked to be nonzero,
+// so the comparison means something.
 #include "flexipde/scene.hpp"
 #include "test_support.hpp"
 #include <string>
@@ -103,5 +106,13 @@ INSTANTIATE_TEST_SUITE_P(
                   with(advection, {{"-ts_type", "cn"}, {"-advection_scheme", "fd4"}, {"-advection_D_field", "1"},
                                    {"-advection_D", "0.1"}, {"-true_advection_D", "0.15"},
                                    {"-theta_adjoint_factor_transpose", "0"}})},
-        ThetaCase{"wave_cn_solve_transpose", with(wave, {{"-ts_type", "cn"}, {"-theta_adjoint_factor_transpose", "0"}})}),
+        ThetaCase{"wave_cn_solve_transpose", with(wave, {{"-ts_type", "cn"}, {"-theta_adjoint_factor_transpose", "0"}})},
+        // lambda's update applying A^T after the solve (as PETSc's step does) instead of reusing its equation
+        ThetaCase{"advection_spectral_cn_apply", with(advection, {{"-ts_type", "cn"}, {"-advection_scheme", "spectral"},
+                                                                  {"-theta_adjoint_reuse_solve", "0"}})},
+        ThetaCase{"advection_fd2_D_beuler_apply",
+                  with(advection, {{"-ts_type", "beuler"}, {"-advection_D", "0.1"}, {"-theta_adjoint_reuse_solve", "0"}})},
+        ThetaCase{"advection_fd2_theta_midpoint_apply",
+                  with(advection, {{"-ts_type", "theta"}, {"-ts_theta_theta", "0.6"}, {"-theta_adjoint_reuse_solve", "0"}})},
+        ThetaCase{"wave_cn_apply", with(wave, {{"-ts_type", "cn"}, {"-theta_adjoint_reuse_solve", "0"}})}),
     flexipde_test::CaseName());

@@ -32,7 +32,10 @@ namespace flexipde {
 // the one above (idempotent). transposed_factor: when the forward solves with one sequential LU of
 // PETSc's own (one rank, or PCREDUNDANT), the transposed solves use a factorisation of P^T (KSPSolve
 // with MatSolve's row-oriented sweeps) instead of KSPSolveTranspose on P's factors; options prefix
-// -theta_adjoint_ for that KSP.
-PetscErrorCode theta_adjoint_install(TS ts, bool transposed_factor = true);
+// -theta_adjoint_ for that KSP. constant_operator: A = dG/dU is the same at every t and U (a linear
+// model whose Jacobian depends on the parameters alone); the update of lambda then takes A^T nu from
+// the transposed solve's own equation, A^T nu = s1 nu - lambda / (theta h), instead of applying A^T once
+// more: one operator product per step fewer, the same gradient to the solve's tolerance.
+PetscErrorCode theta_adjoint_install(TS ts, bool transposed_factor = true, bool constant_operator = false);
 
 } // namespace flexipde

@@ -395,7 +395,7 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
     PetscCall(store_trajectory_use_buffer(tj, &trajectory_buffer_));
   }
   PetscBool rk_fused = PETSC_TRUE, rk_stage = PETSC_TRUE, rk_records = PETSC_TRUE, theta_direct = PETSC_TRUE, theta_factor_t = PETSC_TRUE,
-            rk_own_sum = PETSC_TRUE;
+            rk_own_sum = PETSC_TRUE, theta_reuse_solve = PETSC_TRUE;
   PetscOptionsBegin(comm, nullptr, "Simulation", "Simulation");
   PetscCall(PetscOptionsBool("-sim_stability_check", "Refuse explicit steps beyond the stability limit", "Simulation",
                              stability_check, &stability_check, nullptr));
@@ -428,6 +428,10 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
                              "of G record at every stage what the model's adjoint stage would recompute (Model::"
                              "stage_record_size: the waves' L u, Vlasov's field E), and the adjoint reads it",
                              "Simulation", rk_records, &rk_records, nullptr));
+  PetscCall(PetscOptionsBool("-theta_adjoint_reuse_solve", "That implicit adjoint, for a linear model with a constant "
+                             "dG/dU: lambda's update takes A^T nu from the transposed solve's equation instead of applying "
+                             "A^T again (the same gradient to the solve's tolerance)", "Simulation", theta_reuse_solve,
+                             &theta_reuse_solve, nullptr));
   PetscCall(PetscOptionsBool("-rk_adjoint_own_sum", "That adjoint adds a step's stage increments to lambda in a pass "
                              "of its own (the same numbers as VecMAXPY, vectorised), else VecMAXPY", "Simulation",
                              rk_own_sum, &rk_own_sum, nullptr));
@@ -489,7 +493,8 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
     PetscCall(SNESSetLagJacobian(snes, -2));
     PetscCall(SNESSetLagJacobianPersists(snes, PETSC_TRUE));
   }
-  if (with_adjoint && theta_direct) PetscCall(theta_adjoint_install(ts, theta_factor_t)); // only theta types
+  if (with_adjoint && theta_direct) // only theta types
+    PetscCall(theta_adjoint_install(ts, theta_factor_t, theta_reuse_solve && model_->linear() && model_->jacobian_constant()));
   rk_stage_fused_ = with_adjoint && rk_fused && rk_stage && !std::strcmp(type, TSRK) && model_->has_stage_adjoint();
   rk_stage_records_ = rk_stage_fused_ && rk_records && model_->stage_record_size() > 0;
   if (with_adjoint && rk_fused && !std::strcmp(type, TSRK)) {

@@ -19,6 +19,9 @@ struct ThetaAdjoint {
   // The transposed solves through a factorisation of P^T (transposed_factor; see solve_transpose):
   // P^T (built from P_from, a reference, in its state p_state), and a KSP of the forward's kind on it.
   bool transposed_factor = true;
+  // A = dG/dU the same at every t and U (theta_adjoint_install's constant_operator): the update of
+  // lambda takes A^T nu from the transposed solve's equation instead of applying it again.
+  bool constant_operator = false;
   Mat PT = nullptr, P_from = nullptr;
   PetscObjectState p_state = -1, p_nonzeros = -1;
   KSP kspT = nullptr;
@@ -285,11 +288,15 @@ PetscErrorCode adjoint_step(TS ts) {
     for (PetscInt k = 0; k < ncost; ++k) PetscCall(scaled_copy(c->rhs[k], 1.0 / h, ts->vecs_sensi[k]));
     PetscCall(ijacobian(ts, t1, ts->vec_sol, c->Xdot, 1.0 / h, J, P, ksp));
     PetscCall(solve_transpose(ts, ksp, *c));
-    PetscCall(ijacobian(ts, t1, ts->vec_sol, c->Xdot, 0.0, J, P, ksp)); // -A
-    for (PetscInt k = 0; k < ncost; ++k) {
-      PetscCall(VecScale(c->rhs[k], -1.0));
-      PetscCall(MatMultTransposeAdd(J, c->nu[k], c->rhs[k], c->rhs[k]));
-      PetscCall(scaled_copy(ts->vecs_sensi[k], -h, c->rhs[k]));
+    if (c->constant_operator) // A^T nu = nu / h - rhs: lambda_n = h (rhs + A^T nu) = nu
+      for (PetscInt k = 0; k < ncost; ++k) PetscCall(VecCopy(c->nu[k], ts->vecs_sensi[k]));
+    else {
+      PetscCall(ijacobian(ts, t1, ts->vec_sol, c->Xdot, 0.0, J, P, ksp)); // -A
+      for (PetscInt k = 0; k < ncost; ++k) {
+        PetscCall(VecScale(c->rhs[k], -1.0));
+        PetscCall(MatMultTransposeAdd(J, c->nu[k], c->rhs[k], c->rhs[k]));
+        PetscCall(scaled_copy(ts->vecs_sensi[k], -h, c->rhs[k]));
+      }
     }
     if (ts->vecs_sensip) {
       PetscCall(VecAXPBYPCZ(c->Xdot, -1.0 / h, 1.0 / h, 0.0, U0, ts->vec_sol));
@@ -303,11 +310,15 @@ PetscErrorCode adjoint_step(TS ts) {
     Vec U0 = Y[0];
     PetscCall(ijacobian(ts, t1, ts->vec_sol, c->Xdot, 1.0 / (theta * h), J, P, ksp));
     PetscCall(solve_transpose(ts, ksp, *c));
-    const PetscReal s2 = 1.0 / ((theta - 1.0) * h);
-    PetscCall(ijacobian(ts, t0, U0, c->Xdot, s2, J, P, ksp));
-    for (PetscInt k = 0; k < ncost; ++k) {
-      PetscCall(MatMultTranspose(J, c->nu[k], ts->vecs_sensi[k]));
-      PetscCall(VecScale(ts->vecs_sensi[k], 1.0 / s2));
+    const PetscReal s1 = 1.0 / (theta * h), s2 = 1.0 / ((theta - 1.0) * h);
+    if (c->constant_operator) // A^T nu = s1 nu - rhs: lambda_n = ((s2 - s1) nu + rhs) / s2, rhs = s1 lambda
+      for (PetscInt k = 0; k < ncost; ++k) PetscCall(VecAXPBY(ts->vecs_sensi[k], (s2 - s1) / s2, s1 / s2, c->nu[k]));
+    else {
+      PetscCall(ijacobian(ts, t0, U0, c->Xdot, s2, J, P, ksp));
+      for (PetscInt k = 0; k < ncost; ++k) {
+        PetscCall(MatMultTranspose(J, c->nu[k], ts->vecs_sensi[k]));
+        PetscCall(VecScale(ts->vecs_sensi[k], 1.0 / s2));
+      }
     }
     if (ts->vecs_sensip) {
       // U_{n+1} takes h theta nu_n from this step and h (1 - theta) nu_{n+1} from the step after it
@@ -318,7 +329,6 @@ PetscErrorCode adjoint_step(TS ts) {
         else PetscCall(VecAXPBYPCZ(c->rhs[k], h * theta, 1.0, 0.0, c->nu[k], c->pending[k]));
         PetscCall(scaled_copy(c->pending[k], h * (1.0 - theta), c->nu[k]));
       }
-      const PetscReal s1 = 1.0 / (h * theta);
       PetscCall(VecAXPBYPCZ(c->Xdot, -s1, s1, 0.0, U0, ts->vec_sol));
       PetscCall(add_parameter_terms(ts, *c, t1, ts->vec_sol, -1.0 / (theta * h), -1.0, &c->rhs));
       if (last) {
@@ -334,10 +344,17 @@ PetscErrorCode adjoint_step(TS ts) {
   PetscCall(VecAXPBYPCZ(c->X0, 1.0 / (1.0 - theta), theta / (theta - 1.0), 0.0, X, ts->vec_sol));
   PetscCall(ijacobian(ts, ts_stage, X, c->Xdot, 1.0 / (theta * h), J, P, ksp));
   PetscCall(solve_transpose(ts, ksp, *c));
-  PetscCall(ijacobian(ts, ts_stage, X, c->Xdot, 0.0, J, P, ksp)); // -A(X)
-  for (PetscInt k = 0; k < ncost; ++k) {
-    PetscCall(MatMultTranspose(J, c->nu[k], c->rhs[k]));
-    PetscCall(VecAXPY(ts->vecs_sensi[k], -h, c->rhs[k]));
+  if (c->constant_operator) { // A^T nu = s1 nu - rhs, s1 = 1 / (theta h): rhs - s1 nu is the -A^T nu below
+    for (PetscInt k = 0; k < ncost; ++k) {
+      PetscCall(VecAXPY(c->rhs[k], -1.0 / (theta * h), c->nu[k]));
+      PetscCall(VecAXPY(ts->vecs_sensi[k], -h, c->rhs[k]));
+    }
+  } else {
+    PetscCall(ijacobian(ts, ts_stage, X, c->Xdot, 0.0, J, P, ksp)); // -A(X)
+    for (PetscInt k = 0; k < ncost; ++k) {
+      PetscCall(MatMultTranspose(J, c->nu[k], c->rhs[k]));
+      PetscCall(VecAXPY(ts->vecs_sensi[k], -h, c->rhs[k]));
+    }
   }
   if (ts->vecs_sensip) {
     const PetscReal s1 = 1.0 / (h * theta);
@@ -349,7 +366,7 @@ PetscErrorCode adjoint_step(TS ts) {
 
 } // namespace
 
-PetscErrorCode theta_adjoint_install(TS ts, bool transposed_factor) {
+PetscErrorCode theta_adjoint_install(TS ts, bool transposed_factor, bool constant_operator) {
   PetscBool theta;
   ThetaAdjoint *c;
   PetscFunctionBegin;
@@ -357,11 +374,12 @@ PetscErrorCode theta_adjoint_install(TS ts, bool transposed_factor) {
   if (!theta) PetscFunctionReturn(0);
   if (ts->ops->adjointstep == adjoint_step) {
     PetscCall(attached_object((PetscObject)ts, kName, &c));
-    if (c) c->transposed_factor = transposed_factor;
+    if (c) c->transposed_factor = transposed_factor, c->constant_operator = constant_operator;
     PetscFunctionReturn(0);
   }
   auto *ctx = new ThetaAdjoint();
   ctx->transposed_factor = transposed_factor;
+  ctx->constant_operator = constant_operator;
   ctx->petsc_step = ts->ops->adjointstep;
   PetscCall(compose_owned((PetscObject)ts, kName, ctx));
   ts->ops->adjointstep = adjoint_step;
