@@ -27,10 +27,16 @@ def peer(log):
     return float(m.group(1)), float(m.group(2)), float(m.group(3))
 
 
+def reference_forward(log, kind="reference"):
+    """The hand-written loop's forward alone (its line `<kind> forward: ...`), None if it printed none."""
+    m = re.search(kind + r" forward: .*forward median ([0-9.]+) s", log)
+    return float(m.group(1)) if m else None
+
+
 f_fwd, _, f_grad, f_grad_min = timing(read("flexipde_leapfrog.log"))
 r_fwd, _, r_grad, _ = timing(read("flexipde_rk4.log"))
 J_ref, ref, ref_min = peer(read("reference.log"))
-ref_fwd = float(re.search(r"reference forward: .*forward median ([0-9.]+) s", read("reference.log")).group(1))
+ref_fwd = reference_forward(read("reference.log"))
 g_ref = np.loadtxt(os.path.join(out, "reference_gradient.txt"))
 with h5py.File(os.path.join(out, "flexipde_gradient.h5"), "r") as h:
     g_flex = np.array(h["/gradient/dJdp"]).ravel()
@@ -88,7 +94,7 @@ print("|---|---|---|---|")
 sf, _, sg, _ = timing(read("small2d.log"))
 ls2 = read("reference_small2d.log")
 _, rg, _ = peer(ls2)
-rf = float(re.search(r"reference 2d forward: .*forward median ([0-9.]+) s", ls2).group(1))
+rf = reference_forward(ls2, "reference 2d")
 print("| flexipde, -ts_type leapfrog | %.4f | %.4f | %.2f |" % (sf, sg, sg / sf))
 print("| hand-written C (run/reference_leapfrog_2d.c) | %.4f | %.4f | %.2f |" % (rf, rg, rg / rf))
 print()
@@ -130,9 +136,8 @@ if scale:
                                                                    n * steps / fwd / 1e6, n * steps / grad / 1e6))
     log2d = read("reference_big2d.log")
     _, ref2d, _ = peer(log2d)
-    m2d = re.search(r"reference 2d forward: .*forward median ([0-9.]+) s", log2d)
-    if m2d:  # its forward alone (three rolling levels, nothing stored)
-        rf = float(m2d.group(1))
+    rf = reference_forward(log2d, "reference 2d")
+    if rf is not None:  # its forward alone (three rolling levels, nothing stored)
         print("| hand-written (1 core) | %d | %.3f | %.3f | %.2f | %.1f | %.1f |"
               % (n, rf, ref2d, ref2d / rf, n * steps / rf / 1e6, n * steps / ref2d / 1e6))
     else:

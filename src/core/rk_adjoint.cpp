@@ -59,16 +59,16 @@ PetscErrorCode combine(Vec w, PetscScalar c0, Vec x0, PetscInt m, const PetscSca
   PetscFunctionReturn(0);
 }
 
-// x += d[0] + ... + d[s-1] in one pass for s <= 4 (else VecMAXPY): the same numbers as VecMAXPY with unit
-// coefficients, whose kernel adds x + (((1 d0 + 1 d1) + 1 d2) + 1 d3) for four terms, without its
-// pointer loop that the compiler cannot vectorise.
-PetscErrorCode add_stages(Vec x, PetscInt s, const Vec *d, const PetscScalar *ones) {
+// x += d[0] + ... + d[s-1] (ones: s unit coefficients). With `own` and s <= 4 in one pass of its own: the
+// same numbers as VecMAXPY, whose kernel adds x + (((1 d0 + 1 d1) + 1 d2) + 1 d3) for four terms, without
+// its pointer loop that the compiler cannot vectorise; else VecMAXPY.
+PetscErrorCode add_stages(Vec x, PetscInt s, const Vec *d, const PetscScalar *ones, bool own) {
   PetscScalar *xa;
   const PetscScalar *a[4];
   PetscInt n;
   PetscFunctionBegin;
-  if (s < 1 || s > 4) {
-    if (s > 4) PetscCall(VecMAXPY(x, s, ones, const_cast<Vec *>(d)));
+  if (!own || s > 4) {
+    PetscCall(VecMAXPY(x, s, ones, const_cast<Vec *>(d)));
     PetscFunctionReturn(0);
   }
   PetscCall(VecGetLocalSize(x, &n));
@@ -168,10 +168,8 @@ PetscErrorCode adjoint_step(TS ts) {
       }
     }
   }
-  for (PetscInt k = 0; k < ts->numcost; ++k) {
-    if (ctx->own_sum) PetscCall(add_stages(ts->vecs_sensi[k], s, &ctx->dlam[(size_t)k * s], ctx->ones.data()));
-    else PetscCall(VecMAXPY(ts->vecs_sensi[k], s, ctx->ones.data(), &ctx->dlam[(size_t)k * s]));
-  }
+  for (PetscInt k = 0; k < ts->numcost; ++k)
+    PetscCall(add_stages(ts->vecs_sensi[k], s, &ctx->dlam[(size_t)k * s], ctx->ones.data(), ctx->own_sum));
   PetscFunctionReturn(0);
 }
 

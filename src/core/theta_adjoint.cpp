@@ -305,12 +305,13 @@ PetscErrorCode adjoint_step(TS ts) {
     PetscFunctionReturn(0);
   }
 
-  for (PetscInt k = 0; k < ncost; ++k) PetscCall(scaled_copy(c->rhs[k], 1.0 / (theta * h), ts->vecs_sensi[k]));
+  const PetscReal s1 = 1.0 / (theta * h); // the transposed solve's shift
+  for (PetscInt k = 0; k < ncost; ++k) PetscCall(scaled_copy(c->rhs[k], s1, ts->vecs_sensi[k]));
   if (endpoint) { // CN and the endpoint theta methods
     Vec U0 = Y[0];
-    PetscCall(ijacobian(ts, t1, ts->vec_sol, c->Xdot, 1.0 / (theta * h), J, P, ksp));
+    PetscCall(ijacobian(ts, t1, ts->vec_sol, c->Xdot, s1, J, P, ksp));
     PetscCall(solve_transpose(ts, ksp, *c));
-    const PetscReal s1 = 1.0 / (theta * h), s2 = 1.0 / ((theta - 1.0) * h);
+    const PetscReal s2 = 1.0 / ((theta - 1.0) * h);
     if (c->constant_operator) // A^T nu = s1 nu - rhs: lambda_n = ((s2 - s1) nu + rhs) / s2, rhs = s1 lambda
       for (PetscInt k = 0; k < ncost; ++k) PetscCall(VecAXPBY(ts->vecs_sensi[k], (s2 - s1) / s2, s1 / s2, c->nu[k]));
     else {
@@ -330,7 +331,7 @@ PetscErrorCode adjoint_step(TS ts) {
         PetscCall(scaled_copy(c->pending[k], h * (1.0 - theta), c->nu[k]));
       }
       PetscCall(VecAXPBYPCZ(c->Xdot, -s1, s1, 0.0, U0, ts->vec_sol));
-      PetscCall(add_parameter_terms(ts, *c, t1, ts->vec_sol, -1.0 / (theta * h), -1.0, &c->rhs));
+      PetscCall(add_parameter_terms(ts, *c, t1, ts->vec_sol, -s1, -1.0, &c->rhs));
       if (last) {
         PetscCall(VecZeroEntries(c->Xdot));
         PetscCall(add_parameter_terms(ts, *c, t0, U0, s2, -1.0, &c->pending));
@@ -342,11 +343,11 @@ PetscErrorCode adjoint_step(TS ts) {
   Vec X = Y[0];
   const PetscReal ts_stage = t1 - (1.0 - theta) * h;
   PetscCall(VecAXPBYPCZ(c->X0, 1.0 / (1.0 - theta), theta / (theta - 1.0), 0.0, X, ts->vec_sol));
-  PetscCall(ijacobian(ts, ts_stage, X, c->Xdot, 1.0 / (theta * h), J, P, ksp));
+  PetscCall(ijacobian(ts, ts_stage, X, c->Xdot, s1, J, P, ksp));
   PetscCall(solve_transpose(ts, ksp, *c));
-  if (c->constant_operator) { // A^T nu = s1 nu - rhs, s1 = 1 / (theta h): rhs - s1 nu is the -A^T nu below
+  if (c->constant_operator) { // A^T nu = s1 nu - rhs: rhs - s1 nu is the -A^T nu below
     for (PetscInt k = 0; k < ncost; ++k) {
-      PetscCall(VecAXPY(c->rhs[k], -1.0 / (theta * h), c->nu[k]));
+      PetscCall(VecAXPY(c->rhs[k], -s1, c->nu[k]));
       PetscCall(VecAXPY(ts->vecs_sensi[k], -h, c->rhs[k]));
     }
   } else {
@@ -357,7 +358,6 @@ PetscErrorCode adjoint_step(TS ts) {
     }
   }
   if (ts->vecs_sensip) {
-    const PetscReal s1 = 1.0 / (h * theta);
     PetscCall(VecAXPBYPCZ(c->Xdot, -s1, s1, 0.0, c->X0, X));
     PetscCall(add_parameter_terms(ts, *c, ts_stage, X, s1, -h));
   }
