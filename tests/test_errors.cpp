@@ -65,7 +65,17 @@ TEST(Errors, UnknownModel) {
   EXPECT_FALSE(m);
   EXPECT_EQ(create_model(PETSC_COMM_WORLD, "wave", m), 0);
   EXPECT_TRUE(m);
-  EXPECT_EQ(model_names(), "advection, vlasov, wave, wave2d");
+  // every registered model is listed, in the registry's order, and can be created by its name
+  std::string listed;
+  for (auto &kv : model_registry()) {
+    listed += (listed.empty() ? "" : ", ") + kv.first;
+    std::unique_ptr<Model> each;
+    EXPECT_EQ(create_model(PETSC_COMM_WORLD, kv.first, each), 0) << kv.first;
+    EXPECT_TRUE(each && kv.first == each->name()) << kv.first;
+  }
+  EXPECT_EQ(model_names(), listed);
+  for (const char *known : {"advection", "burgers", "vlasov", "wave", "wave2d"})
+    EXPECT_NE(listed.find(known), std::string::npos) << known;
 }
 
 TEST(Errors, BadGridAndModelOptions) {

@@ -29,8 +29,9 @@ public:
                                      Grid &grid);
   static PetscErrorCode create(MPI_Comm comm, PetscInt stencil_width, const GridOptions &opts, Grid &grid);
 
-  // A DMDA with `dof` components per point and the same parallel layout as the scalar grid.
-  PetscErrorCode create_dm(PetscInt dof, DM *dm) const;
+  // A DMDA with `dof` components per point and the same parallel layout as the scalar grid; `width`
+  // ghost points (default: the grid's), a star stencil if `star` (the pattern of a matrix it creates).
+  PetscErrorCode create_dm(PetscInt dof, DM *dm, PetscInt width = -1, bool star = false) const;
 
   DM dm() const { return dm_; }  // scalar (dof = 1) grid, for parameter fields and data
   MPI_Comm comm() const { return comm_; }

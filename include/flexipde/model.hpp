@@ -220,6 +220,16 @@ protected:
 
 using ModelFactory = std::function<std::unique_ptr<Model>()>;
 std::map<std::string, ModelFactory> &model_registry();
+// Registration: one line at the end of a model's file makes `-model NAME` create it.
+struct ModelRegistration {
+  ModelRegistration(const char *name, ModelFactory factory);
+};
+#define FLEXIPDE_REGISTRATION_ID2(L) flexipde_model_registration_##L
+#define FLEXIPDE_REGISTRATION_ID(L) FLEXIPDE_REGISTRATION_ID2(L)
+#define FLEXIPDE_REGISTER_MODEL(NAME, TYPE)                                                                            \
+  static const ::flexipde::ModelRegistration FLEXIPDE_REGISTRATION_ID(__LINE__)(                                        \
+      NAME, [] { return std::unique_ptr<::flexipde::Model>(new TYPE()); })
+
 PetscErrorCode create_model(MPI_Comm comm, const std::string &name, std::unique_ptr<Model> &model);
 std::string model_names();
 

@@ -18,6 +18,7 @@ struct ParamInfo {
   ParamKind kind;
   PetscInt local_offset = 0; // position of this parameter's first local entry in the packed local array
   PetscInt local_size = 0;
+  PetscInt global_start = 0; // global index of its first entry (a scalar: the same on every rank)
   PetscReal lower = PETSC_NINFINITY; // physical lower bound declared by the model (e.g. a speed > 0)
   PetscReal initial = 1.0;           // value when the options give none (the model's default)
 };
@@ -36,7 +37,7 @@ public:
   PetscInt global_size() const { return nglobal_; }
   PetscInt rstart() const { return rstart_; }
   // Global index of a scalar, and of local point `i_local` of a field (for Jacobian columns).
-  PetscInt global_index(PetscInt k, PetscInt i_local = 0) const { return rstart_ + info_[k].local_offset + i_local; }
+  PetscInt global_index(PetscInt k, PetscInt i_local = 0) const { return info_[k].global_start + i_local; }
 
   // Value of scalar k, the same on every rank (collective).
   PetscErrorCode scalar(Vec p, PetscInt k, PetscReal *value) const;

@@ -92,17 +92,18 @@ PetscErrorCode Grid::create(MPI_Comm comm, PetscInt stencil_width, const GridOpt
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode Grid::create_dm(PetscInt dof, DM *dm) const {
+PetscErrorCode Grid::create_dm(PetscInt dof, DM *dm, PetscInt width, bool star) const {
+  const PetscInt sw = width < 0 ? sw_ : width;
   const DMBoundaryType bx = opts_.periodic ? DM_BOUNDARY_PERIODIC : DM_BOUNDARY_GHOSTED;
   PetscFunctionBeginUser;
   if (opts_.dim == 1) {
-    PetscCall(DMDACreate1d(comm_, bx, opts_.n, dof, sw_, lx_.data(), dm));
+    PetscCall(DMDACreate1d(comm_, bx, opts_.n, dof, sw, lx_.data(), dm));
     PetscCall(DMSetUp(*dm));
     PetscCall(DMDASetUniformCoordinates(*dm, opts_.x0, opts_.periodic ? opts_.x1 - h_ : opts_.x1, 0, 0, 0, 0));
   } else {
     const DMBoundaryType by = opts_.periodic_y ? DM_BOUNDARY_PERIODIC : DM_BOUNDARY_GHOSTED;
-    PetscCall(DMDACreate2d(comm_, bx, by, DMDA_STENCIL_BOX, opts_.n, opts_.ny, (PetscInt)lx_.size(),
-                           (PetscInt)ly_.size(), dof, sw_, lx_.data(), ly_.data(), dm));
+    PetscCall(DMDACreate2d(comm_, bx, by, star ? DMDA_STENCIL_STAR : DMDA_STENCIL_BOX, opts_.n, opts_.ny,
+                           (PetscInt)lx_.size(), (PetscInt)ly_.size(), dof, sw, lx_.data(), ly_.data(), dm));
     PetscCall(DMSetUp(*dm));
     PetscCall(DMDASetUniformCoordinates(*dm, opts_.x0, opts_.periodic ? opts_.x1 - h_ : opts_.x1, opts_.y0,
                                         opts_.periodic_y ? opts_.y1 - hy_ : opts_.y1, 0, 0));

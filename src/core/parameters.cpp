@@ -19,11 +19,12 @@ PetscErrorCode Parameters::finalize(const Grid &grid) {
   PetscFunctionBeginUser;
   PetscCallMPI(MPI_Comm_rank(grid.comm(), &rank));
   grid_ = &grid;
-  PetscInt off = 0;
-  for (auto &pi : info_) { // scalars first so that their global index is rank 0's start
+  PetscInt off = 0, nscalar = 0;
+  for (auto &pi : info_) { // scalars first, owned by rank 0, whose range starts at 0
     if (pi.kind != ParamKind::Scalar) continue;
     pi.local_offset = off;
     pi.local_size = rank == 0 ? 1 : 0;
+    pi.global_start = nscalar++;
     off += pi.local_size;
   }
   for (auto &pi : info_) {
@@ -36,6 +37,8 @@ PetscErrorCode Parameters::finalize(const Grid &grid) {
   PetscCallMPI(MPI_Allreduce(&nlocal_, &nglobal_, 1, MPIU_INT, MPI_SUM, grid.comm()));
   PetscCallMPI(MPI_Scan(&nlocal_, &rstart_, 1, MPIU_INT, MPI_SUM, grid.comm()));
   rstart_ -= nlocal_;
+  for (auto &pi : info_)
+    if (pi.kind == ParamKind::Field) pi.global_start = rstart_ + pi.local_offset;
   finalized_ = true;
   PetscFunctionReturn(0);
 }

@@ -726,7 +726,8 @@ PetscErrorCode Simulation::forward(Vec p, Vec UT) {
   OwnedTS ts;
   PetscFunctionBeginUser;
   ++param_version_;
-  PetscCall(model_->initial_condition(p, UT)); // also sets the model's parameters
+  PetscCall(model_->set_parameters(p));
+  PetscCall(model_->initial_condition(p, UT));
   PetscCall(create_ts(false, ts, false));
   PetscCall(TSSolve(ts, UT));
   PetscCall(finish_solve(ts));
@@ -742,6 +743,7 @@ PetscErrorCode Simulation::value(Vec p, PetscReal *J) {
   PetscCheck(objective_, grid_->comm(), PETSC_ERR_ORDER, "Simulation::value needs an objective");
   ++param_version_;
   PetscCall(DMCreateGlobalVector(dm_, U.out()));
+  PetscCall(model_->set_parameters(p));
   PetscCall(model_->initial_condition(p, U));
   PetscCall(create_ts(false, ts));
   PetscCall(TSSolve(ts, U));
@@ -760,6 +762,7 @@ PetscErrorCode Simulation::gradient(Vec p, PetscReal *J, Vec grad_p, Vec grad_u0
   PetscCheck(objective_, grid_->comm(), PETSC_ERR_ORDER, "Simulation::gradient needs an objective");
   ++param_version_;
   PetscCall(DMCreateGlobalVector(dm_, U.out()));
+  PetscCall(model_->set_parameters(p));
   PetscCall(model_->initial_condition(p, U));
   PetscCall(create_ts(true, ts));
   double t0 = MPI_Wtime();

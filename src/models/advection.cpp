@@ -2041,6 +2041,6 @@ private:
 
 } // namespace
 
-std::unique_ptr<Model> make_advection_model() { return std::make_unique<AdvectionModel>(); }
+FLEXIPDE_REGISTER_MODEL("advection", AdvectionModel);
 
 } // namespace flexipde

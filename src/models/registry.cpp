@@ -1,23 +1,15 @@
-#include "flexipde/model.hpp"
+#include "flexipde/pointwise.hpp"
 
 namespace flexipde {
 
-std::unique_ptr<Model> make_advection_model();
-std::unique_ptr<Model> make_wave_model();
-std::unique_ptr<Model> make_vlasov_model();
-std::unique_ptr<Model> make_wave2d_model();
-std::unique_ptr<Model> make_vlasov_model();
-
+// Filled by the models' own registrations (FLEXIPDE_REGISTER_MODEL) before main: a function-local
+// map, so that it exists whatever order the static registrations run in.
 std::map<std::string, ModelFactory> &model_registry() {
-  static std::map<std::string, ModelFactory> registry = {
-      {"advection", make_advection_model},
-      {"wave", make_wave_model},
-      {"vlasov", make_vlasov_model},
-      {"wave2d", make_wave2d_model},
-      {"vlasov", make_vlasov_model},
-  };
+  static std::map<std::string, ModelFactory> registry;
   return registry;
 }
+
+ModelRegistration::ModelRegistration(const char *name, ModelFactory factory) { model_registry()[name] = std::move(factory); }
 
 std::string model_names() {
   std::string s;

@@ -966,6 +966,6 @@ private:
 
 } // namespace
 
-std::unique_ptr<Model> make_vlasov_model() { return std::make_unique<VlasovModel>(); }
+FLEXIPDE_REGISTER_MODEL("vlasov", VlasovModel);
 
 } // namespace flexipde

@@ -826,6 +826,6 @@ private:
 
 } // namespace
 
-std::unique_ptr<Model> make_wave_model() { return std::make_unique<WaveModel>(); }
+FLEXIPDE_REGISTER_MODEL("wave", WaveModel);
 
 } // namespace flexipde

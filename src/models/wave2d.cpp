@@ -953,6 +953,6 @@ private:
 
 } // namespace
 
-std::unique_ptr<Model> make_wave2d_model() { return std::make_unique<Wave2DModel>(); }
+FLEXIPDE_REGISTER_MODEL("wave2d", Wave2DModel);
 
 } // namespace flexipde
