@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Gradient / forward for every model and integrator flexipde offers (1 rank, or NP): the survey behind
-# issue 8's "gradient <= 2.5x forward for every model" (docs/performance.md, Session 5).
+# Gradient / forward for every model and integrator flexipde offers (1 rank, or NP): the model survey
+# of docs/performance.md.
 #
 #   run/bench_models.sh              # markdown table on stdout
 #   REPS=3 run/bench_models.sh       # fewer repetitions

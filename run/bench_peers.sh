@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Gradient speed against peers (issue 8): the seed FWI problem (wave, n = 1000 on [0,1], 5000 leapfrog
+# Gradient speed against peers: the seed FWI problem (wave, n = 1000 on [0,1], 5000 leapfrog
 # steps of dt = 5e-4, a 1000-entry speed field c, J = 0.5 ||u(T) - d||^2 with d from c = 1) timed
 # in one run, on one core, as the median of REPS value+gradient evaluations each:
 #   flexipde   -ts_type leapfrog (and rk4 for reference), -timing_repeats: in-process medians;
@@ -42,7 +42,7 @@ echo "Measured $(date -u +%Y-%m-%dT%H:%MZ) on $(nproc) cores, load average $(cut
 echo
 $MPIEXEC -n 1 "$FLEXIPDE" -task gradient $seed -timing_repeats "$REPS" -output "$OUT/flexipde_gradient.h5" > "$OUT/flexipde_leapfrog.log"
 $MPIEXEC -n 1 "$FLEXIPDE" -task gradient -ts_type rk -ts_rk_type 4 -wave_c_field 1 -wave_c 0.9 -timing_repeats "$REPS" > "$OUT/flexipde_rk4.log"
-# the seed scene on 1 and 2 ranks, with one scalar speed and with the 1000-entry field (issue 3)
+# the seed scene on 1 and 2 ranks, with one scalar speed and with the 1000-entry field
 for np in 1 2; do
   for cf in 0 1; do
     $MPIEXEC -n $np "$FLEXIPDE" -task gradient -ts_type leapfrog -wave_c_field $cf -wave_c 0.9 -timing_repeats "$REPS" > "$OUT/seed_np${np}_field$cf.log"
@@ -81,7 +81,7 @@ fi
 "$PYTHON" "$here/bench_peers.py" "$OUT" "$torch_status" "$SCALE"
 # ROUNDS > 0: the headline pair again, flexipde's seed leapfrog and the hand-written loop, in ROUNDS
 # alternating rounds of fresh processes: on a noisy machine one process each can land in different
-# minutes (seen: the same forward 9 ms in one, 14 ms in the next), a round's two processes rarely do.
+# minutes (the same forward can take 9 ms in one and 14 ms in the next), a round's two processes rarely do.
 ROUNDS=${ROUNDS:-0}
 if [ "$ROUNDS" -gt 0 ]; then
   rounds=""

@@ -46,7 +46,7 @@ void check(PetscInt dim, bool periodic, PetscInt width) {
     PETSC_ASSERT_OK(VecRestoreArray(X, &x));
   }
   PETSC_ASSERT_OK(single.update(X));
-  // Expected ghost at (il, jl): the owner's value, wrapped when periodic, 0 beyond a wall.
+  // Expected ghost at (il, jl): the owning rank's value, wrapped when periodic, 0 beyond a wall.
   auto expect = [&](PetscInt il, PetscInt jl, PetscInt fld) -> PetscReal {
     PetscInt i = g.xs() + il, j = g.ys() + jl;
     if (periodic) i = (i + n) % n, j = (j + ny) % ny;

@@ -106,7 +106,7 @@ public:
   // keeps them for every stage (the RHS evaluations at the stages write them in place) and
   // stage_adjoint receives them; when stage_record_replaces_state() it needs nothing else of the stage
   // (U is null then) and full storage keeps only the records. Without a record (null: the stage was
-  // recomputed, or records are off) stage_adjoint works from U as before.
+  // recomputed, or records are off) stage_adjoint works from U.
   virtual PetscInt stage_record_size() const { return 0; }
   virtual bool stage_record_replaces_state() const { return false; }
   virtual PetscErrorCode rhs_record(PetscReal t, Vec U, Vec G, PetscScalar *record) {

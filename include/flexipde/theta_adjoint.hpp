@@ -4,7 +4,7 @@
 // shift*I - dG/dU through TSComputeSNESJacobian, i.e. SNESComputeJacobian, twice per step; besides
 // the callback that runs SNESTestJacobian and the -snes_compare_* option lookups and composes the
 // linearisation point onto the matrix. On a 512-point advection problem with a factored operator
-// that was a third of an adjoint step. This step does the same arithmetic, first-order adjoints
+// that is a third of an adjoint step. This step does the same arithmetic, first-order adjoints
 // only, calling TSComputeIJacobian directly:
 //
 //   endpoint (CN, theta in (0,1)), h = step, lambda = lambda_{n+1}:

@@ -469,8 +469,8 @@ PetscErrorCode setup_adjoint_trajectory(TS ts, CheckpointStats *stats) {
   PetscCall(TSSetSaveTrajectory(ts));
   PetscCall(TSGetTrajectory(ts, &tj));
   PetscCall(TSTrajectorySetType(tj, ts, TSTRAJECTORYMEMORY));
-  // Store U only and recompute a step's stages in the adjoint: 1/(stages+1) of the memory and,
-  // measured on the seed scene, less time than copying every stage.
+  // Store U only and recompute a step's stages in the adjoint: 1/(stages+1) of the memory and, on
+  // the seed scene, less time than copying every stage.
   PetscCall(TSTrajectorySetSolutionOnly(tj, PETSC_TRUE));
   // -checkpoint_budget is read once the integrator is known (inside TSSetFromOptions, before the
   // trajectory's own options, so -ts_trajectory_* still override).

@@ -363,8 +363,8 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
     } else {
       // On several ranks: up to -sim_redundant_lu_max unknowns every rank factors the whole matrix
       // (PCREDUNDANT, sequential LU; a solve is then one gather and a local solve), beyond that MUMPS.
-      // A distributed factorisation of a small operator is all communication: CN advection N = 512
-      // on 2 ranks took 0.9 ms a step with MUMPS (refactored every step), 8 us redundant and reused.
+      // A distributed factorisation of a small operator is all communication (and MUMPS refactors
+      // every step here, below), while the redundant LU reuses its factors.
       PetscInt nglobal, redundant_max = 200000;
       PetscCall(MatGetSize(J_, &nglobal, nullptr));
       PetscOptionsBegin(comm, nullptr, "Simulation: implicit solves", "Simulation");
@@ -450,8 +450,8 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
     PetscBool shell;
     PetscCall(PetscObjectTypeCompare((PetscObject)(Mat)J_, MATSHELL, &shell));
     const bool theta = !std::strcmp(type, TSTHETA) || !std::strcmp(type, TSCN) || !std::strcmp(type, TSBEULER);
-    // Not with MUMPS: on 2 ranks the unit suite hung now and then inside MatSolve_MUMPS's first
-    // VecScatterCreate after switching between theta TSs; not understood yet. The redundant LU
+    // Not with MUMPS: with it the 2-rank unit suite hangs now and then inside MatSolve_MUMPS's first
+    // VecScatterCreate after switching between theta TSs (cause unknown). The redundant LU
     // (several ranks, small operators) and the sequential one reuse their factors.
     PetscBool redundant = PETSC_FALSE; // (what the options left: -pc_type may have replaced it)
     if (theta && size > 1) {

@@ -133,8 +133,8 @@ PetscErrorCode use_transposed_nd(PC factor) {
 // nu_k = P^T \ rhs_k through a factorisation of P^T: P^T built again (MatTranspose) whenever P
 // changes, and factored by a KSP of the forward's kind (options prefix -theta_adjoint_). PETSc's
 // sequential MatSolveTranspose walks the factors column by column (scattered updates of the
-// solution): 0.60 ms against MatSolve's 0.42 ms for 2D advection at 128^2 (-log_view), and slower
-// still when another process shares the memory system. For linear models P is built once per
+// solution): slower than MatSolve's row sweeps, and more so when another process shares the memory
+// system. For linear models P is built once per
 // gradient, so P^T costs one more factorisation per gradient. Its LU uses P's ordering
 // (transposed_nd), so its factors have the fill of P's.
 // type: the forward's PC type (sequential_lu), used when the KSP for P^T is made on the first call.
@@ -190,7 +190,7 @@ PetscErrorCode solve_factored_transpose(TS ts, KSP ksp, PCType type, ThetaAdjoin
 
 // nu_k = (shift I - A)^T \ rhs_k for every cost (the operators are set).
 // An iterative solve starts from the previous adjoint step's nu (adjoint states change little from
-// one step to the next; measured on GMRES: fewer iterations), a direct one ignores it. A sequential
+// one step to the next: GMRES then needs fewer iterations), a direct one ignores it. A sequential
 // LU of PETSc's own goes through a factorisation of P^T instead (solve_factored_transpose).
 PetscErrorCode solve_transpose(TS ts, KSP ksp, ThetaAdjoint &c) {
   PetscBool nonzero, preonly;

@@ -87,7 +87,7 @@ struct StoreTrajectory {
   bool use_prefetch = false;             // ... for this solve: on, and the slot no larger than that
   PetscBool stream = PETSC_TRUE;         // -checkpoint_stream_stores
   PetscBool compact_option = PETSC_TRUE; // -checkpoint_rk_compact
-  bool use_stream = false;               // ... for this solve: the leapfrog's states (RK gained nothing)
+  bool use_stream = false;               // ... for this solve: the leapfrog's states (RK gains nothing)
 };
 
 StoreTrajectory *context(TSTrajectory tj) { return static_cast<StoreTrajectory *>(tj->data); }
@@ -255,13 +255,12 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
   }
   st->slot = st->pairs ? st->nlocal / st->dof * st->pairs : st->keep_stages ? stage_slot : st->nlocal;
   // The leapfrog's position slots start on a cache line (padded to 8 entries): the step's streaming
-  // stores need 16-byte alignment, and with 101^2 points an odd slot lost it (every other state was
-  // then copied by Set, with plain stores).
+  // stores need 16-byte alignment, and with 101^2 points every other slot would lose it (Set would then
+  // copy that state, with plain stores).
   if (st->pairs && st->align_slots) st->slot = (st->slot + 7) / 8 * 8;
   // Prefetching the slot after next pays where slots are short (a few KB to a few hundred: the hardware
   // prefetchers do not get going within one, and the adjoint walks the slots backwards); on slots of
-  // megabytes they do, and the prefetches only compete with them (10^6-point 1D wave: adjoint 14 %
-  // slower with them; 2000^2 2D: 4 %).
+  // megabytes they do, and the prefetches only compete with them.
   st->use_prefetch = st->prefetch && (PetscReal)st->slot * sizeof(PetscScalar) <= st->prefetch_max_kb * 1024;
   if (ts->max_steps < PETSC_MAX_INT) { // reserve the planned trajectory once
     st->buffer->grow((size_t)(ts->max_steps + 1) * st->slot, false);

@@ -109,7 +109,7 @@ PetscErrorCode Halo::setup_packed(const Grid &grid, PetscInt width, PetscInt nfi
              "Halo: the owned block (%" PetscInt_FMT " x %" PetscInt_FMT ") is narrower than the halo width %" PetscInt_FMT,
              xm_, ym_, w_);
   // Every rank's block (DMDA ranks run along x first), its strips' size and where they start in the
-  // packed Vec; the owner of a point from its index in the PETSc ordering (the owners' ranges in turn).
+  // packed Vec; a point's owning rank from its index in the PETSc ordering (the ranks' ranges in turn).
   PetscCallMPI(MPI_Comm_size(grid.comm(), &size));
   PetscCall(DMDAGetInfo(grid.dm(), nullptr, nullptr, nullptr, nullptr, &px, &py, nullptr, nullptr, nullptr, nullptr,
                         nullptr, nullptr, nullptr));

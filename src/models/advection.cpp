@@ -2028,10 +2028,9 @@ private:
   bool wrap_ = false;
   Halo halo_, halo2_; // halo2_: a second exchange in flight with halo_'s (fill_ghosted_pair)
   // 1D on several ranks: the RK adjoint stage's x (and, with a field D, u) ghosts in one exchange, one
-  // message per neighbour instead of two (adjoint 0.053 -> 0.042 s, N = 512 on 2 ranks). Not in 2D:
-  // there the ghosts are rows, and at 128^2 the merged message (4 KB) crosses Open MPI's eager limit
-  // where the two separate ones do not; the rendezvous then cost more than the message saved (adjoint
-  // 0.071 -> 0.076 s).
+  // message per neighbour instead of two. Not in 2D: there the ghosts are rows, and at 128^2 the merged
+  // message (4 KB) crosses Open MPI's eager limit where the two separate ones do not; the rendezvous
+  // then costs more than the message saves.
   Halo packed_;
   std::vector<PetscReal> ring_;      // field_stage_2d's rings of y face rows
   std::vector<PetscScalar> urow_;    // ... and its row of u with ghosts

@@ -97,8 +97,8 @@ PetscReal maxwellian(PetscReal u, PetscReal s) { return std::exp(-0.5 * u * u / 
 //   y = cx (r_{i-2} - 8 r_{i-1} + 8 r_{i+1} - r_{i+2}) + E dvt,   w += f dvt,
 // with dvt = (D_v^T x)_ij from the rows m2, m1, r, p1, p2 = x_{j-2..j+2} (ghosted: r[-2], r[n+1]
 // are read). Free functions with restrict parameters, because GCC vectorises these loops and not
-// the same loops over restrict locals inside the member function (which ran scalar: the transpose
-// cost 1.7 evaluations of G). The arithmetic is unchanged, element by element.
+// the same loops over restrict locals inside the member function (which stay scalar). The arithmetic
+// is unchanged, element by element.
 // Rows away from the bounds, where D_v^T = -D_v: dvt = cv (m2 - 8 m1 + 8 p1 - p2), cv = -1/12hv.
 void transpose_row_interior(PetscInt n, PetscReal cx, PetscReal cv, const PetscScalar *__restrict r,
                             const PetscScalar *__restrict m2, const PetscScalar *__restrict m1,
@@ -284,7 +284,7 @@ public:
   // G(U) = -v D_x f + E D_v f (- the dissipation), with U read in place like the transpose reads x:
   // owned rows from U's array, the two rows beyond each end of the owned block and the two x ghosts
   // of each row from the Halo, no ghosted copy of U (DMGlobalToLocal gathers every point through an
-  // index list and cost 20-25 % of a forward solve at 512^2). The exchange is begun first and
+  // index list). The exchange is begun first and
   // overlaps the density sum and its reduction, then the sweep of the rows that need no ghost row
   // (with x split over ranks, the part of each row that needs no x ghost). G is the same bitwise as
   // advection_row (+ dissipation_row) on a ghosted copy gives.
@@ -413,8 +413,8 @@ public:
     PetscCall(VecRestoreArrayWrite(f_lin_, &c));
     PetscCall(VecRestoreArrayRead(U, &u));
     // The density is reduced here, so that the transpose's one sweep knows E. (Deferring it to the
-    // transpose's own reduction of w saves a synchronisation but needs a second pass over x and y:
-    // on 2 ranks at 512^2 the adjoint took 0.134-0.139 s that way against 0.110-0.118 s this way.)
+    // transpose's own reduction of w saves a synchronisation but needs a second pass over x and y,
+    // which costs more.)
     PetscCall(field_from_row_sums(Elin_));
     dvf_valid_ = false;
     PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY)); // resets any shift/scale a TS applied

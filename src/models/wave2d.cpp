@@ -284,7 +284,7 @@ public:
       // Records to be written with non-temporal stores (-wave2d_stream_records) are formed in a buffer of
       // the whole block first (in cache) and streamed from there in one contiguous pass after the sweep:
       // whole cache lines, not the pieces that the interior rows and, later, the perimeter would write
-      // (a line written in parts by non-temporal stores is flushed in parts: measured slower than plain
+      // (a line written in parts by non-temporal stores is flushed in parts, which is slower than plain
       // stores).
       const bool stream = REC && stream_records_;
       const PetscInt n = grid_->local_points();
