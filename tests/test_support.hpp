@@ -333,4 +333,40 @@ inline void check_fused_parameter_transpose(flexipde::Scene &scene, Mat Jmf, Mat
   if (!*err) EXPECT_LT(rel_diff(g_fused, g_cols), 1e-13);
 }
 
+// Every rank's copy, in a scene set up on PETSC_COMM_SELF, of the parameter Vec v of a distributed
+// scene: scalars by value, fields through the grid's natural ordering (collective on the distributed
+// scene's communicator).
+inline PetscErrorCode to_serial_parameters(const flexipde::Scene &dist, Vec v, const flexipde::Scene &serial, Vec out) {
+  using flexipde::OwnedVec;
+  PetscFunctionBeginUser;
+  for (PetscInt k = 0; k < dist.params.count(); ++k) {
+    if (dist.params.info(k).kind == flexipde::ParamKind::Scalar) {
+      PetscReal value;
+      PetscCall(dist.params.scalar(v, k, &value));
+      PetscCall(serial.params.set_scalar(out, k, value));
+      continue;
+    }
+    OwnedVec f, nat, fs;
+    PetscCall(DMCreateGlobalVector(dist.grid.dm(), f.out()));
+    PetscCall(dist.params.get_field(v, k, f));
+    PetscCall(DMDACreateNaturalVector(dist.grid.dm(), nat.out()));
+    PetscCall(DMDAGlobalToNaturalBegin(dist.grid.dm(), f, INSERT_VALUES, nat));
+    PetscCall(DMDAGlobalToNaturalEnd(dist.grid.dm(), f, INSERT_VALUES, nat));
+    std::vector<PetscReal> all;
+    PetscCall(gather_all(nat, all));
+    PetscCall(DMCreateGlobalVector(serial.grid.dm(), fs.out()));
+    {
+      PetscScalar *a;
+      PetscInt n;
+      PetscCall(VecGetLocalSize(fs, &n));
+      PetscCheck(n == (PetscInt)all.size(), PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ, "serial grid differs");
+      PetscCall(VecGetArray(fs, &a));
+      for (PetscInt i = 0; i < n; ++i) a[i] = all[i];
+      PetscCall(VecRestoreArray(fs, &a));
+    }
+    PetscCall(serial.params.set_field(out, k, fs));
+  }
+  PetscFunctionReturn(0);
+}
+
 } // namespace flexipde_test

@@ -444,9 +444,9 @@ public:
     return s.dim == 2 ? 2 : 1; // setup refuses other values
   }
   void grid_defaults(GridOptions &g) const override {
-    if (dim() != 2) return; // 1D: the grid's own defaults, as before
+    g.periodic = g.periodic_y = PETSC_TRUE; // the only boundary implemented
+    if (dim() != 2) return;                  // 1D: the grid's own number of points
     g.n = g.ny = default_points_2d;
-    g.periodic = g.periodic_y = PETSC_TRUE;
   }
 
   PetscErrorCode setup(const Grid &grid, DM state_dm, Parameters &params) override {
