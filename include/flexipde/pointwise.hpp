@@ -26,12 +26,17 @@
 #include "flexipde/dual.hpp"
 #include "flexipde/model.hpp"
 #include "flexipde/leapfrog.hpp"
+#include "flexipde/survey.hpp"
 #include <petsc/private/petscimpl.h> // PetscObjectStateGet
 #include <array>
 #include <cmath>
 #include <string>
 #include <utility>
 #include <vector>
+
+// The sweeps inline everything they call, the model's pointwise functions above all: only then do
+// the zero lanes of seeds placed elsewhere fold away.
+#define FLEXIPDE_SWEEP __attribute__((flatten))
 
 namespace flexipde {
 
@@ -91,26 +96,33 @@ struct Frame {
   const PetscScalar *dP = nullptr; // direction of the parameters (Tangent; null: 0)
   PetscInt np = 0, sy = 0;
   PetscReal t = 0;
-  PetscReal h[2] = {1, 1}, x0[2] = {0, 0};
+  PetscReal h[2] = {1, 1}, ih[2] = {1, 1}, x0[2] = {0, 0};
   PetscInt n[2] = {1, 1};
   bool periodic[2] = {false, false};
+  // Beyond a wall the state is the odd reflection of the inside (u = 0 on the wall, fourth-order
+  // stencils stay consistent next to it), else 0.
+  bool odd[2] = {false, false};
 };
 
 // The point view handed to a model's rhs() and initial(). Mode and seeds decide what a Number is:
 //   Value    double;  Tangent  Dual<double, 1> in the direction (X, dP);
 //   Rows     Dual<double, E * C>, lane e * C + c for state component c at stencil entry e;
 //   Gather   Dual<double, C + NP>, lanes c for U_c and C + k for parameter k at offset (SX, SY) only.
-template <int C, int NP, class Sten, Mode M, int SX = 0, int SY = 0>
+// CK: the point is near a wall or the ghost band, and every read is checked: positions beyond a wall
+// are reflected or zero, and (Gather) the seeded input is found by its position (ti, tj) at run time.
+template <int C, int NP, class Sten, Mode M, int SX = 0, int SY = 0, bool CK = false>
 class Point {
 public:
   using Number = std::conditional_t<
       M == Mode::Value, double,
       std::conditional_t<M == Mode::Tangent, Dual<double, 1>,
                          std::conditional_t<M == Mode::Rows, Dual<double, Sten::size * C>, Dual<double, C + NP>>>>;
-  Point(const Frame &f, PetscInt at, PetscInt i, PetscInt j) : f_(f), at_(at), i_(i), j_(j) {}
+  Point(const Frame &f, PetscInt at, PetscInt i, PetscInt j, PetscInt ti = 0, PetscInt tj = 0)
+      : f_(f), at_(at), i_(i), j_(j), ti_(ti), tj_(tj) {}
 
   // State component c at offset (dx, dy) from the point.
   Number u(int c, int dx, int dy = 0) const {
+    if constexpr (CK) return u_checked(c, dx, dy);
     const PetscInt k = (at_ + dx + dy * f_.sy) * C + c;
     const double v = PetscRealPart(f_.U[k]);
     if constexpr (M == Mode::Value) return v;
@@ -124,17 +136,20 @@ public:
   // Parameter k (a field's value at the offset; a scalar's value anywhere).
   Number param(int k, int dx = 0, int dy = 0) const {
     const PetscInt a = (at_ + dx + dy * f_.sy) * f_.np + k;
-    const double v = PetscRealPart(f_.P[a]);
+    const double v = PetscRealPart(f_.P[a]); // 0 beyond a wall
     if constexpr (M == Mode::Tangent) {
       Number r(v);
       r.d[0] = f_.dP ? PetscRealPart(f_.dP[a]) : 0.0;
       return r;
-    } else if constexpr (M == Mode::Gather) return dx == SX && dy == SY ? Number::seeded(v, C + k) : Number(v);
-    else return v;
+    } else if constexpr (M == Mode::Gather) {
+      const bool seed = CK ? i_ + dx == ti_ && j_ + dy == tj_ : dx == SX && dy == SY;
+      return seed ? Number::seeded(v, C + k) : Number(v);
+    } else return v;
   }
   PetscReal t() const { return f_.t; }
   PetscInt index(int d = 0) const { return d == 0 ? i_ : j_; }
   PetscReal h(int d = 0) const { return f_.h[d]; }
+  PetscReal inv_h(int d = 0) const { return f_.ih[d]; } // 1/h: a product instead of a division per point
   PetscReal x(int d = 0) const { return f_.x0[d] + (d == 0 ? i_ : j_) * f_.h[d]; }
   PetscInt points(int d = 0) const { return f_.n[d]; }
   // True on a non-periodic direction's first (side 0) or last (side 1) point.
@@ -146,8 +161,34 @@ public:
   bool on_wall() const { return wall(0, 0) || wall(0, 1) || wall(1, 0) || wall(1, 1); }
 
 private:
+  // Position g in direction d, kept when inside (or periodic), reflected beyond a wall (sign flipped),
+  // or false: the state is 0 there.
+  bool fold(int d, PetscInt &g, double &sign) const {
+    const PetscInt n = f_.n[d];
+    if (f_.periodic[d] || (g >= 0 && g < n)) return true;
+    if (!f_.odd[d]) return false;
+    g = g < 0 ? -g : 2 * (n - 1) - g;
+    sign = -sign;
+    return true;
+  }
+  Number u_checked(int c, int dx, int dy) const {
+    PetscInt gi = i_ + dx, gj = j_ + dy;
+    double sign = 1;
+    if (!fold(0, gi, sign) || !fold(1, gj, sign)) return Number(0.0);
+    const PetscInt k = (at_ + (gi - i_) + (gj - j_) * f_.sy) * C + c;
+    const double v = sign * PetscRealPart(f_.U[k]);
+    if constexpr (M == Mode::Value) return v;
+    else {
+      Number r(v);
+      if constexpr (M == Mode::Tangent) r.d[0] = f_.X ? sign * PetscRealPart(f_.X[k]) : 0.0;
+      else if constexpr (M == Mode::Rows) r.d[Sten::entry((int)(gi - i_), (int)(gj - j_)) * C + c] = sign;
+      else if (gi == ti_ && gj == tj_) r.d[c] = sign;
+      return r;
+    }
+  }
+
   const Frame &f_;
-  PetscInt at_, i_, j_;
+  PetscInt at_, i_, j_, ti_, tj_;
 };
 
 template <class Eq, class = void> struct ShapeOf {
@@ -159,6 +200,15 @@ template <class Eq> struct ShapeOf<Eq, std::void_t<decltype(Eq::shape)>> {
 template <class Eq, class = void> struct LinearOf : std::false_type {};
 template <class Eq> struct LinearOf<Eq, std::void_t<decltype(Eq::linear)>> : std::bool_constant<Eq::linear> {};
 template <class Eq, class = void> struct PairsOf : std::integral_constant<int, 0> {};
+// Optional runtime statements: whether the second-order form holds in this scene (a damping term may
+// break it), whether the state is oddly reflected beyond walls, which component point sources force.
+template <class Eq, class = void> struct HasSecondOrderActive : std::false_type {};
+template <class Eq>
+struct HasSecondOrderActive<Eq, std::void_t<decltype(std::declval<const Eq &>().second_order_active())>> : std::true_type {};
+template <class Eq, class = void> struct HasOddWalls : std::false_type {};
+template <class Eq> struct HasOddWalls<Eq, std::void_t<decltype(std::declval<const Eq &>().odd_walls())>> : std::true_type {};
+template <class Eq, class = void> struct HasForcing : std::false_type {};
+template <class Eq> struct HasForcing<Eq, std::void_t<decltype(Eq::forced_component)>> : std::true_type {};
 template <class Eq>
 struct PairsOf<Eq, std::void_t<decltype(Eq::second_order_pairs)>> : std::integral_constant<int, Eq::second_order_pairs> {};
 
@@ -172,7 +222,8 @@ class PointwiseModel final : public Model {
   static constexpr StencilShape Shape = pointwise::ShapeOf<Eq>::value;
   using Sten = pointwise::Stencil<D, R, Shape>;
   using Mode = pointwise::Mode;
-  template <Mode M, int SX = 0, int SY = 0> using Pt = pointwise::Point<C, NP, Sten, M, SX, SY>;
+  template <Mode M, int SX = 0, int SY = 0, bool CK = false> using Pt = pointwise::Point<C, NP, Sten, M, SX, SY, CK>;
+  template <bool CK> using Check = std::integral_constant<bool, CK>;
   static_assert(D == 1 || D == 2, "the grid is 1D or 2D");
 
 public:
@@ -185,7 +236,11 @@ public:
   void grid_defaults(GridOptions &o) const override { eq_.grid_defaults(o); }
   bool linear() const override { return pointwise::LinearOf<Eq>::value; }
   bool jacobian_constant() const override { return pointwise::LinearOf<Eq>::value; }
-  PetscInt second_order_pairs() const override { return pointwise::PairsOf<Eq>::value; }
+  PetscInt second_order_pairs() const override {
+    if constexpr (pointwise::HasSecondOrderActive<Eq>::value)
+      if (!eq_.second_order_active()) return 0;
+    return pointwise::PairsOf<Eq>::value;
+  }
 
   PetscErrorCode setup(const Grid &grid, DM state_dm, Parameters &params) override {
     PetscFunctionBeginUser;
@@ -212,9 +267,11 @@ public:
       if (index_[k] >= 0 && params.info(index_[k]).kind == ParamKind::Scalar) scalar_acc_[k].assign(grid.local_points(), 0.0);
     frame_.sy = D == 2 ? ghost_xm() : 0;
     frame_.h[0] = grid.h(), frame_.h[1] = grid.hy();
+    frame_.ih[0] = 1 / grid.h(), frame_.ih[1] = 1 / grid.hy();
     frame_.x0[0] = grid.x0(), frame_.x0[1] = grid.y0();
     frame_.n[0] = grid.n(), frame_.n[1] = grid.ny();
     frame_.periodic[0] = grid.periodic(), frame_.periodic[1] = grid.periodic_y();
+    if constexpr (pointwise::HasOddWalls<Eq>::value) frame_.odd[0] = frame_.odd[1] = eq_.odd_walls();
     frame_.np = NP;
     PetscFunctionReturn(0);
   }
@@ -235,7 +292,7 @@ public:
     PetscFunctionReturn(0);
   }
 
-  PetscErrorCode rhs(PetscReal t, Vec U, Vec G) override {
+  FLEXIPDE_SWEEP PetscErrorCode rhs(PetscReal t, Vec U, Vec G) override {
     PetscFunctionBeginUser;
     PetscCall(to_local(U, Ul_));
     {
@@ -246,17 +303,21 @@ public:
       PetscCall(g.error());
       pointwise::Frame f = frame(t, u.data(), p.data());
       PetscScalar *out = g.data();
-      for_points([&](PetscInt at, PetscInt own, PetscInt i, PetscInt j) {
+      for_points(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
         double gv[C];
-        eq_.rhs(Pt<Mode::Value>(f, at, i, j), gv);
+        eq_.rhs(Pt<Mode::Value, 0, 0, decltype(ck)::value>(f, at, i, j), gv);
         for (int c = 0; c < C; ++c) out[own * C + c] = gv[c];
       });
+      if constexpr (pointwise::HasForcing<Eq>::value)
+        if (source_)
+          for (PetscInt k = 0; k < source_->stencil.n; ++k)
+            out[source_->stencil.local[k] * C + Eq::forced_component] += source_->density(k, t);
     }
     PetscFunctionReturn(0);
   }
 
   // y = dG/dU x + dG/dp dp at state U (either direction may be null), one sweep of Tangent numbers.
-  PetscErrorCode tangent(PetscReal t, Vec Uloc, Vec x, Vec dp, Vec y) {
+  FLEXIPDE_SWEEP PetscErrorCode tangent(PetscReal t, Vec Uloc, Vec x, Vec dp, Vec y) {
     PetscFunctionBeginUser;
     if (x) PetscCall(to_local(x, Xl_));
     if (dp) PetscCall(params_to_local(dp, dP_));
@@ -268,9 +329,9 @@ public:
       f.X = xa.data();
       f.dP = dpa.data();
       PetscScalar *out = ya.data();
-      for_points([&](PetscInt at, PetscInt own, PetscInt i, PetscInt j) {
+      for_points(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
         typename Pt<Mode::Tangent>::Number gv[C];
-        eq_.rhs(Pt<Mode::Tangent>(f, at, i, j), gv);
+        eq_.rhs(Pt<Mode::Tangent, 0, 0, decltype(ck)::value>(f, at, i, j), gv);
         for (int c = 0; c < C; ++c) out[own * C + c] = gv[c].d[0];
       });
     }
@@ -282,7 +343,7 @@ public:
   // Components of x outside [clo, chi) are taken as 0, and only y's components in [ylo, yhi) are
   // written (added, times w, if add_y): the leapfrog's kick is this with x = lambda_p, y = lambda_q.
   template <int CLO = 0, int CHI = C, int YLO = 0, int YHI = C>
-  PetscErrorCode gather(PetscReal t, Vec Uloc, const PetscScalar *xl, PetscScalar *y, bool add_y, PetscReal w,
+  FLEXIPDE_SWEEP PetscErrorCode gather(PetscReal t, Vec Uloc, const PetscScalar *xl, PetscScalar *y, bool add_y, PetscReal w,
                         PetscReal *const *gk) {
     PetscFunctionBeginUser;
     {
@@ -292,10 +353,11 @@ public:
       const pointwise::Frame f = frame(t, u.data(), p.data());
       const PetscInt nx = grid_->n(), ny = grid_->ny();
       const bool px = grid_->periodic(), py = grid_->periodic_y();
-      for_points([&](PetscInt at, PetscInt own, PetscInt i, PetscInt j) {
+      for_points(2 * R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
         double yv[C] = {};
-        double gv[NP] = {};
-        gather_offsets<CLO, CHI>(f, xl, at, i, j, nx, ny, px, py, yv, gv, std::make_integer_sequence<int, Sten::size>());
+        double gv[NP > 0 ? NP : 1] = {};
+        gather_offsets<CLO, CHI, decltype(ck)::value>(f, xl, at, i, j, nx, ny, px, py, yv, gv,
+                                                       std::make_integer_sequence<int, Sten::size>());
         if (y)
           for (int c = YLO; c < YHI; ++c) {
             if (add_y) y[own * C + c] += w * yv[c];
@@ -440,6 +502,13 @@ public:
     PetscFunctionReturn(0);
   }
 
+  // Point sources (survey.hpp) add their forcing density to component Eq::forced_component.
+  bool accepts_point_source() const override { return pointwise::HasForcing<Eq>::value; }
+  PetscErrorCode set_point_source(const PointSource *s) override {
+    source_ = s;
+    return 0;
+  }
+
   // Eigenvalue bounds of dG/dU for the explicit stability check: the model's own when it states them
   // (Eq::spectrum), else Gershgorin's discs of the assembled rows at the current state.
   PetscErrorCode spectrum(Spectrum *s) override {
@@ -455,7 +524,7 @@ public:
   }
 
   // U0 = U0(p) pointwise, and grad += (dU0/dp)^T lambda0 from Dual numbers in the parameters.
-  PetscErrorCode initial_condition(Vec p, Vec U0) override {
+  FLEXIPDE_SWEEP PetscErrorCode initial_condition(Vec p, Vec U0) override {
     PetscObjectState state;
     PetscFunctionBeginUser;
     PetscCall(PetscObjectStateGet((PetscObject)p, &state));
@@ -466,7 +535,7 @@ public:
       PetscCall(u.error());
       pointwise::Frame f = frame(0, nullptr, pa.data());
       PetscScalar *out = u.data();
-      for_points([&](PetscInt at, PetscInt own, PetscInt i, PetscInt j) {
+      for_points(0, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto) {
         double uv[C];
         eq_.initial(Pt<Mode::Value>(f, at, i, j), uv);
         for (int c = 0; c < C; ++c) out[own * C + c] = uv[c];
@@ -475,7 +544,7 @@ public:
     PetscCall(to_local(U0, Ul_)); // the state the default spectrum is taken at
     PetscFunctionReturn(0);
   }
-  PetscErrorCode initial_condition_transpose(Vec p, Vec lambda0, Vec grad) override {
+  FLEXIPDE_SWEEP PetscErrorCode initial_condition_transpose(Vec p, Vec lambda0, Vec grad) override {
     PetscFunctionBeginUser;
     if (NP == 0) PetscFunctionReturn(0);
     {
@@ -486,7 +555,7 @@ public:
       fill_gradient_targets(g, false, gk);
       pointwise::Frame f = frame(0, nullptr, pa.data());
       const PetscScalar *lam = l.data();
-      for_points([&](PetscInt at, PetscInt own, PetscInt i, PetscInt j) {
+      for_points(0, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto) {
         typename Pt<Mode::Gather>::Number uv[C];
         eq_.initial(Pt<Mode::Gather>(f, at, i, j), uv);
         for (int k = 0; k < NP; ++k)
@@ -519,15 +588,26 @@ private:
     f.t = t, f.U = U, f.P = P;
     return f;
   }
-  // Every owned point: its index in the ghosted arrays, in the owned block, and its grid indices.
-  template <class F> void for_points(F &&body) const {
+  // Every owned point: its index in the ghosted arrays, in the owned block, its grid indices, and
+  // Check<true> when it lies within `margin` of a wall (its reads are checked), else Check<false>.
+  template <class F> void for_points(PetscInt margin, F &&body) const {
     PetscInt gxs, gys, gxm, gym;
     DMDAGetGhostCorners(dm_, &gxs, &gys, nullptr, &gxm, &gym, nullptr);
     const PetscInt xs = grid_->xs(), xm = grid_->xm(), ys = grid_->ys(), ym = grid_->ym();
+    const PetscInt nx = grid_->n(), ny = grid_->ny();
     if (D == 1) gys = 0;
+    PetscInt lo = xs, hi = xs + xm;
+    if (!grid_->periodic()) lo = std::max(lo, margin), hi = std::max(lo, std::min(hi, nx - margin));
     for (PetscInt j = ys; j < ys + ym; ++j) {
       const PetscInt row = (j - gys) * gxm - gxs, own_row = (j - ys) * xm - xs;
-      for (PetscInt i = xs; i < xs + xm; ++i) body(row + i, own_row + i, i, j);
+      const bool inside = D == 1 || grid_->periodic_y() || (j >= margin && j < ny - margin);
+      if (!inside) {
+        for (PetscInt i = xs; i < xs + xm; ++i) body(row + i, own_row + i, i, j, Check<true>());
+        continue;
+      }
+      for (PetscInt i = xs; i < lo; ++i) body(row + i, own_row + i, i, j, Check<true>());
+      for (PetscInt i = lo; i < hi; ++i) body(row + i, own_row + i, i, j, Check<false>());
+      for (PetscInt i = hi; i < xs + xm; ++i) body(row + i, own_row + i, i, j, Check<true>());
     }
   }
   PetscErrorCode to_local(Vec g, Vec l) const {
@@ -582,21 +662,23 @@ private:
 
   // The gather at owned point (i, j): for each stencil offset o, G at the point j - o (when it exists)
   // differentiated with respect to the inputs at j, contracted with x there.
-  template <int CLO, int CHI, int... E>
+  template <int CLO, int CHI, bool CK, int... E>
   void gather_offsets(const pointwise::Frame &f, const PetscScalar *xl, PetscInt at, PetscInt i, PetscInt j,
                       PetscInt nx, PetscInt ny, bool px, bool py, double *yv, double *gv,
                       std::integer_sequence<int, E...>) const {
-    (gather_one<Sten::offset(E)[0], Sten::offset(E)[1], CLO, CHI>(f, xl, at, i, j, nx, ny, px, py, yv, gv), ...);
+    (gather_one<Sten::offset(E)[0], Sten::offset(E)[1], CLO, CHI, CK>(f, xl, at, i, j, nx, ny, px, py, yv, gv), ...);
   }
-  template <int OX, int OY, int CLO, int CHI>
+  template <int OX, int OY, int CLO, int CHI, bool CK>
   void gather_one(const pointwise::Frame &f, const PetscScalar *xl, PetscInt at, PetscInt i, PetscInt j, PetscInt nx,
                   PetscInt ny, bool px, bool py, double *yv, double *gv) const {
     const PetscInt si = i - OX, sj = j - OY;
-    if (!px && (si < 0 || si >= nx)) return;
-    if (D == 2 && !py && (sj < 0 || sj >= ny)) return;
+    if constexpr (CK) {
+      if (!px && (si < 0 || si >= nx)) return;
+      if (D == 2 && !py && (sj < 0 || sj >= ny)) return;
+    }
     const PetscInt sat = at - OX - OY * f.sy;
-    typename Pt<Mode::Gather, OX, OY>::Number gd[C];
-    eq_.rhs(Pt<Mode::Gather, OX, OY>(f, sat, si, sj), gd);
+    typename Pt<Mode::Gather, OX, OY, CK>::Number gd[C];
+    eq_.rhs(Pt<Mode::Gather, OX, OY, CK>(f, sat, si, sj, i, j), gd);
     for (int c = CLO; c < CHI; ++c) {
       const double xc = PetscRealPart(xl[sat * C + c]);
       for (int cc = 0; cc < C; ++cc) yv[cc] += gd[c].d[cc] * xc;
@@ -606,7 +688,7 @@ private:
 
   // The structurally nonzero entries of a row block (stencil entry, output, input component): those
   // nonzero at random state and parameters at any owned point, or at any point on any rank.
-  PetscErrorCode find_pattern() {
+  FLEXIPDE_SWEEP PetscErrorCode find_pattern() {
     OwnedVec Ur, Pr;
     PetscFunctionBeginUser;
     PetscCall(VecDuplicate(Ul_, Ur.out()));
@@ -623,9 +705,9 @@ private:
     {
       ConstArray u(Ur), p(Pr);
       const pointwise::Frame f = frame(0.5, u.data(), p.data());
-      for_points([&](PetscInt at, PetscInt, PetscInt i, PetscInt j) {
+      for_points(R, [&](PetscInt at, PetscInt, PetscInt i, PetscInt j, auto ck) {
         typename Pt<Mode::Rows>::Number gd[C];
-        eq_.rhs(Pt<Mode::Rows>(f, at, i, j), gd);
+        eq_.rhs(Pt<Mode::Rows, 0, 0, decltype(ck)::value>(f, at, i, j), gd);
         for (int c = 0; c < C; ++c)
           for (int l = 0; l < Sten::size * C; ++l)
             if (gd[c].d[l] != 0) local[(l / C) * C * C + c * C + l % C] = 1;
@@ -635,16 +717,16 @@ private:
     PetscCallMPI(MPI_Allreduce(local.data(), pattern_.data(), (int)local.size(), MPI_INT, MPI_MAX, grid_->comm()));
     PetscFunctionReturn(0);
   }
-  PetscErrorCode assemble_rows(PetscReal t, Vec Uloc, Mat J, PetscReal *gersh) {
+  FLEXIPDE_SWEEP PetscErrorCode assemble_rows(PetscReal t, Vec Uloc, Mat J, PetscReal *gersh) {
     PetscFunctionBeginUser;
     ConstArray u(Uloc), p(P_);
     PetscCall(u.error());
     const pointwise::Frame f = frame(t, u.data(), p.data());
     PetscErrorCode ierr = 0;
-    for_points([&](PetscInt at, PetscInt, PetscInt i, PetscInt j) {
+    for_points(R, [&](PetscInt at, PetscInt, PetscInt i, PetscInt j, auto ck) {
       if (ierr) return;
       typename Pt<Mode::Rows>::Number gd[C];
-      eq_.rhs(Pt<Mode::Rows>(f, at, i, j), gd);
+      eq_.rhs(Pt<Mode::Rows, 0, 0, decltype(ck)::value>(f, at, i, j), gd);
       for (int c = 0; c < C; ++c) {
         MatStencil row{};
         row.i = i, row.j = j, row.c = c;
@@ -739,6 +821,7 @@ private:
   OwnedDM param_dm_, matrix_dm_;
   OwnedVec P_, dP_, Pg_, Ul_, Xl_, Jp_state_;
   PetscReal jp_t_ = 0;
+  const PointSource *source_ = nullptr;
   Vec p_set_ = nullptr; // the parameters last set, and their state then
   PetscObjectState p_state_ = -1;
   pointwise::Frame frame_;

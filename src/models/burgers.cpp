@@ -62,8 +62,8 @@ public:
     using T = typename P::Number;
     const T um = pt.u(0, -1), u0 = pt.u(0, 0), up = pt.u(0, 1);
     const T nu_m = 0.5 * (pt.param(nu, -1) + pt.param(nu, 0)), nu_p = 0.5 * (pt.param(nu, 0) + pt.param(nu, 1));
-    const double h = pt.h();
-    g[0] = -(flux(u0, up) - flux(um, u0)) / h + (nu_p * (up - u0) - nu_m * (u0 - um)) / (h * h);
+    const double ih = pt.inv_h();
+    g[0] = -(flux(u0, up) - flux(um, u0)) * ih + (nu_p * (up - u0) - nu_m * (u0 - um)) * (ih * ih);
   }
 
   template <class P> void initial(const P &pt, typename P::Number *u) const {
