@@ -42,6 +42,11 @@ namespace flexipde {
 
 enum class StencilShape { Star, Box };
 
+// The smallest and largest value of each parameter (a scalar's value twice), as set last.
+struct ParameterBounds {
+  std::vector<PetscReal> min, max;
+};
+
 // What a model declares at setup: its parameters (each a scalar or a field, or fixed when the scene
 // does not make it a parameter) and their defaults.
 class Declarations {
@@ -102,6 +107,7 @@ struct Frame {
   // Beyond a wall the state is the odd reflection of the inside (u = 0 on the wall, fourth-order
   // stencils stay consistent next to it), else 0.
   bool odd[2] = {false, false};
+  int dim = 1;
 };
 
 // The point view handed to a model's rhs() and initial(). Mode and seeds decide what a Number is:
@@ -158,7 +164,7 @@ public:
     const PetscInt i = d == 0 ? i_ : j_;
     return side == 0 ? i == 0 : i == f_.n[d] - 1;
   }
-  bool on_wall() const { return wall(0, 0) || wall(0, 1) || wall(1, 0) || wall(1, 1); }
+  bool on_wall() const { return wall(0, 0) || wall(0, 1) || (f_.dim > 1 && (wall(1, 0) || wall(1, 1))); }
 
 private:
   // Position g in direction d, kept when inside (or periodic), reflected beyond a wall (sign flipped),
@@ -273,6 +279,7 @@ public:
     frame_.periodic[0] = grid.periodic(), frame_.periodic[1] = grid.periodic_y();
     if constexpr (pointwise::HasOddWalls<Eq>::value) frame_.odd[0] = frame_.odd[1] = eq_.odd_walls();
     frame_.np = NP;
+    frame_.dim = D;
     PetscFunctionReturn(0);
   }
 
@@ -289,6 +296,12 @@ public:
       PetscCall(VecStrideScatter(f, k, Pg_, INSERT_VALUES));
     }
     PetscCall(DMGlobalToLocal(param_dm_, Pg_, INSERT_VALUES, P_));
+    bounds_.min.assign(NP, 0.0), bounds_.max.assign(NP, 0.0);
+    for (int k = 0; k < NP; ++k) {
+      PetscCall(VecStrideMin(Pg_, k, nullptr, &bounds_.min[k]));
+      PetscCall(VecStrideMax(Pg_, k, nullptr, &bounds_.max[k]));
+    }
+    if constexpr (HasCheck<Eq>::value) PetscCall(eq_.check_parameters(bounds_, grid_->comm()));
     PetscFunctionReturn(0);
   }
 
@@ -513,7 +526,7 @@ public:
   // (Eq::spectrum), else Gershgorin's discs of the assembled rows at the current state.
   PetscErrorCode spectrum(Spectrum *s) override {
     PetscFunctionBeginUser;
-    if constexpr (HasSpectrum<Eq>::value) PetscCall(eq_.spectrum(*params_, s));
+    if constexpr (HasSpectrum<Eq>::value) PetscCall(eq_.spectrum(bounds_, s));
     else PetscCall(gershgorin(s));
     PetscFunctionReturn(0);
   }
@@ -574,9 +587,13 @@ public:
 private:
   template <class E, class = void> struct HasSpectrum : std::false_type {};
   template <class E>
-  struct HasSpectrum<E, std::void_t<decltype(std::declval<const E &>().spectrum(std::declval<const Parameters &>(),
+  struct HasSpectrum<E, std::void_t<decltype(std::declval<const E &>().spectrum(std::declval<const ParameterBounds &>(),
                                                                                   std::declval<Spectrum *>()))>>
       : std::true_type {};
+  template <class E, class = void> struct HasCheck : std::false_type {};
+  template <class E>
+  struct HasCheck<E, std::void_t<decltype(std::declval<const E &>().check_parameters(std::declval<const ParameterBounds &>(),
+                                                                                      MPI_Comm()))>> : std::true_type {};
 
   PetscInt ghost_xm() const {
     PetscInt gxm;
@@ -821,6 +838,7 @@ private:
   OwnedDM param_dm_, matrix_dm_;
   OwnedVec P_, dP_, Pg_, Ul_, Xl_, Jp_state_;
   PetscReal jp_t_ = 0;
+  ParameterBounds bounds_;
   const PointSource *source_ = nullptr;
   Vec p_set_ = nullptr; // the parameters last set, and their state then
   PetscObjectState p_state_ = -1;
