@@ -159,8 +159,9 @@ public:
   PetscReal x(int d = 0) const { return f_.x0[d] + (d == 0 ? i_ : j_) * f_.h[d]; }
   PetscInt points(int d = 0) const { return f_.n[d]; }
   // True on a non-periodic direction's first (side 0) or last (side 1) point.
+  // (An unchecked point is never on a wall: known at compile time.)
   bool wall(int d, int side) const {
-    if (f_.periodic[d]) return false;
+    if (!CK || f_.periodic[d]) return false;
     const PetscInt i = d == 0 ? i_ : j_;
     return side == 0 ? i == 0 : i == f_.n[d] - 1;
   }
@@ -548,9 +549,9 @@ public:
       PetscCall(u.error());
       pointwise::Frame f = frame(0, nullptr, pa.data());
       PetscScalar *out = u.data();
-      for_points(0, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto) {
+      for_points(0, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
         double uv[C];
-        eq_.initial(Pt<Mode::Value>(f, at, i, j), uv);
+        eq_.initial(Pt<Mode::Value, 0, 0, decltype(ck)::value>(f, at, i, j), uv);
         for (int c = 0; c < C; ++c) out[own * C + c] = uv[c];
       });
     }
@@ -568,9 +569,9 @@ public:
       fill_gradient_targets(g, false, gk);
       pointwise::Frame f = frame(0, nullptr, pa.data());
       const PetscScalar *lam = l.data();
-      for_points(0, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto) {
+      for_points(0, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
         typename Pt<Mode::Gather>::Number uv[C];
-        eq_.initial(Pt<Mode::Gather>(f, at, i, j), uv);
+        eq_.initial(Pt<Mode::Gather, 0, 0, decltype(ck)::value>(f, at, i, j, i, j), uv);
         for (int k = 0; k < NP; ++k)
           if (gk[k]) {
             double s = 0;
@@ -614,6 +615,7 @@ private:
     const PetscInt nx = grid_->n(), ny = grid_->ny();
     if (D == 1) gys = 0;
     PetscInt lo = xs, hi = xs + xm;
+    margin = std::max<PetscInt>(margin, 1); // wall points are always checked
     if (!grid_->periodic()) lo = std::max(lo, margin), hi = std::max(lo, std::min(hi, nx - margin));
     for (PetscInt j = ys; j < ys + ym; ++j) {
       const PetscInt row = (j - gys) * gxm - gxs, own_row = (j - ys) * xm - xs;
