@@ -218,7 +218,7 @@ TEST_P(InitialStateGradient, TaylorInPulseCentre) {
   const PetscReal xc = 0.45, w = 0.15;
   ScopedOptions opts{{"-da_grid_x", "101"}, {"-ts_max_time", "0.3"}, {"-ts_dt", ts_type == "rk" ? "2e-3" : "5e-3"},
                      {"-ts_type", ts_type.c_str()}, {"-wave_c", "0.9"}, {"-true_wave_c", "1.0"},
-                     {"-wave_ic_width", "0.15"}, {"-wave_ic_x", "0.45"}};
+                     {"-wave_ic_width", "0.15"}, {"-wave_ic_center", "0.45"}};
   Problem base;
   PETSC_ASSERT_OK(base.setup(PETSC_COMM_WORLD));
   OwnedVec gu0, dU0;
@@ -243,7 +243,7 @@ TEST_P(InitialStateGradient, TaylorInPulseCentre) {
   std::vector<PetscReal> eps, r1, r2;
   PetscReal e = 1e-2;
   for (int k = 0; k < 4; ++k, e *= 0.5) {
-    opts.set("-wave_ic_x", std::to_string(xc + e)); // overrides; cleared with opts
+    opts.set("-wave_ic_center", std::to_string(xc + e)); // overrides; cleared with opts
     Problem pb;
     PETSC_ASSERT_OK(pb.scene.setup(PETSC_COMM_WORLD));
     PETSC_ASSERT_OK(VecCopy(base.scene.objective.data(), pb.scene.objective.data()));

@@ -38,7 +38,7 @@ TEST(Leapfrog, IsTheSeedRecurrence) {
   const PetscInt n = 201;
   const PetscReal c = 0.9, T = 0.4, dt = 1e-3, xc = 0.5, w = 0.2;
   ScopedOptions opts{{"-da_grid_x", "201"}, {"-ts_max_time", "0.4"}, {"-ts_dt", "1e-3"},
-                     {"-ts_type", "leapfrog"},  {"-wave_c", "0.9"},      {"-wave_ic_x", "0.5"},
+                     {"-ts_type", "leapfrog"},  {"-wave_c", "0.9"},      {"-wave_ic_center", "0.5"},
                      {"-wave_ic_width", "0.2"}};
   std::vector<PetscReal> u;
   SimulationStats st;
