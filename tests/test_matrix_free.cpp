@@ -5,15 +5,15 @@
 //     transposes: lambda_q += w (J^T [0; lambda_p])_q and mu += w (dG/dc)^T [0; lambda_p]; given a
 //     drift s it first applies lambda_p += s lambda_q, bitwise as that drift in a pass of its own;
 //   * a whole leapfrog gradient with the fused kick equals the one through the Jacobians
-//     (-leapfrog_fused_adjoint 0), for a scalar speed (whose gradient is a sum over ranks) and a field,
+//     (-adjoint_petsc_step), for a scalar speed (whose gradient is a sum over ranks) and a field,
 //     and full storage of positions only (the default; the kick reads them in place, and given u alone it
 //     gives the same numbers as given the whole state) the same as of whole states (-checkpoint_positions_only 0);
-//   * wave2d's kick from the record rhs_record writes (L u) gives bitwise its numbers from the state, and a
-//     leapfrog gradient through stored records bitwise that through stored positions (-leapfrog_records 0);
+//   * wave2d's kick from the record rhs_record writes (L u) gives bitwise its numbers from the state;
 //     its G by rows gives the gradients of the point-by-point sweep (-wave2d_row_loops 0), and its kick's
 //     perimeter by rows those of the point-by-point accessor (-wave2d_perimeter_rows 0);
 //   * the matrix-free dG/dU (create_jacobian_matrix_free) applies J and J^T like the assembled one,
-//     and an RK4 gradient through it equals one through the assembled J (-sim_matrix_free_jacobian 0).
+//     and an RK4 gradient (the fused stage products) equals PETSc's RK adjoint through it
+//     (-adjoint_petsc_step).
 //   * the 1D wave's matrix-free J^T also forms the dG/dc transpose of the same vector at the recorded
 //     stage (-wave_fused_adjoint; the RK adjoint applies J^T and then (dG/dc)^T to one unchanged Vec):
 //     equal to the one from the columns, used only for that Vec in that state at that stage, <J x, y> =
@@ -226,16 +226,13 @@ TEST_P(MatrixFree, FusedAdjointKickFromRecord) {
 
 TEST_P(MatrixFree, LeapfrogGradientFusedEqualsJacobians) {
   if (!GetParam().fused) return;
-  expect_same_gradient(scene, p, {{"-ts_type", "leapfrog"}}, {{"-leapfrog_fused_adjoint", "0"}}, 1e-12);
+  expect_same_gradient(scene, p, {{"-ts_type", "leapfrog"}}, {{"-adjoint_petsc_step", "1"}}, 1e-12);
   // the 1D wave's drift folded into its kick sweep or applied in a pass of its own (bitwise the same in one
   // Scene, FusedAdjointKickAppliesTheDrift; a second Scene can differ in round-off)
   if (std::string(GetParam().name).rfind("wave_", 0) == 0)
     expect_same_gradient_other_setup(scene, p, {{"-ts_type", "leapfrog"}}, {{"-wave_fused_drift", "0"}}, 1e-14);
   // full storage of whole states (read in place) gives the same gradient as of positions only (to round-off)
   expect_same_gradient(scene, p, {{"-ts_type", "leapfrog"}}, {{"-checkpoint_positions_only", "0"}}, 1e-14);
-  // full storage of the kick's records (wave2d: L u, written by the forward's evaluations of G) instead of
-  // the positions: bitwise the same gradient
-  expect_same_gradient(scene, p, {{"-ts_type", "leapfrog"}}, {{"-leapfrog_records", "0"}}, 1e-300);
   // wave2d's G with each row's interior in a loop of its own (rhs_row, vectorised) gives the numbers of
   // the point-by-point sweep (-wave2d_row_loops 0), also with an RK integrator (whose stage
   // records go through the row buffer, streamed). A second Scene (the option is read at set-up) differs
@@ -248,8 +245,6 @@ TEST_P(MatrixFree, LeapfrogGradientFusedEqualsJacobians) {
     // the ghost-aware accessor (-wave2d_perimeter_rows 0): the same numbers in the same order (a scalar's
     // per-point terms too), from the records and from stored positions
     expect_same_gradient_other_setup(scene, p, {{"-ts_type", "leapfrog"}}, {{"-wave2d_perimeter_rows", "0"}}, 1e-14);
-    expect_same_gradient_other_setup(scene, p, {{"-ts_type", "leapfrog"}, {"-leapfrog_records", "0"}},
-                                     {{"-wave2d_perimeter_rows", "0"}}, 1e-14);
   }
 }
 
@@ -296,8 +291,8 @@ TEST_P(MatrixFree, MatrixFreeJacobianEqualsAssembled) {
   EXPECT_GT(norm(y_ref), 0.0);
 }
 
-TEST_P(MatrixFree, RkGradientMatrixFreeEqualsAssembled) {
-  expect_same_gradient(scene, p, {{"-ts_type", "rk"}, {"-ts_rk_type", "4"}}, {{"-sim_matrix_free_jacobian", "0"}}, 1e-12);
+TEST_P(MatrixFree, RkGradientEqualsPetscStep) {
+  expect_same_gradient(scene, p, {{"-ts_type", "rk"}, {"-ts_rk_type", "4"}}, {{"-adjoint_petsc_step", "1"}}, 1e-12);
 }
 
 TEST_P(MatrixFree, WaveFusedParameterTransposeEqualsColumns) {
