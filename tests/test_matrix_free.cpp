@@ -5,9 +5,9 @@
 //     transposes: lambda_q += w (J^T [0; lambda_p])_q and mu += w (dG/dc)^T [0; lambda_p]; given a
 //     drift s it first applies lambda_p += s lambda_q, bitwise as that drift in a pass of its own;
 //   * a whole leapfrog gradient with the fused kick equals the one through the Jacobians
-//     (-adjoint_petsc_step), for a scalar speed (whose gradient is a sum over ranks) and a field,
-//     and full storage of positions only (the default; the kick reads them in place, and given u alone it
-//     gives the same numbers as given the whole state) the same as of whole states (-checkpoint_positions_only 0);
+//     (-adjoint_petsc_step, which also copies the stored positions into the stage), for a scalar speed
+//     (whose gradient is a sum over ranks) and a field; given u alone the kick gives the same numbers as
+//     given the whole state;
 //   * wave2d's kick from the record rhs_record writes (L u) gives bitwise its numbers from the state;
 //     its G by rows gives the gradients of the point-by-point sweep (-wave2d_row_loops 0), and its kick's
 //     perimeter by rows those of the point-by-point accessor (-wave2d_perimeter_rows 0);
@@ -231,8 +231,6 @@ TEST_P(MatrixFree, LeapfrogGradientFusedEqualsJacobians) {
   // Scene, FusedAdjointKickAppliesTheDrift; a second Scene can differ in round-off)
   if (std::string(GetParam().name).rfind("wave_", 0) == 0)
     expect_same_gradient_other_setup(scene, p, {{"-ts_type", "leapfrog"}}, {{"-wave_fused_drift", "0"}}, 1e-14);
-  // full storage of whole states (read in place) gives the same gradient as of positions only (to round-off)
-  expect_same_gradient(scene, p, {{"-ts_type", "leapfrog"}}, {{"-checkpoint_positions_only", "0"}}, 1e-14);
   // wave2d's G with each row's interior in a loop of its own (rhs_row, vectorised) gives the numbers of
   // the point-by-point sweep (-wave2d_row_loops 0), also with an RK integrator (whose stage
   // records go through the row buffer, streamed). A second Scene (the option is read at set-up) differs
