@@ -11,7 +11,6 @@
 
 using namespace flexipde;
 using flexipde_test::expect_same_gradient;
-using flexipde_test::expect_same_gradient_other_setup;
 using flexipde_test::ScopedOptions;
 
 namespace {
@@ -117,11 +116,11 @@ TEST_P(RkAdjoint, SameGradientAsPetscRk) {
 
 INSTANTIATE_TEST_SUITE_P(Models, RkAdjoint, ::testing::ValuesIn(rk_cases()), rk_name);
 
-// A scalar c's gradient from the wave's fused sweeps: its pointwise terms accumulated over the whole
-// adjoint and summed once (the default) or summed at every kick or stage (-wave_scalar_sum_once 0):
-// the same sum in another order, so equal to round-off, for the RK stage and the leapfrog kick, both
-// stencil orders, walls and periodic.
-TEST(WaveScalarSum, OnceEqualsPerStage) {
+// A scalar c's gradient from the wave's fused sweeps (its pointwise terms accumulated over the whole
+// adjoint and summed once) against the reference path (-adjoint_petsc_step: PETSc's RK step, the
+// leapfrog's through the Jacobians, summed at every stage or kick): the same sum in another order, so
+// equal to round-off, for the RK stage and the leapfrog kick, both stencil orders, walls and periodic.
+TEST(WaveScalarSum, SameGradientAsPetscStep) {
   for (const char *ts : {"rk", "leapfrog"})
     for (const char *order : {"2", "4"})
       for (const char *periodic : {"0", "1"}) {
@@ -129,15 +128,15 @@ TEST(WaveScalarSum, OnceEqualsPerStage) {
         RkScene s;
         s.set_up({{"-da_grid_x", "41"}, {"-wave_c_field", "0"}, {"-fd_order", order}, {"-ts_type", ts},
                   {"-ts_rk_type", "4"}, {"-grid_periodic", periodic}, {"-wave_ic", "rest"}});
-        flexipde_test::expect_same_gradient_other_setup(s.scene, s.p, {}, {{"-wave_scalar_sum_once", "0"}}, 1e-13);
+        expect_same_gradient(s.scene, s.p, {}, {{"-adjoint_petsc_step", "1"}}, 1e-12);
       }
 }
 
 // Finite-difference advection forms a stage's h W_i straight into the ghosted copy its sweeps read
 // (Model::stage_adjoint_combination; on several ranks also into the scratch Vec whose halo is
-// exchanged): bitwise the gradient of forming it first (-advection_stage_combination 0), for tableaux
-// whose stages combine 0 to 2 later stages' dLambda (rk4, rk3, rk2a).
-TEST(RkStageCombination, AdvectionSameGradientBitwise) {
+// exchanged): the gradient of PETSc's RK step (-adjoint_petsc_step) to round-off, for tableaux whose
+// stages combine 0 to 2 later stages' dLambda (rk4, rk3, rk2a), 1D and 2D.
+TEST(RkStageCombination, AdvectionSameGradientAsPetscStep) {
   const std::pair<const char *, const char *> tableaux[] = {{"4", "fd2"}, {"3", "fd4"}, {"2a", "upwind"}};
   for (const auto &[rk, scheme] : tableaux)
     for (const char *dim : {"1", "2"}) {
@@ -146,16 +145,16 @@ TEST(RkStageCombination, AdvectionSameGradientBitwise) {
       s.set_up({{"-model", "advection"}, {"-advection_dim", dim}, {"-advection_scheme", scheme}, {"-grid_periodic", "1"}, {"-da_grid_x", "24"},
                 {"-da_grid_y", "12"}, {"-advection_D", "0.02"}, {"-advection_D_field", "1"}, {"-advection_b", "-0.6"},
                 {"-advection_ic_amplitude_param", "1"}, {"-ts_rk_type", rk}, {"-ts_dt", "1e-3"}});
-      flexipde_test::expect_same_gradient_other_setup(s.scene, s.p, {}, {{"-advection_stage_combination", "0"}}, 1e-300);
+      expect_same_gradient(s.scene, s.p, {}, {{"-adjoint_petsc_step", "1"}}, 1e-12);
     }
 }
 
 // A field D with fd2 faces: the RK adjoint stage's one loop per row (2D: field_stage_row_fd2; 1D:
-// field_stage_fd2_1d, the fd2 weights written into their arithmetic) gives the gradient of the generic
-// per-part loops (-advection_fd2_row_loop 0) bitwise, for each advection scheme (taps of radius 1 and
-// 2) and tableaux with 1 to 3 later stages, on however many ranks the test runs; fd4 faces (the
-// generic loops either way) as a control.
-TEST(AdvectionRowLoop, SameGradientBitwise) {
+// field_stage_fd2_1d, the fd2 weights written into their arithmetic) gives the gradient of PETSc's RK
+// step (-adjoint_petsc_step) to round-off, for each advection scheme (taps of radius 1 and 2) and
+// tableaux with 1 to 3 later stages, on however many ranks the test runs; fd4 faces (the per-part
+// loops) as well.
+TEST(AdvectionRowLoop, SameGradientAsPetscStep) {
   const std::array<const char *, 3> cases[] = {
       {"4", "fd2", "2"}, {"3", "fd4", "2"}, {"4", "upwind", "2"}, {"2a", "upwind", "2"}, {"4", "fd4", "4"}};
   for (const char *dim : {"1", "2"})
@@ -166,15 +165,14 @@ TEST(AdvectionRowLoop, SameGradientBitwise) {
                 {"-grid_periodic", "1"}, {"-da_grid_x", "20"}, {"-da_grid_y", "14"}, {"-advection_D", "0.02"},
                 {"-advection_D_field", "1"}, {"-advection_b", "-0.6"}, {"-advection_ic_amplitude_param", "1"},
                 {"-ts_rk_type", rk}, {"-ts_dt", "1e-3"}});
-      flexipde_test::expect_same_gradient_other_setup(s.scene, s.p, {}, {{"-advection_fd2_row_loop", "0"}}, 1e-300);
+      expect_same_gradient(s.scene, s.p, {}, {{"-adjoint_petsc_step", "1"}}, 1e-12);
     }
 }
 
 // The wave's stages enter its adjoint through their records D2 u alone (Model::stage_record_size,
 // written by the RHS evaluations at the stages): full storage then keeps only those, half the memory
-// of whole stages; and the fused stage products give the gradient of
-// the model's two Jacobian transposes (-wave_fused_adjoint 0) to round-off. Field and scalar speeds (the
-// scalar's sums deferred to one reduction), 2nd- and 4th-order stencils, walls and periodic.
+// of whole stages (the gradient against PETSc's step: RkAdjoint's cases). Field and scalar speeds,
+// 2nd- and 4th-order stencils, walls and periodic.
 namespace {
 
 std::vector<RkCase> records_cases() {
@@ -212,10 +210,6 @@ void expect_records_alone(Scene &scene, Vec p, const RkCase &c) {
 } // namespace
 
 TEST_P(RkRecords, RecordsAloneHalfTheMemory) { expect_records_alone(scene, p, GetParam()); }
-
-TEST_P(RkRecords, SameGradientAsJacobianTransposes) {
-  flexipde_test::expect_same_gradient_other_setup(scene, p, {}, {{"-wave_fused_adjoint", "0"}}, 1e-12);
-}
 
 INSTANTIATE_TEST_SUITE_P(Wave, RkRecords, ::testing::ValuesIn(records_cases()), rk_name);
 
@@ -256,16 +250,6 @@ TEST_P(RkRecordsWave2D, SameGradientAsJacobianTransposes) {
 }
 
 TEST_P(RkRecordsWave2D, RecordsAloneHalfTheMemory) { expect_records_alone(scene, p, GetParam()); }
-
-// The stage sweep's interior with c^2 x_v formed once per point into a ring of rows (the default) gives the
-// numbers of the sweep that forms it at every neighbour (-wave2d_stage_ring 0). The option is read at
-// set-up: a second Scene, which
-// can differ from the first in round-off even with the same options, hence 1e-14.
-TEST_P(RkRecordsWave2D, StageRingSameGradient) {
-  expect_same_gradient_other_setup(scene, p, {}, {{"-wave2d_stage_ring", "0"}}, 1e-14);
-  // ghosts beyond a wall taken as 0 directly, or through the ghost-aware accessor (-wave2d_perimeter_rows 0)
-  expect_same_gradient_other_setup(scene, p, {}, {{"-wave2d_perimeter_rows", "0"}}, 1e-14);
-}
 
 INSTANTIATE_TEST_SUITE_P(Wave2D, RkRecordsWave2D, ::testing::ValuesIn(wave2d_stage_cases()), rk_name);
 
