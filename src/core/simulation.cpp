@@ -157,8 +157,8 @@ PetscErrorCode Simulation::shifted_apply(Mat M, Vec x, Vec y) {
 // since. Exactly: TSAdjoint takes each step's dt as the difference of two stored times, which
 // differs from the forward's dt in the last bits now and then (a few dozen of 5000 steps at
 // N = 512); P is then rebuilt for that step, as PETSc's own path would, so the gradient is the one
-// of PETSc's forming at every step (-adjoint_petsc_step) to round-off. Reusing P across such last-bit differences would change the
-// CN advection gradient by 1e-10 relative: not an exact adjoint any more.
+// of PETSc's forming at every step (-adjoint_petsc_step) to round-off. Reusing P across such last-bit
+// differences would change the CN advection gradient by 1e-10 relative: not an exact adjoint any more.
 PetscErrorCode Simulation::shifted_presolve(KSP ksp, Vec, Vec, void *ctx) {
   auto *sim = static_cast<Simulation *>(ctx);
   Mat A, P;

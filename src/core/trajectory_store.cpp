@@ -45,7 +45,8 @@ struct StoreTrajectory {
   PetscInt64 recomputed = 0;
   // Keep each step's stages too (slot = U_k and the stages of step k-1 -> k), so that nothing is
   // re-run in the adjoint, when the buffer stays within -checkpoint_keep_stages_max_mb per rank (a
-  // memory cap: beyond it the adjoint re-runs the steps). The leapfrog never needs it (its stage is U_{k-1}).
+  // memory cap: beyond it the adjoint re-runs the steps). The leapfrog never needs it (its stage is
+  // U_{k-1}).
   PetscReal keep_stages_max_mb = 2048;
   bool keep_stages = false;
   PetscInt nstages = 0, slot = 0; // entries per step: (1 + nstages) * nlocal when keeping stages

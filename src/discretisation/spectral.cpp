@@ -50,9 +50,9 @@ struct SpectralDifferentiator::Impl {
   bool direct = false;
   // A 1D grid of at most kReplicateMax points (setup's replicate_max) on several ranks: every rank
   // gathers the whole field (one MPI_Allgatherv of its owned values, real and imaginary parts
-  // interleaved, straight into a_in) and transforms all of it with serial FFTW, so it holds every mode and the backward transform
-  // needs no communication at all. FFTW-MPI's distributed 1D transform does three all-to-all transposes
-  // each way, which on small grids cost far more than the transform. Sums over modes (pairing) then
+  // interleaved, straight into a_in) and transforms all of it with serial FFTW, so it holds every mode
+  // and the backward transform needs no communication at all. FFTW-MPI's distributed 1D transform does
+  // three all-to-all transposes each way, which on small grids cost far more than the transform. Sums over modes (pairing) then
   // take this rank's slice [pair_begin, pair_end) of them, so that their sum over the ranks counts each
   // mode once.
   bool replicated = false;
