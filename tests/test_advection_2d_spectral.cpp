@@ -233,8 +233,8 @@ INSTANTIATE_TEST_SUITE_P(
 // ---------------------------------------------------------------------------------------------
 // A spectral field D enters the operator through its 2/3-rule truncation P D, so its exact gradient
 // is P g: truncated. The adjoint leaves P to the end (Model::end_adjoint), once for all steps; the
-// gradient must still be truncated, for each integrator family (RK stage hook, RK Jacobian path,
-// theta), not only match Taylor tests whose smooth scenes barely reach the truncated modes.
+// gradient must still be truncated, for each integrator family (RK stage hook, PETSc's RK step through
+// the Jacobians, theta), not only match Taylor tests whose smooth scenes barely reach the truncated modes.
 
 using TruncationCase = flexipde_test::NamedOptions;
 
@@ -276,7 +276,7 @@ TEST_P(SpectralFieldD, GradientIsTruncated) {
 
 INSTANTIATE_TEST_SUITE_P(Advection, SpectralFieldD,
                          ::testing::Values(TruncationCase{"rk4_stage", {{"-ts_type", "rk"}, {"-ts_rk_type", "4"}}},
-                                           TruncationCase{"rk4_jacobian", {{"-ts_type", "rk"}, {"-ts_rk_type", "4"}, {"-rk_stage_adjoint", "0"}}},
+                                           TruncationCase{"rk4_petsc_step", {{"-ts_type", "rk"}, {"-ts_rk_type", "4"}, {"-adjoint_petsc_step", "1"}}},
                                            TruncationCase{"cn", {{"-ts_type", "cn"}}}),
                          flexipde_test::CaseName());
 

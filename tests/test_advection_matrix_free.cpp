@@ -6,14 +6,14 @@
 //     U and p) and (dG/dp)^T y = the same numbers read the other way (dot-product identity);
 //   * a scaling a TS applies to the dG/dp shell (theta's adjoint scales it by -1) is undone by the
 //     next rhs_jacobian_p, although that call skips reassembly when nothing touched the shell;
-//   * an RK4 gradient through the matrix-free J equals one through the assembled J
-//     (-sim_matrix_free_jacobian 0), and a CN gradient (assembled J, scaled dG/dp) is unchanged.
+//   * an RK4 gradient (the model's fused stage products) equals PETSc's RK adjoint through the
+//     matrix-free J^T and dG/dp^T (-adjoint_petsc_step), and a CN gradient (assembled J, scaled dG/dp)
+//     is unchanged by checkpointing.
 //   * spectral (1D, no diffusion): the dG/dp transpose reusing D_x y left by J^T equals a fresh one.
 //   * finite differences: the dG/dp transpose that J^T forms from the same vector in its sweep
-//     (-advection_fused_adjoint, the RK adjoint's order: J^T then (dG/dp)^T of one unchanged Vec) equals
-//     the one from the columns, is used only for that Vec in that state at that stage, and an RK4
-//     gradient with it equals one without (-advection_fused_adjoint 0); dG/dp applied after its state
-//     changed is an error, never other data.
+//     (the order of PETSc's RK adjoint: J^T then (dG/dp)^T of one unchanged Vec) equals
+//     the one from the columns, and is used only for that Vec in that state at that stage; dG/dp
+//     applied after its state changed is an error, never other data.
 // Cases: 1D fd2, fd4, upwind with a < 0, scalar and field D at -fd_order 2 and 4; 2D with scalar and
 // field D (-fd_order 4 and 2); spectral (no matrix-free J: its J is already a shell).
 #include "flexipde/scene.hpp"
@@ -196,13 +196,8 @@ TEST_P(AdvectionMatrixFree, FusedParameterTransposeEqualsColumns) {
   else EXPECT_EQ(err, PETSC_ERR_ARG_WRONGSTATE);
 }
 
-TEST_P(AdvectionMatrixFree, RkGradientFusedEqualsUnfused) {
-  flexipde_test::expect_same_gradient_other_setup(scene, p, {{"-ts_type", "rk"}, {"-ts_rk_type", "4"}},
-                                                  {{"-advection_fused_adjoint", "0"}}, 1e-12);
-}
-
-TEST_P(AdvectionMatrixFree, RkGradientMatrixFreeEqualsAssembled) {
-  expect_same_gradient(scene, p, {{"-ts_type", "rk"}, {"-ts_rk_type", "4"}}, {{"-sim_matrix_free_jacobian", "0"}}, 1e-12);
+TEST_P(AdvectionMatrixFree, RkGradientEqualsPetscStep) {
+  expect_same_gradient(scene, p, {{"-ts_type", "rk"}, {"-ts_rk_type", "4"}}, {{"-adjoint_petsc_step", "1"}}, 1e-12);
 }
 
 TEST_P(AdvectionMatrixFree, CnGradientUnchangedByStorage) {

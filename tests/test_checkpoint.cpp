@@ -212,7 +212,7 @@ TEST(CheckpointGradient, ScalarParameterAndShortRuns) {
     Result full, solution_only, cp;
     PETSC_ASSERT_OK(run_gradient(base, full));
     auto base_solution_only = base;
-    base_solution_only.push_back({"-checkpoint_keep_stages", "0"});
+    base_solution_only.push_back({"-checkpoint_keep_stages_max_mb", "0"}); // no room for the stages
     PETSC_ASSERT_OK(run_gradient(base_solution_only, solution_only));
     base.push_back({"-checkpoint_budget", "3"});
     PETSC_ASSERT_OK(run_gradient(base, cp));
@@ -224,7 +224,8 @@ TEST(CheckpointGradient, ScalarParameterAndShortRuns) {
     EXPECT_GT(flexipde_test::norm(full.g), 0.0);
     EXPECT_EQ(cp.stats.recomputed_steps, binomial_optimal_recomputations(n, 3));
     // Full storage keeps n states; with the stages (the default at this size) it re-runs nothing,
-    // with the solution only (-checkpoint_keep_stages 0) every step but the last once.
+    // with the solution only (no room for the stages: -checkpoint_keep_stages_max_mb 0) every step but
+    // the last once.
     EXPECT_EQ(full.stats.recomputed_steps, 0);
     EXPECT_EQ(full.stats.stored_peak, n);
     EXPECT_EQ(solution_only.stats.recomputed_steps, (PetscInt64)n - 1);

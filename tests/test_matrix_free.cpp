@@ -5,20 +5,17 @@
 //     transposes: lambda_q += w (J^T [0; lambda_p])_q and mu += w (dG/dc)^T [0; lambda_p]; given a
 //     drift s it first applies lambda_p += s lambda_q, bitwise as that drift in a pass of its own;
 //   * a whole leapfrog gradient with the fused kick equals the one through the Jacobians
-//     (-leapfrog_fused_adjoint 0), for a scalar speed (whose gradient is a sum over ranks) and a field,
-//     and full storage of positions only (the default; the kick reads them in place, and given u alone it
-//     gives the same numbers as given the whole state) the same as of whole states (-checkpoint_positions_only 0);
-//   * wave2d's kick from the record rhs_record writes (L u) gives bitwise its numbers from the state, and a
-//     leapfrog gradient through stored records bitwise that through stored positions (-leapfrog_records 0);
-//     its G by rows gives the gradients of the point-by-point sweep (-wave2d_row_loops 0), and its kick's
-//     perimeter by rows those of the point-by-point accessor (-wave2d_perimeter_rows 0);
+//     (-adjoint_petsc_step, which also copies the stored positions into the stage), for a scalar speed
+//     (whose gradient is a sum over ranks) and a field; given u alone the kick gives the same numbers as
+//     given the whole state;
+//   * wave2d's kick from the record rhs_record writes (L u) gives bitwise its numbers from the state;
 //   * the matrix-free dG/dU (create_jacobian_matrix_free) applies J and J^T like the assembled one,
-//     and an RK4 gradient through it equals one through the assembled J (-sim_matrix_free_jacobian 0).
+//     and an RK4 gradient (the fused stage products) equals PETSc's RK adjoint through it
+//     (-adjoint_petsc_step).
 //   * the 1D wave's matrix-free J^T also forms the dG/dc transpose of the same vector at the recorded
-//     stage (-wave_fused_adjoint; the RK adjoint applies J^T and then (dG/dc)^T to one unchanged Vec):
-//     equal to the one from the columns, used only for that Vec in that state at that stage, <J x, y> =
-//     <x, J^T y> for both; an RK4 gradient with it equals one without; dG/dc applied after its state
-//     changed is an error.
+//     stage (PETSc's RK adjoint applies J^T and then (dG/dc)^T to one unchanged Vec): equal to the one
+//     from the columns, used only for that Vec in that state at that stage, <J x, y> = <x, J^T y> for
+//     both; dG/dc applied after its state changed is an error.
 // Cases: 1D fd2/fd4, Dirichlet/periodic; 2D Dirichlet/periodic, with a sponge (rhs only).
 #include "flexipde/scene.hpp"
 #include "test_support.hpp"
@@ -32,7 +29,6 @@ using flexipde_test::norm;
 using flexipde_test::rel_diff;
 using flexipde_test::ScopedOptions;
 using flexipde_test::expect_same_gradient;
-using flexipde_test::expect_same_gradient_other_setup;
 
 namespace {
 
@@ -226,31 +222,7 @@ TEST_P(MatrixFree, FusedAdjointKickFromRecord) {
 
 TEST_P(MatrixFree, LeapfrogGradientFusedEqualsJacobians) {
   if (!GetParam().fused) return;
-  expect_same_gradient(scene, p, {{"-ts_type", "leapfrog"}}, {{"-leapfrog_fused_adjoint", "0"}}, 1e-12);
-  // the 1D wave's drift folded into its kick sweep or applied in a pass of its own (bitwise the same in one
-  // Scene, FusedAdjointKickAppliesTheDrift; a second Scene can differ in round-off)
-  if (std::string(GetParam().name).rfind("wave_", 0) == 0)
-    expect_same_gradient_other_setup(scene, p, {{"-ts_type", "leapfrog"}}, {{"-wave_fused_drift", "0"}}, 1e-14);
-  // full storage of whole states (read in place) gives the same gradient as of positions only (to round-off)
-  expect_same_gradient(scene, p, {{"-ts_type", "leapfrog"}}, {{"-checkpoint_positions_only", "0"}}, 1e-14);
-  // full storage of the kick's records (wave2d: L u, written by the forward's evaluations of G) instead of
-  // the positions: bitwise the same gradient
-  expect_same_gradient(scene, p, {{"-ts_type", "leapfrog"}}, {{"-leapfrog_records", "0"}}, 1e-300);
-  // wave2d's G with each row's interior in a loop of its own (rhs_row, vectorised) gives the numbers of
-  // the point-by-point sweep (-wave2d_row_loops 0), also with an RK integrator (whose stage
-  // records go through the row buffer, streamed). A second Scene (the option is read at set-up) differs
-  // from the first in round-off here even with the same options (1.6e-16), so the bound is 1e-14;
-  // `flexipde -timing_compare wave2d_row_loops=0` reports 0 on 1-4 ranks.
-  if (std::string(GetParam().name).rfind("wave2d_", 0) == 0) {
-    expect_same_gradient_other_setup(scene, p, {{"-ts_type", "leapfrog"}}, {{"-wave2d_row_loops", "0"}}, 1e-14);
-    expect_same_gradient_other_setup(scene, p, {{"-ts_type", "rk"}, {"-ts_rk_type", "4"}}, {{"-wave2d_row_loops", "0"}}, 1e-14);
-    // the kick's block perimeter from rows of c^2 lambda_v formed once per point, or point by point through
-    // the ghost-aware accessor (-wave2d_perimeter_rows 0): the same numbers in the same order (a scalar's
-    // per-point terms too), from the records and from stored positions
-    expect_same_gradient_other_setup(scene, p, {{"-ts_type", "leapfrog"}}, {{"-wave2d_perimeter_rows", "0"}}, 1e-14);
-    expect_same_gradient_other_setup(scene, p, {{"-ts_type", "leapfrog"}, {"-leapfrog_records", "0"}},
-                                     {{"-wave2d_perimeter_rows", "0"}}, 1e-14);
-  }
+  expect_same_gradient(scene, p, {{"-ts_type", "leapfrog"}}, {{"-adjoint_petsc_step", "1"}}, 1e-12);
 }
 
 // wave2d's fused RK stage products (Model::stage_adjoint) against the assembled transposes, every entry
@@ -296,8 +268,8 @@ TEST_P(MatrixFree, MatrixFreeJacobianEqualsAssembled) {
   EXPECT_GT(norm(y_ref), 0.0);
 }
 
-TEST_P(MatrixFree, RkGradientMatrixFreeEqualsAssembled) {
-  expect_same_gradient(scene, p, {{"-ts_type", "rk"}, {"-ts_rk_type", "4"}}, {{"-sim_matrix_free_jacobian", "0"}}, 1e-12);
+TEST_P(MatrixFree, RkGradientEqualsPetscStep) {
+  expect_same_gradient(scene, p, {{"-ts_type", "rk"}, {"-ts_rk_type", "4"}}, {{"-adjoint_petsc_step", "1"}}, 1e-12);
 }
 
 TEST_P(MatrixFree, WaveFusedParameterTransposeEqualsColumns) {
@@ -315,12 +287,6 @@ TEST_P(MatrixFree, WaveFusedParameterTransposeEqualsColumns) {
   PetscErrorCode err;
   flexipde_test::check_fused_parameter_transpose(scene, Jmf, Jp, U, p, &err);
   EXPECT_EQ(err, PETSC_ERR_ARG_WRONGSTATE);
-}
-
-TEST_P(MatrixFree, WaveRkGradientFusedEqualsUnfused) {
-  if (std::string(GetParam().name).rfind("wave_", 0) != 0) return;
-  flexipde_test::expect_same_gradient_other_setup(scene, p, {{"-ts_type", "rk"}, {"-ts_rk_type", "4"}},
-                                                  {{"-wave_fused_adjoint", "0"}}, 1e-12);
 }
 
 INSTANTIATE_TEST_SUITE_P(Waves, MatrixFree, ::testing::ValuesIn(cases()), mf_name);

@@ -7,8 +7,9 @@
 //     against apply, one output at a time; transform_pair/pairing_packed/balance (two real fields in
 //     one transform) against separate transforms.
 // Grids live on PETSC_COMM_WORLD, so every case runs distributed on 2 ranks too. A 1D grid on several
-// ranks is transformed whole on every rank (replicated, up to -spectral_replicate_max points) or by
-// FFTW-MPI's distributed transform: the 1D cases run both ways, and the two agree to round-off.
+// ranks is transformed whole on every rank (replicated, up to kReplicateMax points) or by FFTW-MPI's
+// distributed transform: the 1D cases run both ways (setup's replicate_max 0 forces the distributed one
+// on small grids), and the two agree to round-off.
 #include "flexipde/spectral.hpp"
 #include "test_support.hpp"
 #include <cmath>
@@ -52,7 +53,7 @@ struct DotCase {
   const char *name;
   PetscInt dim, nx, ny;
   bool periodic_y, x_only;
-  bool distributed = false; // 1D: FFTW-MPI's distributed transform also on small grids (-spectral_replicate_max 0)
+  bool distributed = false; // 1D: FFTW-MPI's distributed transform also on small grids (replicate_max 0)
 };
 std::ostream &operator<<(std::ostream &os, const DotCase &c) { return os << c.name; }
 
@@ -62,11 +63,7 @@ class SpectralTranspose : public ::testing::TestWithParam<DotCase> {};
 PetscErrorCode setup_case(const DotCase &c, Grid &g, SpectralDifferentiator &s, std::initializer_list<OwnedVec *> vs) {
   PetscFunctionBeginUser;
   PetscCall(make_grid(c.dim, c.nx, c.ny, c.periodic_y, g));
-  {
-    flexipde_test::ScopedOptions o;
-    if (c.distributed) o.set("-spectral_replicate_max", "0");
-    PetscCall(s.setup(g, c.x_only));
-  }
+  PetscCall(s.setup(g, c.x_only, c.distributed ? 0 : SpectralDifferentiator::kReplicateMax));
   for (OwnedVec *v : vs) PetscCall(DMCreateGlobalVector(g.dm(), v->out()));
   PetscFunctionReturn(0);
 }
@@ -254,7 +251,7 @@ PetscErrorCode derivative_error(PetscInt dim, PetscInt n, PetscInt dir, PetscInt
 } // namespace
 
 // The replicated 1D transform (every rank transforms the whole gathered field) against FFTW-MPI's
-// distributed one (-spectral_replicate_max 0): the same first and second derivatives and the same
+// distributed one (replicate_max 0): the same first and second derivatives and the same
 // packed pairing <u, D x> (each rank sums its own slice of the modes) to round-off, on grids that 2 and
 // 3 ranks split evenly or not.
 TEST(Spectral, ReplicatedMatchesDistributed1D) {
@@ -264,11 +261,7 @@ TEST(Spectral, ReplicatedMatchesDistributed1D) {
     SpectralDifferentiator rep, dis;
     OwnedVec x, u, y0, y1;
     PETSC_ASSERT_OK(setup_case(DotCase{"replicated", 1, n, 1, true, false}, g, rep, {&x, &u, &y0, &y1}));
-    {
-      flexipde_test::ScopedOptions o;
-      o.set("-spectral_replicate_max", "0");
-      PETSC_ASSERT_OK(dis.setup(g));
-    }
+    PETSC_ASSERT_OK(dis.setup(g, false, 0));
     PETSC_ASSERT_OK(fill_random(x, -1, 1, 47));
     PETSC_ASSERT_OK(fill_random(u, -2, 3, 48));
     for (PetscInt order = 1; order <= 2; ++order) {

@@ -1,8 +1,9 @@
-// Implicit theta methods on linear models with constant dG/dU (Simulation, -sim_theta_reuse): the
+// Implicit theta methods on linear models with constant dG/dU (Simulation::use_shifted_operator): the
 // shifted matrix shift*I - A is assembled and factored only when the shift or the parameters
 // change, instead of at every step and adjoint stage (one rank, and on several ranks with the
 // redundant LU that small operators get there; with MUMPS PETSc's own path runs).
-//   - the same J and gradient as -sim_theta_reuse 0 (PETSc forming and factoring every time), for
+//   - the same J and gradient as PETSc's own path (-adjoint_petsc_step: PETSc forming and factoring
+//     every time, and its own adjoint step), for
 //     cn, beuler and theta (midpoint), advection (schemes, scalar and field D) and the wave, with
 //     the matrix built a handful of times instead of once per step;
 //   - never stale: a gradient at p2 after one at p1 (and after a forward and a value at other
@@ -46,9 +47,11 @@ struct GradientRun {
   PetscInt builds = 0, steps = 0;
 };
 
-// J and dJ/dp at the scene's p in a fresh Problem, and how often the shifted matrix was built.
-PetscErrorCode gradient_once(const char *reuse, GradientRun &r) {
-  ScopedOptions o{{"-sim_theta_reuse", reuse}};
+// J and dJ/dp at the scene's p in a fresh Problem, and how often the shifted matrix was built; petsc:
+// PETSc's own path (never builds it).
+PetscErrorCode gradient_once(bool petsc, GradientRun &r) {
+  ScopedOptions o;
+  if (petsc) o.set("-adjoint_petsc_step", "1");
   Problem pb;
   PetscFunctionBeginUser;
   PetscCall(pb.setup(PETSC_COMM_WORLD));
@@ -68,8 +71,8 @@ TEST_P(ThetaReuse, SameGradientAsReformingEveryStep) {
   ScopedOptions opts;
   for (auto &o : GetParam().options) opts.set(o.first, o.second);
   GradientRun reuse, every;
-  PETSC_ASSERT_OK(gradient_once("1", reuse));
-  PETSC_ASSERT_OK(gradient_once("0", every));
+  PETSC_ASSERT_OK(gradient_once(false, reuse));
+  PETSC_ASSERT_OK(gradient_once(true, every));
   PetscPrintf(PETSC_COMM_WORLD, "  [%s] J = %.15e, rel diff J %.2e, gradient %.2e; shifted matrix built %d times in %d steps\n",
               GetParam().name, (double)reuse.J, (double)rel_diff(reuse.J, every.J), (double)rel_diff(reuse.g, every.g),
               (int)reuse.builds, (int)reuse.steps);
@@ -148,7 +151,7 @@ TEST(ThetaReuse, NeverStaleAfterParameterOrStepChange) {
       ScopedOptions dt{{"-ts_dt", "0.02"}};
       PETSC_ASSERT_OK(used.scene.sim.gradient(p2, &J2, g2, nullptr));
       {
-        ScopedOptions every{{"-sim_theta_reuse", "0"}};
+        ScopedOptions every{{"-adjoint_petsc_step", "1"}};
         PETSC_ASSERT_OK(used.scene.sim.gradient(p2, &J3, g1, nullptr));
       }
       PetscPrintf(PETSC_COMM_WORLD, "  [%s] after dt change: rel diff J %.2e, gradient %.2e (vs dt 0.01: %.2e)\n", ts,

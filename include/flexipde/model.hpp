@@ -98,7 +98,8 @@ public:
   // Optional: the products of one explicit-RK adjoint stage fused into one sweep without any matrix:
   // at state U,
   //   y = (dG/dU)^T x   and, unless mu is null,   mu += (dG/dtheta)^T x.
-  // Without it the RK adjoint applies rhs_jacobian's and rhs_jacobian_p's transposes: the same numbers.
+  // Without it the RK adjoint is PETSc's TSAdjointStep_RK, which applies rhs_jacobian's and
+  // rhs_jacobian_p's transposes: the same numbers, in more passes.
   virtual bool has_stage_adjoint() const { return false; }
   // Stage records: r = stage_record_size() > 0 when evaluating G at a state computes, on the way, r local
   // numbers that stage_adjoint at that state would otherwise compute again (the wave models: L u; Vlasov:
@@ -106,7 +107,7 @@ public:
   // keeps them for every stage (the RHS evaluations at the stages write them in place) and
   // stage_adjoint receives them; when stage_record_replaces_state() it needs nothing else of the stage
   // (U is null then) and full storage keeps only the records. Without a record (null: the stage was
-  // recomputed, or records are off) stage_adjoint works from U.
+  // recomputed) stage_adjoint works from U.
   virtual PetscInt stage_record_size() const { return 0; }
   virtual bool stage_record_replaces_state() const { return false; }
   virtual PetscErrorCode rhs_record(PetscReal t, Vec U, Vec G, PetscScalar *record) {

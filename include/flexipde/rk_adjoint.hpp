@@ -7,14 +7,14 @@
 // and then lambda_n = lambda_{n+1} + sum_i dLambda_i. PETSc 3.18's TSAdjointStep_RK computes the same
 // numbers (it divides W_i by b_i and multiplies back) with a copy, a multi-AXPY and two scalings per
 // stage. Here h W_i is formed in one pass over the state and handed to the transposes unscaled, so a
-// stage costs one pass plus the model's products: the same Jacobian transposes in the same order
-// (J^T, then (dG/dp)^T of the same unchanged vector, so a model may fuse the two). Stages with b_i = 0
-// are handled by the same formula (PETSc's skips their dG/dp). Zero a_ji are skipped. A model that fuses
-// the two products (Model::stage_adjoint) is called once per stage instead of evaluating and applying
-// both Jacobians (no Jacobian callbacks, no copy of the parameter product).
+// stage costs one pass plus the model's products, which it fuses (Model::stage_adjoint): one call per
+// stage gives (dG/dU)^T and (dG/dp)^T of the same vector, instead of evaluating and applying both
+// Jacobians (no Jacobian callbacks, no copy of the parameter product). Stages with b_i = 0 are handled
+// by the same formula (PETSc's skips their dG/dp). Zero a_ji are skipped.
 //
-// Used for first-order adjoints of non-FSAL tableaux without a cost integrand; anything else goes to
-// TSRK's own adjoint step. -rk_fused_adjoint 0 (read by the Simulation) keeps TSRK's throughout.
+// Used for first-order adjoints of non-FSAL tableaux without a cost integrand, for models with the
+// fused stage products; anything else goes to TSRK's own adjoint step, as everything does with
+// -adjoint_petsc_step (read by the Simulation).
 #pragma once
 #include "flexipde/petsc.hpp"
 #include <petscts.h>
@@ -55,14 +55,13 @@ struct RkStageNeeds {
   bool record_replaces = false;
 };
 
-// After the TS's type is final: if it is TSRK, its adjoint step becomes the one above (idempotent).
-// With a stage hook, each stage calls it instead of evaluating and applying the two Jacobians.
-// own_sum: lambda_n = lambda_{n+1} + sum_i dLambda_i in a vectorisable pass of its own for s <= 4 (the
-// same numbers as VecMAXPY's, whose pointer loop is not vectorised), else VecMAXPY.
-PetscErrorCode rk_adjoint_install(TS ts, RkStageAdjoint stage = nullptr, void *stage_ctx = nullptr,
-                                  RkStageNeeds needs = {}, bool own_sum = true);
-// What the installed adjoint can work from for a non-FSAL tableau without a cost integrand and with a
-// stage hook (else all zero: whole stages needed, no records).
+// After the TS's type is final: if it is TSRK, its adjoint step becomes the one above (idempotent), each
+// stage calling the stage hook (required). lambda_n = lambda_{n+1} + sum_i dLambda_i goes in a
+// vectorisable pass of its own for s <= 4 (the same numbers as VecMAXPY's, whose pointer loop is not
+// vectorised), else VecMAXPY.
+PetscErrorCode rk_adjoint_install(TS ts, RkStageAdjoint stage, void *stage_ctx, RkStageNeeds needs = {});
+// What the installed adjoint can work from for a non-FSAL tableau without a cost integrand (else all
+// zero: whole stages needed, no records).
 PetscErrorCode rk_adjoint_stage_needs(TS ts, RkStageNeeds *needs);
 // Records. Forward: the evaluations of G at stage i of the following steps write their record to
 // base + i * stride (base = null: no records), rk_adjoint_record_target telling an RHS evaluation at U

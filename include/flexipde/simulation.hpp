@@ -53,7 +53,7 @@ public:
   // Stored states and recomputed steps of the last gradient's adjoint (-checkpoint_budget).
   const CheckpointStats &checkpoint_stats() const { return checkpoint_stats_; }
   // Times the shifted matrix of an implicit theta method was assembled for factoring since setup
-  // (-sim_theta_reuse; 0 on the other paths).
+  // (the reused factorisation of linear models; 0 on the other paths).
   PetscInt shifted_operator_builds() const { return pc_builds_; }
   // Creates (and discards) the integrator as a gradient would: lists its options under -help and
   // reports a bad integrator choice before any work is done.
@@ -80,20 +80,20 @@ private:
   static PetscErrorCode blowup_monitor(TS, PetscInt, PetscReal, Vec, void *);
   PetscInt blowup_every_ = 100;
   OwnedMat Jmf_; // the model's matrix-free dG/dU, for explicit integrators (null if none)
-  PetscBool fused_adjoint_ = PETSC_TRUE;
+  // -adjoint_petsc_step: PETSc's own adjoint steps (and forming of implicit operators), the leapfrog's
+  // through the Jacobians: the reference path, for checking
+  PetscBool petsc_step_ = PETSC_FALSE;
+  bool leapfrog_fused_ = false; // the last TS's leapfrog adjoint calls Model::second_order_adjoint
   bool rk_stage_fused_ = false; // the last adjoint TS's RK stages call Model::stage_adjoint
   bool rk_stage_records_ = false; // ... and its RHS evaluations may record (Model::stage_record_size)
-  PetscBool leapfrog_records_option_ = PETSC_TRUE; // -leapfrog_records (Model::second_order_adjoint_takes_record)
-  PetscBool matrix_free_jacobian_ = PETSC_TRUE; // -sim_matrix_free_jacobian // -leapfrog_fused_adjoint: the model's fused kick when it has one
   PetscErrorCode finish_solve(TS ts);
   bool adaptive_ = false;
 
-  // Implicit theta methods (theta, cn, beuler) on a linear model with constant dG/dU = A(p)
-  // (-sim_theta_reuse, default on; one rank for now, see create_ts). TS gets F = U_t - G(U) and the
-  // IJacobian shift*I - A as two
-  // matrices: a MatShell that applies shift*I - A exactly for the shift of the last IJacobian call
-  // (J_ holds A, refreshed when the parameters change), and shifted_pc_, the assembled matrix the
-  // PC factors. The IJacobian callback only records the shift; a KSP pre-solve hook makes
+  // Implicit theta methods (theta, cn, beuler) on a linear model with constant dG/dU = A(p) (one rank,
+  // or the redundant LU of several, see create_ts; not with -adjoint_petsc_step). TS gets F = U_t - G(U)
+  // and the IJacobian shift*I - A as two matrices: a MatShell that applies shift*I - A exactly for the
+  // shift of the last IJacobian call (J_ holds A, refreshed when the parameters change), and
+  // shifted_pc_, the assembled matrix the PC factors. The IJacobian callback only records the shift; a KSP pre-solve hook makes
   // shifted_pc_ equal to shift*I - A before every solve, rebuilding it only when the shift, A or
   // shifted_pc_ itself changed since it was built. So the factorisation is redone once per
   // (dt, p) instead of at every step (forward) and twice per step (the CN adjoint, which also
@@ -106,7 +106,6 @@ private:
   static PetscErrorCode shifted_presolve(KSP, Vec, Vec, void *);
   PetscErrorCode check_operator_current() const;
   PetscErrorCode assemble_shifted(Mat P);
-  PetscBool theta_reuse_ = PETSC_TRUE; // -sim_theta_reuse
   OwnedMat shifted_, shifted_pc_;
   PetscReal shift_ = 0;     // shift of the last IJacobian call (what shifted_ applies)
   PetscReal pc_shift_ = 0;  // shift shifted_pc_ was built with

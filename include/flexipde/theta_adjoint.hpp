@@ -21,7 +21,8 @@
 // after), h (1 - theta) nu_{n+1} together (dG/dp is linear in what it is applied to), so the
 // gradient equals PETSc's to round-off rather than bitwise. It assumes, as the Simulation's implicit
 // form F = U_t - G(t, U) gives, an IJacobian that does not depend on U_t. Cost integrands and
-// second-order adjoints go to PETSc's own step.
+// second-order adjoints go to PETSc's own step (everything does with -adjoint_petsc_step, read by the
+// Simulation).
 #pragma once
 #include "flexipde/petsc.hpp"
 #include <petscts.h>
@@ -29,13 +30,13 @@
 namespace flexipde {
 
 // After the TS's type is final: if it is a theta type (theta, cn, beuler), its adjoint step becomes
-// the one above (idempotent). transposed_factor: when the forward solves with one sequential LU of
-// PETSc's own (one rank, or PCREDUNDANT), the transposed solves use a factorisation of P^T (KSPSolve
-// with MatSolve's row-oriented sweeps) instead of KSPSolveTranspose on P's factors; options prefix
-// -theta_adjoint_ for that KSP. constant_operator: A = dG/dU is the same at every t and U (a linear
-// model whose Jacobian depends on the parameters alone); the update of lambda then takes A^T nu from
-// the transposed solve's own equation, A^T nu = s1 nu - lambda / (theta h), instead of applying A^T once
-// more: one operator product per step fewer, the same gradient to the solve's tolerance.
-PetscErrorCode theta_adjoint_install(TS ts, bool transposed_factor = true, bool constant_operator = false);
+// the one above (idempotent). When the forward solves with one sequential LU of PETSc's own (one rank,
+// or PCREDUNDANT), the transposed solves use a factorisation of P^T (KSPSolve with MatSolve's
+// row-oriented sweeps) instead of KSPSolveTranspose on P's factors; options prefix -theta_adjoint_ for
+// that KSP. constant_operator: A = dG/dU is the same at every t and U (a linear model whose Jacobian
+// depends on the parameters alone); the update of lambda then takes A^T nu from the transposed solve's
+// own equation, A^T nu = s1 nu - lambda / (theta h), instead of applying A^T once more: one operator
+// product per step fewer, the same gradient to the solve's tolerance.
+PetscErrorCode theta_adjoint_install(TS ts, bool constant_operator = false);
 
 } // namespace flexipde

@@ -18,7 +18,7 @@
 // with OPTIONS added (in force during its own solves only; a second Scene set up with them), and
 // prints the medians of the per-repetition ratios: on a machine whose speed changes from one minute to
 // the next, two variants measured side by side in one process compare far better than two processes.
-//   ./flexipde -task gradient -ts_type leapfrog -wave_c_field 1 -timing_repeats 21 -timing_compare wave_fused_drift=0
+//   ./flexipde -task gradient -ts_type leapfrog -wave_c_field 1 -timing_repeats 21 -timing_compare adjoint_petsc_step=1
 //   ./flexipde -task gradient -wave_c_field 1 -timing_repeats 11 -timing_compare ts_type=rk,ts_rk_type=4
 #include <algorithm>
 #include <cctype>

@@ -11,10 +11,10 @@ constexpr const char *kName = "flexipde_rk_adjoint";
 struct RkAdjoint {
   PetscErrorCode (*petsc_step)(TS) = nullptr; // TSRK's own adjoint step, for what this one does not do
   std::vector<Vec> dlam;                      // dLambda_i of every cost: s per cost
-  Vec W = nullptr, dmu = nullptr;             // h W_i; (dG/dp)^T h W_i
+  Vec W = nullptr;                            // scratch for the stage hook (StageCombination::scratch)
   std::vector<PetscScalar> coef, ones;        // -h a_ji != 0 of one stage; s ones
   std::vector<Vec> terms;                     // ... and their dLambda_j
-  RkStageAdjoint stage = nullptr;             // the model's fused stage products, if any
+  RkStageAdjoint stage = nullptr;             // the model's fused stage products
   void *stage_ctx = nullptr;
   // Stage records (Model::stage_record_size): `record_size` entries per stage, replacing the stage when
   // record_replaces. Forward: armed at arm_base (stage i at arm_base + i * arm_stride), for the RHS
@@ -26,13 +26,11 @@ struct RkAdjoint {
   const PetscScalar *rec_base = nullptr;
   PetscInt rec_stride = 0;
   PetscInt s = 0, ncost = 0;
-  bool own_sum = true; // lambda_n = lambda_{n+1} + sum_i dLambda_i by add_stages, else VecMAXPY
   ~RkAdjoint() { release(); }
   void release() {
     for (Vec &v : dlam) (void)VecDestroy(&v);
     dlam.clear();
     (void)VecDestroy(&W);
-    (void)VecDestroy(&dmu);
     s = ncost = 0;
   }
 };
@@ -59,15 +57,15 @@ PetscErrorCode combine(Vec w, PetscScalar c0, Vec x0, PetscInt m, const PetscSca
   PetscFunctionReturn(0);
 }
 
-// x += d[0] + ... + d[s-1] (ones: s unit coefficients). With `own` and s <= 4 in one pass of its own: the
-// same numbers as VecMAXPY, whose kernel adds x + (((1 d0 + 1 d1) + 1 d2) + 1 d3) for four terms, without
-// its pointer loop that the compiler cannot vectorise; else VecMAXPY.
-PetscErrorCode add_stages(Vec x, PetscInt s, const Vec *d, const PetscScalar *ones, bool own) {
+// x += d[0] + ... + d[s-1] (ones: s unit coefficients). For s <= 4 in one pass of its own: the same
+// numbers as VecMAXPY, whose kernel adds x + (((1 d0 + 1 d1) + 1 d2) + 1 d3) for four terms, without its
+// pointer loop that the compiler cannot vectorise (seed wave RK4 adjoint 1.08x faster); else VecMAXPY.
+PetscErrorCode add_stages(Vec x, PetscInt s, const Vec *d, const PetscScalar *ones) {
   PetscScalar *xa;
   const PetscScalar *a[4];
   PetscInt n;
   PetscFunctionBegin;
-  if (!own || s > 4) {
+  if (s > 4) {
     PetscCall(VecMAXPY(x, s, ones, const_cast<Vec *>(d)));
     PetscFunctionReturn(0);
   }
@@ -110,9 +108,10 @@ PetscErrorCode adjoint_step(TS ts) {
   PetscCall(TSRKGetTableau(ts, &s, &A, &b, &c, &bembed, &pinterp, &binterp, &fsal));
   (void)bembed, (void)pinterp, (void)binterp;
   if (fsal || ts->quadraturets || ts->vecs_sensi2 || ts->numcost < 1) {
-    PetscCheck(!(ctx->rec_base && ctx->record_replaces), PetscObjectComm((PetscObject)ts), PETSC_ERR_SUP,
+    // (the store keeps records only for what this step handles: rk_adjoint_stage_needs)
+    PetscCheck(!(ctx->rec_base && ctx->record_replaces), PetscObjectComm((PetscObject)ts), PETSC_ERR_PLIB,
                "rk_adjoint: only the stages' records were stored, which this adjoint (FSAL tableau, cost integrand "
-               "or second-order sensitivities) cannot use: run with -checkpoint_positions_only 0");
+               "or second-order sensitivities) cannot use");
     PetscCall(ctx->petsc_step(ts));
     PetscFunctionReturn(0);
   }
@@ -127,49 +126,34 @@ PetscErrorCode adjoint_step(TS ts) {
     ctx->terms.assign(s, nullptr);
     ctx->ones.assign(s, 1.0);
   }
-  if (ts->vecs_sensip && !ctx->dmu && !ctx->stage) PetscCall(VecDuplicate(ts->vecs_sensip[0], &ctx->dmu));
 
-  Mat J = nullptr, Jpre = nullptr;
   Vec *Y;
-  if (!ctx->stage) PetscCall(TSGetRHSJacobian(ts, &J, &Jpre, nullptr, nullptr));
   PetscCall(TSGetStages(ts, nullptr, &Y));
   const PetscReal t = ts->ptime, h = ts->time_step; // h < 0: the adjoint runs backwards
   std::vector<PetscScalar> &coef = ctx->coef;
   std::vector<Vec> &terms = ctx->terms;
   for (PetscInt i = s - 1; i >= 0; --i) {
     const PetscReal stage_time = t + h * (1.0 - c[i]);
-    if (!ctx->stage) {
-      PetscCall(TSComputeRHSJacobian(ts, stage_time, Y[i], J, Jpre));
-      if (ts->vecs_sensip) PetscCall(TSComputeRHSJacobianP(ts, stage_time, Y[i], ts->Jacprhs));
-    }
     for (PetscInt k = 0; k < ts->numcost; ++k) {
       Vec *dl = &ctx->dlam[(size_t)k * s];
       PetscInt m = 0;
       for (PetscInt j = i + 1; j < s; ++j)
         if (A[j * s + i] != 0) coef[m] = -h * A[j * s + i], terms[m++] = dl[j];
-      if (ctx->stage) { // the hook forms h W_i where it reads it
-        StageCombination x;
-        x.c0 = -h * b[i];
-        x.x0 = ts->vecs_sensi[k];
-        x.m = m;
-        x.c = coef.data();
-        x.X = terms.data();
-        x.scratch = ctx->W;
-        const PetscScalar *record = ctx->rec_base ? ctx->rec_base + (size_t)i * ctx->rec_stride : nullptr;
-        Vec U = record && ctx->record_replaces ? nullptr : Y[i];
-        PetscCall(ctx->stage(ctx->stage_ctx, stage_time, U, record, x, dl[i], ts->vecs_sensip ? ts->vecs_sensip[k] : nullptr));
-        continue;
-      }
-      PetscCall(combine(ctx->W, -h * b[i], ts->vecs_sensi[k], m, coef.data(), terms.data())); // dt W_i
-      PetscCall(MatMultTranspose(J, ctx->W, dl[i]));
-      if (ts->vecs_sensip) {
-        PetscCall(MatMultTranspose(ts->Jacprhs, ctx->W, ctx->dmu));
-        PetscCall(VecAXPY(ts->vecs_sensip[k], 1.0, ctx->dmu));
-      }
+      // the hook forms h W_i where it reads it
+      StageCombination x;
+      x.c0 = -h * b[i];
+      x.x0 = ts->vecs_sensi[k];
+      x.m = m;
+      x.c = coef.data();
+      x.X = terms.data();
+      x.scratch = ctx->W;
+      const PetscScalar *record = ctx->rec_base ? ctx->rec_base + (size_t)i * ctx->rec_stride : nullptr;
+      Vec U = record && ctx->record_replaces ? nullptr : Y[i];
+      PetscCall(ctx->stage(ctx->stage_ctx, stage_time, U, record, x, dl[i], ts->vecs_sensip ? ts->vecs_sensip[k] : nullptr));
     }
   }
   for (PetscInt k = 0; k < ts->numcost; ++k)
-    PetscCall(add_stages(ts->vecs_sensi[k], s, &ctx->dlam[(size_t)k * s], ctx->ones.data(), ctx->own_sum));
+    PetscCall(add_stages(ts->vecs_sensi[k], s, &ctx->dlam[(size_t)k * s], ctx->ones.data()));
   PetscFunctionReturn(0);
 }
 
@@ -208,12 +192,13 @@ void StageCombination::form_local(PetscInt n, PetscScalar c0, const PetscScalar 
 
 PetscErrorCode StageCombination::form(Vec w) const { return combine(w, c0, x0, m, c, X); }
 
-PetscErrorCode rk_adjoint_install(TS ts, RkStageAdjoint stage, void *stage_ctx, RkStageNeeds needs, bool own_sum) {
+PetscErrorCode rk_adjoint_install(TS ts, RkStageAdjoint stage, void *stage_ctx, RkStageNeeds needs) {
   PetscBool rk;
   RkAdjoint *ctx;
   PetscFunctionBegin;
   PetscCall(PetscObjectTypeCompare((PetscObject)ts, TSRK, &rk));
   if (!rk) PetscFunctionReturn(0);
+  PetscCheck(stage, PetscObjectComm((PetscObject)ts), PETSC_ERR_ARG_NULL, "rk_adjoint: a stage hook is required");
   PetscCall(installed(ts, &ctx));
   if (!ctx) {
     ctx = new RkAdjoint();
@@ -223,8 +208,7 @@ PetscErrorCode rk_adjoint_install(TS ts, RkStageAdjoint stage, void *stage_ctx, 
   }
   ctx->stage = stage;
   ctx->stage_ctx = stage_ctx;
-  ctx->own_sum = own_sum;
-  ctx->record_size = stage ? needs.record_size : 0;
+  ctx->record_size = needs.record_size;
   ctx->record_replaces = ctx->record_size > 0 && needs.record_replaces;
   ctx->arm_base = nullptr;
   ctx->rec_base = nullptr;
@@ -239,7 +223,7 @@ PetscErrorCode rk_adjoint_stage_needs(TS ts, RkStageNeeds *needs) {
   PetscFunctionBegin;
   *needs = RkStageNeeds{};
   PetscCall(installed(ts, &ctx));
-  if (!ctx || !ctx->stage || ts->quadraturets) PetscFunctionReturn(0);
+  if (!ctx || ts->quadraturets) PetscFunctionReturn(0);
   PetscCall(TSRKGetTableau(ts, &s, &A, &b, &c, nullptr, nullptr, nullptr, &fsal));
   if (fsal) PetscFunctionReturn(0);
   needs->record_size = ctx->record_size;

@@ -145,7 +145,7 @@ PetscErrorCode Simulation::shifted_apply(Mat M, Vec x, Vec y) {
   PetscFunctionBeginUser;
   PetscCall(MatShellGetContext(M, &sim));
   PetscCall(sim->check_operator_current());
-  if (Transpose) PetscCall(MatMultTranspose(sim->Jmf_ && sim->matrix_free_jacobian_ ? (Mat)sim->Jmf_ : (Mat)sim->J_, x, y));
+  if (Transpose) PetscCall(MatMultTranspose(sim->Jmf_ ? (Mat)sim->Jmf_ : (Mat)sim->J_, x, y));
   else PetscCall(MatMult(sim->J_, x, y));
   PetscCall(VecAXPBY(y, sim->shift_, -1.0, x));
   PetscFunctionReturn(0);
@@ -157,8 +157,8 @@ PetscErrorCode Simulation::shifted_apply(Mat M, Vec x, Vec y) {
 // since. Exactly: TSAdjoint takes each step's dt as the difference of two stored times, which
 // differs from the forward's dt in the last bits now and then (a few dozen of 5000 steps at
 // N = 512); P is then rebuilt for that step, as PETSc's own path would, so the gradient is the one
-// of -sim_theta_reuse 0 to round-off. Reusing P across such last-bit differences would change the
-// CN advection gradient by 1e-10 relative: not an exact adjoint any more.
+// of PETSc's forming at every step (-adjoint_petsc_step) to round-off. Reusing P across such last-bit
+// differences would change the CN advection gradient by 1e-10 relative: not an exact adjoint any more.
 PetscErrorCode Simulation::shifted_presolve(KSP ksp, Vec, Vec, void *ctx) {
   auto *sim = static_cast<Simulation *>(ctx);
   Mat A, P;
@@ -394,47 +394,17 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
     PetscCall(TSGetTrajectory(ts, &tj));
     PetscCall(store_trajectory_use_buffer(tj, &trajectory_buffer_));
   }
-  PetscBool rk_fused = PETSC_TRUE, rk_stage = PETSC_TRUE, rk_records = PETSC_TRUE, theta_direct = PETSC_TRUE, theta_factor_t = PETSC_TRUE,
-            rk_own_sum = PETSC_TRUE, theta_reuse_solve = PETSC_TRUE;
   PetscOptionsBegin(comm, nullptr, "Simulation", "Simulation");
   PetscCall(PetscOptionsBool("-sim_stability_check", "Refuse explicit steps beyond the stability limit", "Simulation",
                              stability_check, &stability_check, nullptr));
   PetscCall(PetscOptionsInt("-sim_blowup_check_every", "Stop with the time and step where the state first holds "
                             "NaN/Inf, checked every N steps (0 = only at the end)",
                             "Simulation", blowup_every_, &blowup_every_, nullptr));
-  PetscCall(PetscOptionsBool("-sim_matrix_free_jacobian", "Explicit RK applies the model's matrix-free dG/dU when it "
-                             "has one (else the assembled one)", "Simulation", matrix_free_jacobian_, &matrix_free_jacobian_, nullptr));
-  PetscCall(PetscOptionsBool("-sim_theta_reuse", "Implicit theta/cn/beuler on a model with constant dG/dU: form and "
-                             "factor shift*I - dG/dU only when dt or the parameters change", "Simulation", theta_reuse_,
-                             &theta_reuse_, nullptr));
-  PetscCall(PetscOptionsBool("-leapfrog_fused_adjoint", "Leapfrog adjoint through the model's fused sweep when it has "
-                             "one (else its Jacobians)", "Simulation", fused_adjoint_, &fused_adjoint_, nullptr));
-  PetscCall(PetscOptionsBool("-leapfrog_records", "Leapfrog with that fused sweep and full storage: the forward's "
-                             "evaluations of G record what the model's kick reads of each state (Model::"
-                             "second_order_adjoint_takes_record: wave2d's L u), stored instead of the positions",
-                             "Simulation", leapfrog_records_option_, &leapfrog_records_option_, nullptr));
-  PetscCall(PetscOptionsBool("-rk_fused_adjoint", "Explicit RK adjoint with one pass per stage besides the model's "
-                             "products (rk_adjoint.hpp; else TSRK's own)", "Simulation", rk_fused, &rk_fused, nullptr));
-  PetscCall(PetscOptionsBool("-theta_direct_adjoint", "Implicit theta/cn/beuler adjoint evaluating the IJacobian "
-                             "directly, not through SNESComputeJacobian (theta_adjoint.hpp; else TSTHETA's own)",
-                             "Simulation", theta_direct, &theta_direct, nullptr));
-  PetscCall(PetscOptionsBool("-theta_adjoint_factor_transpose", "That adjoint's transposed solves, when the forward's "
-                             "are one sequential LU (1 rank, or redundant): factor P^T in P's ordering (prefix "
-                             "-theta_adjoint_) instead of solving with P's factors transposed", "Simulation", theta_factor_t,
-                             &theta_factor_t, nullptr));
-  PetscCall(PetscOptionsBool("-rk_stage_adjoint", "That adjoint calls the model's fused stage products when it has them "
-                             "(Model::stage_adjoint; else its Jacobians)", "Simulation", rk_stage, &rk_stage, nullptr));
-  PetscCall(PetscOptionsBool("-rk_stage_records", "With those stage products and full storage: the forward's evaluations "
-                             "of G record at every stage what the model's adjoint stage would recompute (Model::"
-                             "stage_record_size: the waves' L u, Vlasov's field E), and the adjoint reads it",
-                             "Simulation", rk_records, &rk_records, nullptr));
-  PetscCall(PetscOptionsBool("-theta_adjoint_reuse_solve", "That implicit adjoint, for a linear model with a constant "
-                             "dG/dU: lambda's update takes A^T nu from the transposed solve's equation instead of applying "
-                             "A^T again (the same gradient to the solve's tolerance)", "Simulation", theta_reuse_solve,
-                             &theta_reuse_solve, nullptr));
-  PetscCall(PetscOptionsBool("-rk_adjoint_own_sum", "That adjoint adds a step's stage increments to lambda in a pass "
-                             "of its own (the same numbers as VecMAXPY, vectorised), else VecMAXPY", "Simulation",
-                             rk_own_sum, &rk_own_sum, nullptr));
+  PetscCall(PetscOptionsBool("-adjoint_petsc_step", "Use PETSc's own TSAdjointStep (rk, theta, cn, beuler; implicit "
+                             "methods on linear models then also form and factor shift*I - dG/dU at every step, as PETSc "
+                             "does) instead of flexipde's adjoint steps, and the leapfrog's adjoint through the model's "
+                             "Jacobians instead of its fused kick; slower, for checking", "Simulation", petsc_step_,
+                             &petsc_step_, nullptr));
   PetscOptionsEnd();
   PetscCheck(blowup_every_ >= 0, comm, PETSC_ERR_ARG_OUTOFRANGE, "-sim_blowup_check_every must be non-negative");
   if (blowup_every_ > 0) PetscCall(TSMonitorSet(ts, blowup_monitor, this, nullptr));
@@ -463,27 +433,29 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
       PetscCall(KSPGetPC(ksp, &pc));
       PetscCall(PetscObjectTypeCompare((PetscObject)pc, PCREDUNDANT, &redundant));
     }
-    if (theta && theta_reuse_ && (size == 1 || redundant) && model_->linear() && model_->jacobian_constant() && !shell)
+    if (theta && !petsc_step_ && (size == 1 || redundant) && model_->linear() && model_->jacobian_constant() && !shell)
       PetscCall(use_shifted_operator(ts));
   }
+  // The leapfrog's adjoint through the model's fused kick when it has one (else through its Jacobians).
+  leapfrog_fused_ = leapfrog && with_adjoint && model_->has_second_order_adjoint() && !petsc_step_;
   if (leapfrog) {
     PetscCheck(model_->second_order_pairs() > 0, comm, PETSC_ERR_ARG_WRONG,
                "-ts_type leapfrog needs a model in second-order form (q_t = p, p_t = a(t, q)); model %s is not: "
                "choose -ts_type rk, theta, cn or beuler",
                model_->name());
     PetscCall(leapfrog_set_pairs(ts, model_->second_order_pairs()));
-    bool records = leapfrog_records_option_ && model_->second_order_adjoint_takes_record();
+    bool records = model_->second_order_adjoint_takes_record();
     if (records) { // a record per level in a position slot: as many entries as the positions
       DMDALocalInfo info;
       PetscCall(DMDAGetLocalInfo(dm_, &info));
       records = model_->stage_record_size() == (PetscInt)info.xm * info.ym * info.zm * model_->second_order_pairs();
     }
-    if (with_adjoint && model_->has_second_order_adjoint() && fused_adjoint_)
+    if (leapfrog_fused_)
       PetscCall(leapfrog_set_adjoint_kick(ts, adjoint_kick_cb, this, model_->second_order_adjoint_takes_positions(), records));
   }
   // An explicit RK only applies dG/dU (its adjoint: the transpose): the model's matrix-free operator
-  // when it has one (-sim_matrix_free_jacobian 0 keeps the assembled one).
-  if (Jmf_ && matrix_free_jacobian_ && !std::strcmp(type, TSRK)) {
+  // when it has one.
+  if (Jmf_ && !std::strcmp(type, TSRK)) {
     PetscCall(TSSetRHSJacobian(ts, Jmf_, Jmf_, rhs_jacobian_cb, this));
     // PETSc's RK adjoint asks SNESComputeJacobian for dG/dU at every stage, which also runs its
     // -snes_test_* options checks each time; the matrix-free operator never needs recomputing (it
@@ -493,17 +465,18 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
     PetscCall(SNESSetLagJacobian(snes, -2));
     PetscCall(SNESSetLagJacobianPersists(snes, PETSC_TRUE));
   }
-  if (with_adjoint && theta_direct) // only theta types
-    PetscCall(theta_adjoint_install(ts, theta_factor_t, theta_reuse_solve && model_->linear() && model_->jacobian_constant()));
-  rk_stage_fused_ = with_adjoint && rk_fused && rk_stage && !std::strcmp(type, TSRK) && model_->has_stage_adjoint();
-  rk_stage_records_ = rk_stage_fused_ && rk_records && model_->stage_record_size() > 0;
-  if (with_adjoint && rk_fused && !std::strcmp(type, TSRK)) {
+  // flexipde's own adjoint steps (rk_adjoint.hpp, theta_adjoint.hpp) unless PETSc's are asked for.
+  if (with_adjoint && !petsc_step_) // only theta types
+    PetscCall(theta_adjoint_install(ts, model_->linear() && model_->jacobian_constant()));
+  rk_stage_fused_ = with_adjoint && !petsc_step_ && !std::strcmp(type, TSRK) && model_->has_stage_adjoint();
+  rk_stage_records_ = rk_stage_fused_ && model_->stage_record_size() > 0;
+  if (rk_stage_fused_) {
     RkStageNeeds needs;
     if (rk_stage_records_) {
       needs.record_size = model_->stage_record_size();
       needs.record_replaces = model_->stage_record_replaces_state();
     }
-    PetscCall(rk_adjoint_install(ts, rk_stage_fused_ ? stage_adjoint_cb : nullptr, this, needs, rk_own_sum));
+    PetscCall(rk_adjoint_install(ts, stage_adjoint_cb, this, needs));
   }
   if (with_adjoint && Jp_ && !std::strcmp(type, TSRK)) {
     // PETSc 3.18's TSAdjointStep_RK skips dG/dp for a stage whose weight b_i is zero (it rescales
@@ -784,7 +757,7 @@ PetscErrorCode Simulation::gradient(Vec p, PetscReal *J, Vec grad_p, Vec grad_u0
     // reduced once, after the adjoint, instead of once per level (a collective per step on 2 ranks).
     // An -ts_adjoint_monitor sees a scalar's entry of mu without them until the end.
     // So does an explicit RK adjoint through Model::stage_adjoint, once per stage.
-    const bool defer = mu && ((is_leapfrog(ts) && model_->has_second_order_adjoint() && fused_adjoint_) || rk_stage_fused_);
+    const bool defer = mu && ((is_leapfrog(ts) && leapfrog_fused_) || rk_stage_fused_);
     // The model's maps common to all its parameter sums are applied once, at the end (Model::begin_adjoint).
     struct Cancel { // an adjoint that fails leaves no deferral behind
       const Parameters *p;

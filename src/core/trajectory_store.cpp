@@ -11,8 +11,8 @@
 // them into the next slot itself (leapfrog_sink_positions, streaming stores), and the model's fused
 // kick reads them there (leapfrog_place_positions; without one they are copied into the stage). The
 // slot the next adjoint step reads is prefetched, and buffers of 2 MB and more sit on huge pages
-// (StateBuffer). With -checkpoint_positions_only 0, or a cost integrand (which may read p), whole
-// states are stored and the stage Vec is pointed at them (VecPlaceArray), nothing copied; any other
+// (StateBuffer). With a cost integrand (which may read p) whole states are stored and the stage Vec
+// is pointed at them (VecPlaceArray), nothing copied; any other
 // integrator re-runs the step from U_{k-1} (TSStep) to rebuild its stages, like PETSc's memory
 // trajectory in solution-only mode, unless it keeps them: an explicit RK's stages are placed in the
 // buffer and written there by the step itself, with the records its fused adjoint stage reads beside
@@ -44,9 +44,9 @@ struct StoreTrajectory {
   PetscInt nlocal = 0, last = -1;
   PetscInt64 recomputed = 0;
   // Keep each step's stages too (slot = U_k and the stages of step k-1 -> k), so that nothing is
-  // re-run in the adjoint: -checkpoint_keep_stages; by default when the buffer stays below
-  // -checkpoint_keep_stages_max_mb per rank. The leapfrog never needs it (its stage is U_{k-1}).
-  PetscBool keep_stages_option = PETSC_TRUE, keep_stages_set = PETSC_FALSE;
+  // re-run in the adjoint, when the buffer stays within -checkpoint_keep_stages_max_mb per rank (a
+  // memory cap: beyond it the adjoint re-runs the steps). The leapfrog never needs it (its stage is
+  // U_{k-1}).
   PetscReal keep_stages_max_mb = 2048;
   bool keep_stages = false;
   PetscInt nstages = 0, slot = 0; // entries per step: (1 + nstages) * nlocal when keeping stages
@@ -80,15 +80,14 @@ struct StoreTrajectory {
   // stored as solutions, so only the solutions are kept and Get hands it both (no stage copies, no
   // re-run, a third of the memory).
   bool theta_endpoint = false;
-  PetscBool positions_only = PETSC_TRUE; // -checkpoint_positions_only
-  PetscBool prefetch = PETSC_TRUE;       // -checkpoint_prefetch
-  PetscReal prefetch_max_kb = 1024;      // -checkpoint_prefetch_max_kb
-  PetscBool align_slots = PETSC_TRUE;    // -checkpoint_align_slots
-  bool use_prefetch = false;             // ... for this solve: on, and the slot no larger than that
-  PetscBool stream = PETSC_TRUE;         // -checkpoint_stream_stores
-  PetscBool compact_option = PETSC_TRUE; // -checkpoint_rk_compact
-  bool use_stream = false;               // ... for this solve: the leapfrog's states (RK gains nothing)
+  bool use_prefetch = false; // prefetch the slot after next (slots of at most kPrefetchMaxBytes)
+  bool use_stream = false;   // non-temporal stores: the leapfrog's states (not RK's)
 };
+
+// Prefetching the slot after next pays where slots are short (a few KB to a few hundred: the hardware
+// prefetchers do not get going within one, and the adjoint walks the slots backwards); on slots of
+// megabytes they do, and the prefetches only compete with them. Per rank.
+constexpr size_t kPrefetchMaxBytes = 1024 * 1024;
 
 StoreTrajectory *context(TSTrajectory tj) { return static_cast<StoreTrajectory *>(tj->data); }
 
@@ -196,7 +195,7 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
     }
   }
   st->pairs = 0;
-  if (is_leapfrog(ts) && !ts->quadraturets && st->positions_only) {
+  if (is_leapfrog(ts) && !ts->quadraturets) {
     PetscCall(VecGetBlockSize(ts->vec_sol, &st->dof));
     st->pairs = leapfrog_pairs(ts);
   }
@@ -209,13 +208,13 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
   st->place_stages = false;
   st->compact = false;
   st->lf_placed = false;
-  st->use_stream = st->stream && is_leapfrog(ts);
+  st->use_stream = is_leapfrog(ts);
   st->rec_n = st->rec_offset = 0;
   st->rec_only = false;
   // Stages: how they would be kept (explicit RK: records alone, or compact or placed with the records
   // after the stages; otherwise copied next to the state), then whether that fits the memory cap.
   PetscInt stage_slot = 0;
-  if (!is_leapfrog(ts) && !st->theta_endpoint && st->nstages > 0 && st->keep_stages_option) {
+  if (!is_leapfrog(ts) && !st->theta_endpoint && st->nstages > 0) {
     PetscBool rk;
     Vec *Y;
     bool stage_is_solution = false;
@@ -225,7 +224,7 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
     const bool fixed = ts->max_steps < PETSC_MAX_INT;
     RkStageNeeds needs;
     if (fixed && !stage_is_solution) PetscCall(rk_adjoint_stage_needs(ts, &needs));
-    const bool partial = st->positions_only && !adjoint_monitors_read_state(ts); // keep less than whole stages
+    const bool partial = !adjoint_monitors_read_state(ts); // keep less than whole stages
     if (needs.record_size > 0 && (!needs.record_replaces || partial)) {
       st->rec_n = needs.record_size;
       st->rec_only = needs.record_replaces;
@@ -233,7 +232,7 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
     if (st->rec_only) stage_slot = st->nstages * st->rec_n;
     else {
       st->place_stages = rk && fixed && !stage_is_solution;
-      if (st->place_stages && st->compact_option) { // Y_0 = U_k exactly: c_0 = 0 and A's first row zero
+      if (st->place_stages) { // Y_0 = U_k exactly: c_0 = 0 and A's first row zero
         PetscInt s;
         const PetscReal *A, *c;
         PetscCall(TSRKGetTableau(ts, &s, &A, nullptr, &c, nullptr, nullptr, nullptr, nullptr));
@@ -245,8 +244,7 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
       st->rec_offset = stage_slot;
       stage_slot += st->nstages * st->rec_n;
     }
-    if (st->keep_stages_set) st->keep_stages = true;
-    else if (fixed) { // by default only within the memory cap, decided alike on every rank
+    if (fixed) { // only within the memory cap, decided alike on every rank
       PetscReal mb = (PetscReal)(ts->max_steps + 1) * stage_slot * sizeof(PetscScalar) / 1048576.0;
       PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &mb, 1, MPIU_REAL, MPI_MAX, PetscObjectComm((PetscObject)tj)));
       st->keep_stages = mb <= st->keep_stages_max_mb;
@@ -255,13 +253,10 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
   }
   st->slot = st->pairs ? st->nlocal / st->dof * st->pairs : st->keep_stages ? stage_slot : st->nlocal;
   // The leapfrog's position slots start on a cache line (padded to 8 entries): the step's streaming
-  // stores need 16-byte alignment, and with 101^2 points every other slot would lose it (Set would then
-  // copy that state, with plain stores).
-  if (st->pairs && st->align_slots) st->slot = (st->slot + 7) / 8 * 8;
-  // Prefetching the slot after next pays where slots are short (a few KB to a few hundred: the hardware
-  // prefetchers do not get going within one, and the adjoint walks the slots backwards); on slots of
-  // megabytes they do, and the prefetches only compete with them.
-  st->use_prefetch = st->prefetch && (PetscReal)st->slot * sizeof(PetscScalar) <= st->prefetch_max_kb * 1024;
+  // stores need 16-byte alignment, and with 101^2 points an odd slot lost it (every other state was
+  // then copied by Set, with plain stores).
+  if (st->pairs) st->slot = (st->slot + 7) / 8 * 8;
+  st->use_prefetch = (size_t)st->slot * sizeof(PetscScalar) <= kPrefetchMaxBytes;
   if (ts->max_steps < PETSC_MAX_INT) { // reserve the planned trajectory once
     st->buffer->grow((size_t)(ts->max_steps + 1) * st->slot, false);
     st->times.reserve(ts->max_steps + 1);
@@ -419,31 +414,9 @@ PetscErrorCode store_setfromoptions(TSTrajectory tj, PetscOptionItems *PetscOpti
   StoreTrajectory *st = context(tj);
   PetscFunctionBegin;
   PetscOptionsHeadBegin(PetscOptionsObject, "Full-storage trajectory (flexipde)");
-  PetscCall(PetscOptionsBool("-checkpoint_keep_stages",
-                             "Full storage keeps every step's stages too, so the adjoint re-runs no step (default: "
-                             "when the buffer fits -checkpoint_keep_stages_max_mb)",
-                             "store", st->keep_stages_option, &st->keep_stages_option, &st->keep_stages_set));
-  PetscCall(PetscOptionsBool("-checkpoint_positions_only",
-                             "Leapfrog full storage keeps only the positions q of each state: half the memory; the "
-                             "model's fused kick reads them in place (else one strided copy into the stage per adjoint "
-                             "step). Explicit RK keeps only the stage records when they replace the stages (the wave "
-                             "models' L u) (0: whole states and stages, read in place; whole states always with a "
-                             "time-integrated objective)",
-                             "store", st->positions_only, &st->positions_only, nullptr));
-  PetscCall(PetscOptionsBool("-checkpoint_prefetch", "Full storage prefetches the state the next adjoint step reads",
-                             "store", st->prefetch, &st->prefetch, nullptr));
-  PetscCall(PetscOptionsBool("-checkpoint_align_slots", "Leapfrog full storage starts every state's slot on a cache line "
-                             "(padding), so that the step can write it with streaming stores", "store", st->align_slots,
-                             &st->align_slots, nullptr));
-  PetscCall(PetscOptionsReal("-checkpoint_prefetch_max_kb", "... only where a stored slot (one step's states) takes at most this "
-                             "many KB per rank", "store", st->prefetch_max_kb, &st->prefetch_max_kb, nullptr));
-  PetscCall(PetscOptionsBool("-checkpoint_stream_stores", "Leapfrog full storage writes the states with non-temporal stores (past the caches: the adjoint "
-                             "reads them much later)",
-                             "store", st->stream, &st->stream, nullptr));
-  PetscCall(PetscOptionsBool("-checkpoint_rk_compact", "Full storage of an explicit RK keeps U_k only as its step's "
-                             "first stage (one vector per step fewer, no copy)", "store", st->compact_option,
-                             &st->compact_option, nullptr));
-  PetscCall(PetscOptionsReal("-checkpoint_keep_stages_max_mb", "Largest stage-keeping buffer per rank chosen by default (MB)",
+  PetscCall(PetscOptionsReal("-checkpoint_keep_stages_max_mb",
+                             "Full storage also keeps every step's stages, so that the adjoint re-runs no step, while "
+                             "that buffer takes at most this many MB per rank (beyond it, or 0: the steps are re-run)",
                              "store", st->keep_stages_max_mb, &st->keep_stages_max_mb, nullptr));
   PetscOptionsHeadEnd();
   PetscFunctionReturn(0);

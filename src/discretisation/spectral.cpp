@@ -48,11 +48,11 @@ struct SpectralDifferentiator::Impl {
   // Every layout is this rank's block of the DMDA ordering (one rank, or y-slabs that match the
   // DMDA's): the copies in and out of the transforms are plain loops, no VecScatter.
   bool direct = false;
-  // A 1D grid of at most -spectral_replicate_max points on several ranks: every rank gathers the whole
-  // field (one MPI_Allgatherv of its owned values, real and imaginary parts interleaved, straight into
-  // a_in) and transforms all of it with serial FFTW, so it holds every mode and the backward transform
-  // needs no communication at all. FFTW-MPI's distributed 1D transform does three all-to-all transposes
-  // each way, which on small grids cost far more than the transform. Sums over modes (pairing) then
+  // A 1D grid of at most kReplicateMax points (setup's replicate_max) on several ranks: every rank
+  // gathers the whole field (one MPI_Allgatherv of its owned values, real and imaginary parts
+  // interleaved, straight into a_in) and transforms all of it with serial FFTW, so it holds every mode
+  // and the backward transform needs no communication at all. FFTW-MPI's distributed 1D transform does
+  // three all-to-all transposes each way, which on small grids cost far more than the transform. Sums over modes (pairing) then
   // take this rank's slice [pair_begin, pair_end) of them, so that their sum over the ranks counts each
   // mode once.
   bool replicated = false;
@@ -186,7 +186,7 @@ SpectralDifferentiator::~SpectralDifferentiator() = default;
 SpectralDifferentiator::SpectralDifferentiator(SpectralDifferentiator &&) noexcept = default;
 SpectralDifferentiator &SpectralDifferentiator::operator=(SpectralDifferentiator &&) noexcept = default;
 
-PetscErrorCode SpectralDifferentiator::setup(const Grid &grid, bool x_only) {
+PetscErrorCode SpectralDifferentiator::setup(const Grid &grid, bool x_only, PetscInt replicate_max) {
   static bool fftw_mpi_ready = false;
   MPI_Comm comm = grid.comm();
   PetscMPIInt size;
@@ -214,14 +214,6 @@ PetscErrorCode SpectralDifferentiator::setup(const Grid &grid, bool x_only) {
     PetscCheck(im->ny % 2 == 0, comm, PETSC_ERR_ARG_OUTOFRANGE,
                "Spectral differentiation needs an even number of points, got -da_grid_y %" PetscInt_FMT, im->ny);
   }
-  PetscInt replicate_max = 32768;
-  PetscOptionsBegin(comm, nullptr, "Spectral differentiation (FFTW)", "Spectral");
-  PetscCall(PetscOptionsInt("-spectral_replicate_max",
-                            "1D grids of up to this many points on several ranks: every rank gathers the whole field and "
-                            "transforms it serially (one MPI_Allgatherv per forward transform, no communication backward) "
-                            "instead of FFTW-MPI's distributed transform (0: always distributed)",
-                            "SpectralDifferentiator", replicate_max, &replicate_max, nullptr));
-  PetscOptionsEnd();
   ptrdiff_t alloc = 1;
   if (grid.dim() == 1 && size > 1 && im->nx <= replicate_max) {
     im->replicated = true;

@@ -494,18 +494,6 @@ public:
       PetscCall(PetscOptionsReal("-advection_ic_center_y", "gaussian, square: centre (y)", "Advection", center_[1],
                                  &center_[1], nullptr));
     }
-    PetscCall(PetscOptionsBool("-advection_fused_adjoint",
-                               "Finite differences: the transpose of dG/dU also forms the dG/dp transpose of the same "
-                               "vector at the recorded stage (RK adjoint stages apply both), else each is applied alone",
-                               "Advection", fuse_adjoint_, &fuse_adjoint_, nullptr));
-    PetscCall(PetscOptionsBool("-advection_stage_combination",
-                               "Finite differences, explicit RK adjoint: a stage's vector h W_i is formed straight into "
-                               "the ghosted copy the sweeps read (else formed first, then copied)",
-                               "Advection", fuse_combination_, &fuse_combination_, nullptr));
-    PetscCall(PetscOptionsBool("-advection_fd2_row_loop",
-                               "Field D with fd2 faces, RK adjoint stage: the transpose, faces and gradient of a row (1D: "
-                               "of the points) in one loop (else one loop per part; the same numbers)",
-                               "Advection", row_loop_, &row_loop_, nullptr));
     PetscCall(PetscOptionsReal("-advection_ic_width", "gaussian: width w of exp(-(d/w)^2); square: full width", "Advection",
                                width_, &width_, nullptr));
     PetscOptionsEnd();
@@ -1180,7 +1168,7 @@ private:
     PetscCall(MatMult(m->A_, x, y));
     PetscFunctionReturn(0);
   }
-  // y = A^T x, and with the recorded stage u (rhs_jacobian_p; -advection_fused_adjoint) also this
+  // y = A^T x, and with the recorded stage u (rhs_jacobian_p) also this
   // rank's share of (dG/dp)^T x from the same ghosted x: (dG/dv_d)^T x = -<u, D_d^T x> / h_d and a
   // scalar D's <u, B^T B x>-column, (-B^T B symmetric), kept in fused_ for jp_mult_transpose. 1D
   // without diffusion: A^T = -(a / h) D^T, so one sweep gives D^T x for both.
@@ -1190,7 +1178,7 @@ private:
     bool fuse = false;
     PetscFunctionBeginUser;
     PetscCall(MatShellGetContext(J, &m));
-    if (m->lazy_ && m->fuse_adjoint_) PetscCall(m->stage_.unchanged(&fuse));
+    if (m->lazy_) PetscCall(m->stage_.unchanged(&fuse));
     PetscCall(m->fill_ghosted(x, m->X_local_));
     PetscCall(VecGetArrayRead(m->X_local_, &xl));
     const bool field = m->diffusion_ && m->D_field_;
@@ -1784,7 +1772,7 @@ private:
 #define FLEXIPDE_FS2(WD, G)                                                                                          \
   field_stage_faces_2d_rows<WD, G>(xm, gr.ym(), stride_[1], face_D_.data(), face_D_y_.data(), grad, ip, xl + g0, U, sx, \
                                    sy, faces_.data(), faces2_.data(), R1, R2, urow_.data(), y, g, first)
-    if (WD == 2) g ? FLEXIPDE_FS2(2, true) : FLEXIPDE_FS2(2, false);
+    if (WD == 2) FLEXIPDE_FS2(2, false); // (with a gradient: fused_stage_2d_fd2)
     else g ? FLEXIPDE_FS2(4, true) : FLEXIPDE_FS2(4, false);
 #undef FLEXIPDE_FS2
   }
@@ -1839,7 +1827,7 @@ private:
     }
   }
   void fused_stage_2d(const PetscScalar *xl, const PetscScalar *u, PetscScalar *y, PetscScalar *g, PetscReal *sums) {
-    if (g && face_.width == 2 && row_loop_) {
+    if (g && face_.width == 2) {
       switch (radius_) {
       case 1: fused_stage_2d_fd2<1>(xl, u, y, g, sums); return;
       case 2: fused_stage_2d_fd2<2>(xl, u, y, g, sums); return;
@@ -1856,7 +1844,7 @@ private:
   // An explicit RK adjoint stage at state U (finite differences): y = A^T x and mu += (dG/dp)^T x in
   // one pass over the ghosted x: the velocities' -<u, D_d^T x> / h_d, a scalar D's <u, B^T B x>-column
   // (local sums, reduced once per adjoint by the Parameters), a field D's face products with u.
-  bool has_stage_adjoint() const override { return fuse_adjoint_; }
+  bool has_stage_adjoint() const override { return true; }
   PetscErrorCode stage_adjoint(PetscReal t, Vec U, const PetscScalar *, Vec x, Vec y, Vec mu) override {
     if (scheme_ == SPECTRAL) return spectral_stage_adjoint(t, U, x, y, mu);
     PetscFunctionBeginUser;
@@ -1875,7 +1863,7 @@ private:
                                            Vec mu) override {
     const bool field = diffusion_ && D_field_;
     PetscFunctionBeginUser;
-    if (scheme_ == SPECTRAL || x.m > 3 || !fuse_combination_) {
+    if (scheme_ == SPECTRAL || x.m > 3) {
       PetscCall(LinearModel::stage_adjoint_combination(t, U, record, x, y, mu));
       PetscFunctionReturn(0);
     }
@@ -1911,7 +1899,7 @@ private:
       Array Y(y);
       PetscCall(Y.error());
       PetscScalar *ya = Y.data();
-      if (nd == 1 && field && mu && face_.width == 2 && row_loop_) { // one loop (field_stage_fd2_1d)
+      if (nd == 1 && field && mu && face_.width == 2) { // one loop (field_stage_fd2_1d)
         const PetscScalar *ul;
         PetscScalar *g;
         PetscReal *z = stage_scratch_.data();
@@ -1945,8 +1933,8 @@ private:
           const PetscReal *Df = face_D_.data(), *gr = face_.grad.data(), *ip = face_.interp.data();
           const PetscReal ih2 = 1.0 / (h_[0] * h_[0]);
           PetscReal *F1 = faces_.data(), *F2 = faces2_.data();
-          if (face_.width == 2 && gD) field_stage_faces<2, true>(n, Df, gr, ip, xl + f0, ul + f0, ih2, s, F1, F2, ya, gD);
-          else if (face_.width == 2) field_stage_faces<2, false>(n, Df, gr, ip, xl + f0, ul + f0, ih2, s, F1, F2, ya, gD);
+          // (fd2 faces with a gradient: field_stage_fd2_1d above)
+          if (face_.width == 2) field_stage_faces<2, false>(n, Df, gr, ip, xl + f0, ul + f0, ih2, s, F1, F2, ya, gD);
           else if (gD) field_stage_faces<4, true>(n, Df, gr, ip, xl + f0, ul + f0, ih2, s, F1, F2, ya, gD);
           else field_stage_faces<4, false>(n, Df, gr, ip, xl + f0, ul + f0, ih2, s, F1, F2, ya, gD);
           if (g) PetscCall(VecRestoreArray(mu, &g));
@@ -1996,11 +1984,8 @@ private:
   OwnedVec dx_;
   // The stage recorded by rhs_jacobian_p (spectral 1D without diffusion, and lazy_: finite
   // differences without a field D); the record whose columns dGdv_, dGdD_ hold; J^T's fused dG/dp
-  // products (-advection_fused_adjoint) and its work array.
+  // products and its work array.
   bool lazy_ = false;
-  PetscBool fuse_adjoint_ = PETSC_TRUE;
-  PetscBool fuse_combination_ = PETSC_TRUE; // -advection_stage_combination
-  PetscBool row_loop_ = PETSC_TRUE;         // -advection_fd2_row_loop (1D and 2D)
   RecordedStage stage_;
   unsigned long columns_serial_ = 0;
   FusedProducts fused_;

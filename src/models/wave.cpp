@@ -176,22 +176,6 @@ public:
                                nullptr));
     PetscCall(PetscOptionsReal("-wave_ic_width", "Width w of the pulse exp(-((x-x_c)/w)^2)", "Wave", width_, &width_,
                                nullptr));
-    PetscCall(PetscOptionsBool("-wave_fused_adjoint",
-                               "The matrix-free transpose of dG/dU also forms the dG/dc transpose of the same vector at the "
-                               "recorded stage (RK adjoint stages apply both), else each is applied alone",
-                               "Wave", fuse_adjoint_, &fuse_adjoint_, nullptr));
-    PetscCall(PetscOptionsBool("-wave_scalar_sum_once",
-                               "A scalar c's gradient: the fused adjoint sweeps accumulate its pointwise terms over the "
-                               "whole adjoint and sum them once (else summed at every kick or stage)",
-                               "Wave", defer_scalar_, &defer_scalar_, nullptr));
-    PetscCall(PetscOptionsBool("-wave_fused_drift",
-                               "The leapfrog adjoint's drift transpose folded into the kick's sweep (second-order "
-                               "stencil, stored positions; bitwise the same result), else a pass of its own",
-                               "Wave", fuse_drift_, &fuse_drift_, nullptr));
-    PetscCall(PetscOptionsBool("-wave_spread_prefetch",
-                               "That folded sweep prefetches the next adjoint step's stored positions a cache line at "
-                               "a time as it goes, else all at once before it",
-                               "Wave", spread_prefetch_, &spread_prefetch_, nullptr));
     PetscCall(PetscOptionsReal("-wave_c_min", "Smallest admissible speed: optimisers never go below it", "Wave", c_min_,
                                &c_min_, nullptr));
     PetscOptionsEnd();
@@ -240,7 +224,7 @@ public:
   // lambda_v += drift lambda_u, then lambda_u += w D2 (c^2 lambda_v) and mu += w 2 c (D2 u) lambda_v, in
   // one sweep (wall rows of lambda_u untouched: the walls' columns are not in D2). U is a whole state or
   // u alone. The drift is folded into the interior sweep for the second-order stencil on stored
-  // positions (drift_kick_pairs; -wave_fused_drift), else applied in a pass of its own first.
+  // positions (drift_kick_pairs), else applied in a pass of its own first.
   PetscErrorCode second_order_adjoint(PetscReal, Vec U, const PetscScalar *record, Vec lambda, PetscReal w, Vec mu,
                                       PetscReal drift, const PetscScalar *prefetch) override {
     const ParamInfo &pi = params_->info(c_index_);
@@ -257,7 +241,7 @@ public:
       const PetscInt xm = grid_->xm();
       bool fold = false; // the drift folded into the interior sweep
 #if defined(FLEXIPDE_WAVE_DRIFT_KICK)
-      fold = drift != 0 && fuse_drift_ && hw_ == 1 && su == 1;
+      fold = drift != 0 && hw_ == 1 && su == 1;
 #endif
       // the drift where the sweep does not apply it: everywhere, or the points outside the plain interior
       // (among them those whose lambda_v the neighbours receive as ghosts, so they get it drifted)
@@ -267,7 +251,7 @@ public:
       }
       // the next level's positions: spread over the folded sweep (its interior lines; the few lines
       // around them here), else all at once
-      const PetscScalar *spread = fold && spread_prefetch_ ? prefetch : nullptr;
+      const PetscScalar *spread = fold ? prefetch : nullptr;
       if (spread) {
         const PetscInt tail = std::max(hi_ - 8, lo_);
         leapfrog_prefetch(prefetch, std::min(lo_ + 8, xm));
@@ -313,7 +297,7 @@ public:
   // field's gradient would be added to, and end_adjoint sums it once, instead of every kick or stage
   // writing a scratch array and summing it (the sum is linear: the same gradient up to round-off).
   void begin_adjoint() override {
-    scalar_pointwise_ = !c_field_ && defer_scalar_;
+    scalar_pointwise_ = !c_field_;
     if (scalar_pointwise_) std::fill(gacc_.begin(), gacc_.end(), 0.0);
   }
   PetscErrorCode end_adjoint(Vec mu) override {
@@ -327,7 +311,7 @@ public:
     PetscFunctionReturn(0);
   }
 
-  bool has_stage_adjoint() const override { return fuse_adjoint_; }
+  bool has_stage_adjoint() const override { return true; }
   // dG/dU is constant and dG/dc reads D2 u alone: the RHS evaluations at the stages record D2 u (0 at
   // the walls) and full storage keeps those records instead of the stages (half the memory), from which
   // the adjoint stage forms mu without a second stencil.
@@ -441,7 +425,7 @@ public:
 
   // Records the state U (RecordedStage: no copy, no sweep yet). dG_v/dc_i = 2 c_i (D2 u)_i (0 at the
   // walls) is formed when the shell is applied, or, for its transpose, by the transpose of dG/dU in
-  // its own sweep over the same vector (-wave_fused_adjoint; an RK adjoint stage applies both).
+  // its own sweep over the same vector (PETSc's RK adjoint stage applies both).
   PetscErrorCode rhs_jacobian_p(PetscReal, Vec U, Mat Jp) override {
     PetscFunctionBeginUser;
     PetscCall(stage_.record(U));
@@ -670,11 +654,11 @@ private:
     PetscFunctionReturn(0);
   }
   // y = J x, or J^T x = [D2 (c^2 x_v) ; x_u] off the walls (D2 symmetric on the interior points).
-  // J^T with a recorded stage u (-wave_fused_adjoint) also forms (dG/dc)^T x = 2 c (D2 u) x_v.
+  // J^T with a recorded stage u also forms (dG/dc)^T x = 2 c (D2 u) x_v.
   PetscErrorCode apply_jacobian(Vec x, Vec y, bool transpose) {
     bool fuse = false;
     PetscFunctionBeginUser;
-    if (transpose && fuse_adjoint_) PetscCall(stage_.unchanged(&fuse));
+    if (transpose) PetscCall(stage_.unchanged(&fuse));
     if (fuse) {
       PetscCall(fused_transpose(x, y));
       PetscFunctionReturn(0);
@@ -811,17 +795,13 @@ private:
   Halo pair_; // the adjoint sweeps' ghosts of u and lambda_v in one exchange (begin_pair)
   std::vector<PetscReal> gacc_;   // a scalar c's pointwise gradient terms during an adjoint (begin_adjoint)
   bool scalar_pointwise_ = false; // ... being accumulated there
-  PetscBool defer_scalar_ = PETSC_TRUE; // -wave_scalar_sum_once
   PetscInt hw_ = 1, lo_ = 0, hi_ = 0; // stencil half-width; owned points [lo_, hi_) take the plain sweep
   PetscReal wt_[5] = {0, 0, 0, 0, 0}; // the centred weights / h^2
   // The state recorded by rhs_jacobian_p, the record dgdc_ was formed at, and J^T's fused dG/dc
-  // transpose (-wave_fused_adjoint).
+  // transpose.
   RecordedStage stage_;
   unsigned long columns_serial_ = 0;
   FusedGradient fused_;
-  PetscBool fuse_adjoint_ = PETSC_TRUE;
-  PetscBool fuse_drift_ = PETSC_TRUE; // -wave_fused_drift
-  PetscBool spread_prefetch_ = PETSC_TRUE; // -wave_spread_prefetch
 };
 
 } // namespace

@@ -58,35 +58,13 @@ void stage_operands(PetscInt n, const PetscScalar *__restrict X, const PetscScal
   for (PetscInt i = 0; i < n; ++i) ur[i] = PetscRealPart(u[SU * i]);
 }
 
-// The interior points [k0, k1) of one row (all four neighbours owned, xm apart in y) of the RK adjoint
-// stage (Wave2DModel::stage_adjoint): y = [L (c^2 x_v) ; x_u - sigma x_v] and g = 2 c (L u) x_v, added
-// to g when ADD (a field's gradient), else written (a scalar's terms); u: a whole (u, v) state, or
-// with REC the stage's record L u itself; sigma only when SPONGE. The expressions of jmf_apply<true>
-// and jp_mult_transpose, term by term (and of rhs's L u, which made the record).
-template <bool REC, bool SPONGE, bool ADD>
-void stage_interior_row(PetscInt k0, PetscInt k1, PetscInt xm, PetscReal ax, PetscReal ay, PetscReal a0,
-                        const PetscScalar *__restrict X, const PetscScalar *__restrict u,
-                        const PetscReal *__restrict c2, const PetscReal *__restrict tc,
-                        const PetscReal *__restrict sig, PetscScalar *__restrict Y, PetscReal *__restrict g) {
-  for (PetscInt k = k0; k < k1; ++k) {
-    const PetscReal lu = REC ? PetscRealPart(u[k])
-                             : ax * (PetscRealPart(u[2 * (k - 1)]) + PetscRealPart(u[2 * (k + 1)])) +
-                                   ay * (PetscRealPart(u[2 * (k - xm)]) + PetscRealPart(u[2 * (k + xm)])) +
-                                   a0 * PetscRealPart(u[2 * k]);
-    const PetscReal xv = PetscRealPart(X[2 * k + 1]);
-    const PetscReal lz = ax * (c2[k - 1] * PetscRealPart(X[2 * (k - 1) + 1]) + c2[k + 1] * PetscRealPart(X[2 * (k + 1) + 1])) +
-                         ay * (c2[k - xm] * PetscRealPart(X[2 * (k - xm) + 1]) + c2[k + xm] * PetscRealPart(X[2 * (k + xm) + 1])) +
-                         a0 * (c2[k] * xv);
-    Y[2 * k] = lz;
-    Y[2 * k + 1] = SPONGE ? X[2 * k] - sig[k] * X[2 * k + 1] : X[2 * k];
-    if (ADD) g[k] += tc[k] * lu * xv;
-    else g[k] = tc[k] * lu * xv;
-  }
-}
-
-// The interior points [1, xm - 1) of one interior row with z = c^2 x_v of it and of the rows below and
-// above formed once per point into a ring (zm, z0, zp, contiguous: the same products stage_interior_row
-// forms at every neighbour, so the same numbers): X, Y, u, c2... point at the row's first point.
+// The interior points [1, xm - 1) of one interior row (all four neighbours owned) of the RK adjoint stage
+// (Wave2DModel::stage_adjoint): y = [L (c^2 x_v) ; x_u - sigma x_v] and g = 2 c (L u) x_v, added to g
+// when ADD (a field's gradient), else written (a scalar's terms); u: a whole (u, v) state, or with REC
+// the stage's record L u itself; sigma only when SPONGE. z = c^2 x_v of the row and of the rows below
+// and above is formed once per point into a ring (zm, z0, zp, contiguous). The expressions of
+// jmf_apply<true> and jp_mult_transpose, term by term (and of rhs's L u, which made the record).
+// X, Y, u, tc... point at the row's first point.
 template <bool REC, bool SPONGE, bool ADD>
 void stage_ring_row(PetscInt xm, PetscReal ax, PetscReal ay, PetscReal a0, const PetscReal *__restrict zm,
                     const PetscReal *__restrict z0, const PetscReal *__restrict zp, const PetscScalar *__restrict X,
@@ -163,33 +141,6 @@ public:
     PetscCall(PetscOptionsReal("-wave2d_ic_x", "Centre x of the initial pulse", "Wave2D", ic_x_, &ic_x_, nullptr));
     PetscCall(PetscOptionsReal("-wave2d_ic_y", "Centre y of the initial pulse", "Wave2D", ic_y_, &ic_y_, nullptr));
     PetscCall(PetscOptionsReal("-wave2d_ic_width", "Width of the initial pulse", "Wave2D", ic_w_, &ic_w_, nullptr));
-    PetscCall(PetscOptionsBool("-wave2d_fused_drift",
-                               "With that ring, the leapfrog adjoint's drift transpose folded into its pass (bitwise the "
-                               "same result), else a pass of its own",
-                               "Wave2D", fuse_drift_, &fuse_drift_, nullptr));
-    PetscCall(PetscOptionsBool("-wave2d_kick_ring",
-                               "The leapfrog adjoint's kick forms c^2 lambda_v once per point into a three-row ring "
-                               "(bitwise the same result), else reads it from lambda at every neighbour",
-                               "Wave2D", ring_, &ring_, nullptr));
-    PetscCall(PetscOptionsBool("-wave2d_row_loops",
-                               "G runs each row's interior points in a loop of its own that vectorises (the same "
-                               "numbers), else point by point",
-                               "Wave2D", row_loop_, &row_loop_, nullptr));
-    PetscCall(PetscOptionsBool("-wave2d_stage_ring",
-                               "The RK adjoint stage forms c^2 x_v once per point into a three-row ring (the same "
-                               "numbers), else at every neighbour from the interleaved x",
-                               "Wave2D", stage_ring_, &stage_ring_, nullptr));
-    PetscCall(PetscOptionsBool("-wave2d_perimeter_rows",
-                               "The leapfrog adjoint kick's block perimeter reads c^2 lambda_v of its first and last "
-                               "rows from rows formed once per point, and it and the RK adjoint stage take ghosts beyond "
-                               "a wall as 0 directly (the same numbers), else point by point through the ghost-aware "
-                               "accessor",
-                               "Wave2D", perimeter_rows_, &perimeter_rows_, nullptr));
-    PetscCall(PetscOptionsBool("-wave2d_stream_records",
-                               "The records of L u that full storage keeps (RK stages, leapfrog levels) are formed in "
-                               "a buffer of the block and written from it with non-temporal stores, whole cache lines "
-                               "(past the caches: the adjoint reads them much later)",
-                               "Wave2D", stream_records_, &stream_records_, nullptr));
     PetscOptionsEnd();
     PetscCheck(c_min_ > 0, grid.comm(), PETSC_ERR_ARG_OUTOFRANGE, "-wave2d_c_min must be positive, got %g",
                (double)c_min_);
@@ -281,15 +232,14 @@ public:
       PetscCall(g.error());
       PetscScalar *ga = g.data();
       const PetscReal *sig = sigma_.data(), *c2 = c2m_.data();
-      // Records to be written with non-temporal stores (-wave2d_stream_records) are formed in a buffer of
-      // the whole block first (in cache) and streamed from there in one contiguous pass after the sweep:
-      // whole cache lines, not the pieces that the interior rows and, later, the perimeter would write
-      // (a line written in parts by non-temporal stores is flushed in parts, which is slower than plain
-      // stores).
-      const bool stream = REC && stream_records_;
+      // Records (kept by full storage, read by the adjoint much later) are written with non-temporal
+      // stores, past the caches: formed in a buffer of the whole block first (in cache) and streamed from
+      // there in one contiguous pass after the sweep: whole cache lines, not the pieces that the interior
+      // rows and, later, the perimeter would write (a line written in parts by non-temporal stores is
+      // flushed in parts: measured slower than plain stores).
       const PetscInt n = grid_->local_points();
-      if (stream && rec_stage_.size() < (size_t)n) rec_stage_.resize(n);
-      PetscScalar *rec = stream ? rec_stage_.data() : record;
+      if (REC && rec_stage_.size() < (size_t)n) rec_stage_.resize(n);
+      PetscScalar *rec = REC ? rec_stage_.data() : nullptr;
       auto emit = [&](PetscInt k, PetscReal lu, const PetscScalar *u) {
         if (edge_[k]) {
           ga[2 * k] = ga[2 * k + 1] = 0;
@@ -303,13 +253,11 @@ public:
       // the block's interior rows in a loop of their own that vectorises (rhs_row)
       const PetscInt xm = grid_->xm();
       const PetscReal ax = ihx2_, ay = ihy2_, a0 = -2 * (ihx2_ + ihy2_);
-      if (row_loop_)
-        PetscCall(sweep<false>(U, emit, [&](PetscInt jl, const PetscScalar *u) {
-          rhs_row<REC>(xm, u + 2 * jl * xm, ga + 2 * jl * xm, c2 + jl * xm, sig + jl * xm, REC ? rec + jl * xm : nullptr,
-                       ax, ay, a0);
-        }));
-      else PetscCall(sweep_lap(U, emit));
-      if (stream) {
+      PetscCall(sweep<false>(U, emit, [&](PetscInt jl, const PetscScalar *u) {
+        rhs_row<REC>(xm, u + 2 * jl * xm, ga + 2 * jl * xm, c2 + jl * xm, sig + jl * xm, REC ? rec + jl * xm : nullptr,
+                     ax, ay, a0);
+      }));
+      if (REC) {
         stream_copy(record, rec, n);
         stream_fence();
       }
@@ -366,7 +314,7 @@ public:
     PetscCheck(sponge_width_ <= 0, grid_->comm(), PETSC_ERR_SUP, "wave2d: no fused leapfrog adjoint with a sponge");
     leapfrog_prefetch(prefetch, grid_->local_points()); // the next level's positions
     // the drift's transpose: folded into the kick's ring pass, or in a pass of its own first
-    const bool fold = drift != 0 && fuse_drift_ && ring_ && grid_->xm() >= 3 && grid_->ym() >= 3;
+    const bool fold = drift != 0 && grid_->xm() >= 3 && grid_->ym() >= 3;
     if (drift != 0 && !fold) {
       Array l(lambda);
       PetscCall(l.error());
@@ -418,7 +366,7 @@ public:
   }
   // The sweep of second_order_adjoint with u read at stride SU in U (2: a whole state, 1: u alone), or
   // (SU = 0, U null) with L u read from the record rec.
-  // s != 0 (with the ring, xm, ym >= 3): the drift lambda_v += s lambda_u folded in: the block's
+  // s != 0 (xm, ym >= 3): the drift lambda_v += s lambda_u folded in: the block's
   // perimeter first (the points whose lambda_v the neighbours receive), the interior points by the ring
   // pass, a row ahead of that row's kick and with its lambda_u from before it. Bitwise the same.
   template <int SU>
@@ -462,9 +410,9 @@ public:
       PetscReal *out = g ? g + pi.local_offset : gbuf_.data();
       // The products c^2 lambda_v that the transpose's stencil reads at four neighbours are formed once per
       // point, a row ahead, into a ring of three rows (contiguous, in L1), not four times from the
-      // interleaved lambda (-wave2d_kick_ring; the same products, so the same numbers: the centre's
-      // (a0 c^2) lambda_v keeps its own order).
-      if (ring_ && zring_.size() < (size_t)(3 * xm)) zring_.resize(3 * xm);
+      // interleaved lambda (the same products, so the same numbers: the centre's (a0 c^2) lambda_v keeps
+      // its own order).
+      if (zring_.size() < (size_t)(3 * xm)) zring_.resize(3 * xm);
       PetscReal *zr = zring_.data();
       auto zrow = [&](PetscInt j) {
         PetscReal *__restrict z = zr + (j % 3) * xm;
@@ -473,29 +421,16 @@ public:
       };
       auto interior = [&](auto add) {
         constexpr bool ADD = decltype(add)::value;
-        if (ring_ && ym > 2) {
+        if (ym > 2) {
           zrow(0);
           zrow(1);
         }
         for (PetscInt jl = 1; jl < ym - 1; ++jl) {
-          if (ring_) {
-            zrow(jl + 1);
-            const PetscReal *__restrict zm = zr + ((jl - 1) % 3) * xm, *__restrict z0 = zr + (jl % 3) * xm,
-                                        *__restrict zp = zr + ((jl + 1) % 3) * xm;
-            kick_row<SU, ADD>(xm, ua + (SU ? SU : 1) * jl * xm, L + 2 * jl * xm, c2 + jl * xm, tc + jl * xm, zm, z0, zp,
-                              out + jl * xm, ax, ay, a0, w);
-            continue;
-          }
-          for (PetscInt k = jl * xm + 1; k < jl * xm + xm - 1; ++k) {
-            const PetscReal lu = kick_lu<SU>(ua, k, xm, ax, ay, a0);
-            const PetscReal lz = ax * (c2[k - 1] * PetscRealPart(L[2 * (k - 1) + 1]) + c2[k + 1] * PetscRealPart(L[2 * (k + 1) + 1])) +
-                                 ay * (c2[k - xm] * PetscRealPart(L[2 * (k - xm) + 1]) + c2[k + xm] * PetscRealPart(L[2 * (k + xm) + 1])) +
-                                 a0 * c2[k] * PetscRealPart(L[2 * k + 1]);
-            L[2 * k] += w * lz;
-            const PetscReal gk = tc[k] * lu * PetscRealPart(L[2 * k + 1]);
-            if (ADD) out[k] += w * gk;
-            else out[k] = gk;
-          }
+          zrow(jl + 1);
+          const PetscReal *__restrict zm = zr + ((jl - 1) % 3) * xm, *__restrict z0 = zr + (jl % 3) * xm,
+                                      *__restrict zp = zr + ((jl + 1) % 3) * xm;
+          kick_row<SU, ADD>(xm, ua + (SU ? SU : 1) * jl * xm, L + 2 * jl * xm, c2 + jl * xm, tc + jl * xm, zm, z0, zp,
+                            out + jl * xm, ax, ay, a0, w);
         }
       };
       if (g) interior(std::true_type{});
@@ -559,9 +494,9 @@ public:
       // A field's gradient is added in place; a scalar's per-point terms are written to gbuf_ and
       // summed per row (no reduction inside the loop, which keeps it vectorised).
       PetscReal *g = gm ? gm + params_->info(c_index_).local_offset : gbuf_.data();
-      // the interior (all four neighbours owned), while the ghosts travel; with the ring (-wave2d_stage_ring)
-      // z = c^2 x_v of each row formed once, a row ahead, into three contiguous rows (zring_)
-      const bool ring = stage_ring_ && ym > 2 && xm > 2;
+      // the interior (all four neighbours owned), while the ghosts travel: z = c^2 x_v of each row formed
+      // once, a row ahead, into three contiguous rows (zring_), not at every neighbour from the interleaved x
+      const bool ring = ym > 2 && xm > 2; // (else no interior)
       if (ring && zring_.size() < (size_t)(3 * xm)) zring_.resize(3 * xm);
       PetscReal *zq = zring_.data();
       auto zrow = [&](PetscInt j) {
@@ -570,24 +505,21 @@ public:
         const PetscReal *__restrict cr = c2 + j * xm;
         for (PetscInt i = 0; i < xm; ++i) z[i] = cr[i] * PetscRealPart(xr[2 * i + 1]);
       };
-      if (ring) zrow(0), zrow(1);
-      for (PetscInt jl = 1; jl < ym - 1; ++jl) {
-        const PetscInt k0 = jl * xm + 1, k1 = jl * xm + xm - 1;
-        if (k1 <= k0) break;
-        if (ring) {
+      if (ring) {
+        zrow(0), zrow(1);
+        for (PetscInt jl = 1; jl < ym - 1; ++jl) {
+          const PetscInt r = jl * xm;
           zrow(jl + 1);
           const PetscReal *zm = zq + ((jl - 1) % 3) * xm, *z0 = zq + (jl % 3) * xm, *zp = zq + ((jl + 1) % 3) * xm;
-          const PetscInt r = jl * xm;
           const PetscScalar *ur = ua + (REC ? r : 2 * r);
           if (gm) stage_ring_row<REC, SPONGE, true>(xm, ax, ay, a0, zm, z0, zp, X + 2 * r, ur, tc + r, sig + r, Y + 2 * r, g + r);
           else stage_ring_row<REC, SPONGE, false>(xm, ax, ay, a0, zm, z0, zp, X + 2 * r, ur, tc + r, sig + r, Y + 2 * r, g + r);
-        } else if (gm) stage_interior_row<REC, SPONGE, true>(k0, k1, xm, ax, ay, a0, X, ua, c2, tc, sig, Y, g);
-        else stage_interior_row<REC, SPONGE, false>(k0, k1, xm, ax, ay, a0, X, ua, c2, tc, sig, Y, g);
-        if (!gm && mu) sum4(g, k0, k1, local);
+          if (!gm && mu) sum4(g, r + 1, r + xm - 1, local);
+        }
       }
       if (!REC) PetscCall(halo_u.end(U));
       PetscCall(halo_v_.end(x));
-      auto zg = [&](PetscInt il, PetscInt jl) { return ghost_z(il, jl, perimeter_rows_); };
+      auto zg = [&](PetscInt il, PetscInt jl) { return ghost_z(il, jl); };
       // The first and last rows whole, from their rows of z = c^2 x_v and u and those below and above
       // made contiguous with their ghosts (stage_operands; three rows of xm + 2, entry 1 + il, the two
       // ends for the ghosts; with REC the record's own row only).
@@ -701,10 +633,10 @@ private:
     return (il < 0 && walls_[0]) || (il >= grid_->xm() && walls_[1]) || (jl < 0 && walls_[2]) || (jl >= grid_->ym() && walls_[3]);
   }
   // z = c^2 v at the ghost point (il, jl) of the block (v from halo_v_, c from halo_c_): 0 at an edge point,
-  // and beyond a wall (not periodic), where the halo holds 0, c too; with `walls`
-  // (-wave2d_perimeter_rows) such a ghost is 0 without reading the halo, the same number.
-  PetscReal ghost_z(PetscInt il, PetscInt jl, bool walls) const {
-    if (walls && beyond_wall(il, jl)) return 0.0;
+  // and beyond a wall (not periodic), where the halo holds 0, c too: such a ghost is 0 without reading the
+  // halo, the same number.
+  PetscReal ghost_z(PetscInt il, PetscInt jl) const {
+    if (beyond_wall(il, jl)) return 0.0;
     if (edge_point(grid_->xs() + il, grid_->ys() + jl)) return 0.0;
     const PetscReal c = PetscRealPart(halo_c_(il, jl));
     return c * c * PetscRealPart(halo_v_(il, jl));
@@ -721,7 +653,7 @@ private:
       return PetscRealPart(inside(il, jl) ? ua[SU * (jl * xm + il)] : halo_u(il, jl));
     };
     auto zat = [&](PetscInt il, PetscInt jl) {
-      return inside(il, jl) ? c2[jl * xm + il] * PetscRealPart(V[2 * (jl * xm + il) + 1]) : ghost_z(il, jl, perimeter_rows_);
+      return inside(il, jl) ? c2[jl * xm + il] * PetscRealPart(V[2 * (jl * xm + il) + 1]) : ghost_z(il, jl);
     };
     // (SU = 0: ua is the record L u, 0 on the edges)
     auto lu_at = [&](PetscInt il, PetscInt jl, PetscInt k) {
@@ -729,16 +661,9 @@ private:
              : edge_[k] ? 0.0
                         : ax * (uat(il - 1, jl) + uat(il + 1, jl)) + ay * (uat(il, jl - 1) + uat(il, jl + 1)) + a0 * uat(il, jl);
     };
-    if (!perimeter_rows_)
-      return for_perimeter([&](PetscInt il, PetscInt jl) {
-        const PetscInt k = jl * xm + il;
-        const PetscReal lz = ax * (zat(il - 1, jl) + zat(il + 1, jl)) + ay * (zat(il, jl - 1) + zat(il, jl + 1)) + a0 * zat(il, jl);
-        f(k, lu_at(il, jl, k), lz);
-        return PetscErrorCode(0);
-      });
-    // -wave2d_perimeter_rows: the same numbers in for_perimeter's order, z of the first and last rows and of
-    // the rows beyond them formed once per point into three rows of xm + 2 (entry 1 + il, the ends for the
-    // ghosts: ghost_z only where a point is not owned), the columns between them reading owned z directly
+    // In for_perimeter's order: z of the first and last rows and of the rows beyond them formed once per
+    // point into three rows of xm + 2 (entry 1 + il, the ends for the ghosts: ghost_z only where a point is
+    // not owned), the columns between them reading owned z directly
     const PetscInt ym = grid_->ym(), w = xm + 2;
     if (pbuf_.size() < (size_t)(3 * w)) pbuf_.resize(3 * w);
     PetscReal *zb = pbuf_.data();
@@ -752,7 +677,7 @@ private:
         else if (beyond_wall(0, j)) // (a row of ghosts beyond a wall: ghost_z's 0)
           for (PetscInt il = 0; il < xm; ++il) z[il] = 0.0;
         else
-          for (PetscInt il = 0; il < xm; ++il) z[il] = ghost_z(il, j, true);
+          for (PetscInt il = 0; il < xm; ++il) z[il] = ghost_z(il, j);
         if (d == 0) z[-1] = zat(-1, j), z[xm] = zat(xm, j);
       }
       const PetscReal *zm = zb + 1, *z0 = zb + w + 1, *zp = zb + 2 * w + 1;
@@ -929,16 +854,10 @@ private:
   DM dm_ = nullptr;
   Parameters *params_ = nullptr;
   PetscBool c_field_ = PETSC_FALSE;
-  PetscBool ring_ = PETSC_TRUE;   // -wave2d_kick_ring
-  PetscBool stage_ring_ = PETSC_TRUE; // -wave2d_stage_ring
-  PetscBool perimeter_rows_ = PETSC_TRUE; // -wave2d_perimeter_rows
-  mutable std::vector<PetscReal> pbuf_;   // its three rows of z
+  mutable std::vector<PetscReal> pbuf_;   // perimeter_laps' three rows of z
   bool walls_[4] = {false, false, false, false}; // a wall beyond this block's left, right, lower, upper side
-  PetscBool fuse_drift_ = PETSC_TRUE; // -wave2d_fused_drift
-  PetscBool stream_records_ = PETSC_TRUE; // -wave2d_stream_records
-  PetscBool row_loop_ = PETSC_TRUE;       // -wave2d_row_loops (G; the kick's ring pass always runs by rows)
   std::vector<PetscScalar> rec_stage_;    // rhs_sweep's records of the block, to be streamed
-  std::vector<PetscReal> zring_;  // its three rows
+  std::vector<PetscReal> zring_;  // the kick's and the RK stage's ring of three rows of z = c^2 v
   PetscInt ic_ = 0, c_index_ = -1;
   PetscReal c_min_ = 0.01, cmax_ = 0, sponge_width_ = 0.15, sigma_max_ = 60.0;
   PetscReal ic_x_ = 0.5, ic_y_ = 0.5, ic_w_ = 0.05;
