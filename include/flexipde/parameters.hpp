@@ -18,9 +18,9 @@ struct ParamInfo {
   ParamKind kind;
   PetscInt local_offset = 0; // position of this parameter's first local entry in the packed local array
   PetscInt local_size = 0;
-  PetscInt global_start = 0; // global index of its first entry (a scalar: the same on every rank)
   PetscReal lower = PETSC_NINFINITY; // physical lower bound declared by the model (e.g. a speed > 0)
   PetscReal initial = 1.0;           // value when the options give none (the model's default)
+  PetscInt global_start = 0;         // global index of its first entry (a scalar: the same on every rank)
 };
 
 class Parameters {

@@ -4,7 +4,9 @@
 namespace flexipde {
 
 PetscInt Parameters::add(const std::string &name, ParamKind kind, PetscReal lower, PetscReal initial) {
-  info_.push_back({name, kind, 0, 0, lower, initial});
+  ParamInfo pi;
+  pi.name = name, pi.kind = kind, pi.lower = lower, pi.initial = initial;
+  info_.push_back(pi);
   return static_cast<PetscInt>(info_.size()) - 1;
 }
 
