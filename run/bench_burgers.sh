@@ -16,7 +16,9 @@
 # storing the trajectory, then the adjoint) after one untimed gradient and prints their medians. The
 # table gives the median over the rounds of those per-process medians, and their range; the ratios
 # are formed within each process (gradient/forward) or within each round (flexipde / reference), then
-# summarised the same way. J and ||dJ/dnu|| of flexipde's RK4 and of the reference must agree to 1e-10.
+# summarised the same way; a line after the table gives flexipde / reference on each process's fastest
+# repetition as well (short runs on a loaded machine lose whole time slices to other processes). J and
+# ||dJ/dnu|| of flexipde's RK4 and of the reference must agree to 1e-10 (else the script exits 1).
 #
 #   bash run/bench_burgers.sh                                    # markdown on stdout, logs in $OUT
 #   ROUNDS=5 REPS=11 bash run/bench_burgers.sh
@@ -40,6 +42,8 @@ mkdir -p "$OUT"
 MPIEXEC=${MPIEXEC:-mpiexec}
 [ "$(id -u)" = 0 ] && MPIEXEC="$MPIEXEC --allow-run-as-root"
 [ -x "$FLEXIPDE" ] || { echo "bench_burgers: $FLEXIPDE not found (build first: bash run/build.sh)" >&2; exit 1; }
+# a copy, so that a rebuild of the build directory during the rounds cannot mix two binaries
+cp "$FLEXIPDE" "$OUT/flexipde"
 
 # portable, as flexipde's own build (no -march=native)
 $CC -O3 -march=x86-64 -o "$OUT/reference_burgers" "$here/reference_burgers.c" -lm
@@ -53,12 +57,12 @@ n4096_field  4096 2e-5 0.05 1e-3 1.5e-3 1"
 flexipde() { # name N dt T nu nu_true field reps ts-options...
   local n=$2 dt=$3 T=$4 nu=$5 nut=$6 field=$7 reps=$8
   shift 8
-  $MPIEXEC -n 1 "$FLEXIPDE" -model burgers -task gradient -da_grid_x "$n" -ts_dt "$dt" -ts_max_time "$T" \
+  $MPIEXEC -n 1 "$OUT/flexipde" -model burgers -task gradient -da_grid_x "$n" -ts_dt "$dt" -ts_max_time "$T" \
     -burgers_nu "$nu" -true_burgers_nu "$nut" -burgers_nu_field "$field" -timing_repeats "$reps" "$@" </dev/null # mpiexec would read the scene list
 }
 
 {
-  echo "flexipde: $FLEXIPDE"
+  echo "flexipde: $FLEXIPDE ($(date -u -r "$FLEXIPDE" +%Y-%m-%dT%H:%MZ), sha256 $(sha256sum "$OUT/flexipde" | cut -c1-12))"
   echo "measured: $(date -u +%Y-%m-%dT%H:%MZ) on $(nproc) cores, load average $(cut -d' ' -f1-3 /proc/loadavg)"
   echo "setup: $ROUNDS rounds, $REPS repetitions per process$([ "$CN" = 1 ] && echo " ($CN_REPS for CN)")"
 } > "$OUT/about.txt"
