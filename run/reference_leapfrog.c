@@ -27,16 +27,7 @@
 #include <string.h>
 #include <time.h>
 
-static double now(void) {
-  struct timespec t;
-  clock_gettime(CLOCK_MONOTONIC, &t);
-  return t.tv_sec + 1e-9 * t.tv_nsec;
-}
-
-static int cmp(const void *a, const void *b) {
-  double x = *(const double *)a, y = *(const double *)b;
-  return (x > y) - (x < y);
-}
+#include "reference_common.h"
 
 /* out = D2 u (interior; zero at the walls), h2 = 1/h^2 */
 static void d2(int n, const double *u, double *out, double h2) {

@@ -19,16 +19,7 @@
 #include <string.h>
 #include <time.h>
 
-static double now(void) {
-  struct timespec t;
-  clock_gettime(CLOCK_MONOTONIC, &t);
-  return t.tv_sec + 1e-9 * t.tv_nsec;
-}
-
-static int cmp(const void *a, const void *b) {
-  double x = *(const double *)a, y = *(const double *)b;
-  return (x > y) - (x < y);
-}
+#include "reference_common.h"
 
 /* L u at interior point (i, j) of an n x n array, h2 = 1/h^2 */
 #define LAP(u, i, j) (((u)[(j) * n + (i) - 1] + (u)[(j) * n + (i) + 1] + (u)[((j) - 1) * n + (i)] + (u)[((j) + 1) * n + (i)] - 4 * (u)[(j) * n + (i)]) * h2)

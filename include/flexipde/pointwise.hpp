@@ -385,20 +385,25 @@ public:
     PetscFunctionReturn(0);
   }
 
-  // mu += w (dG/dp)^T-sums held in gk: fields in place, scalars summed (collective).
-  PetscErrorCode jacobian_p_transpose(PetscReal t, Vec Uloc, Vec x, Vec mu, PetscReal w, bool in_adjoint) {
+  // The gather from x's ghosted copy in Xl_ at the state Uloc into y (null: none) and, unless mu is
+  // null, mu += w (dG/dp)^T x: a field's entries in place, a scalar's pointwise terms into its
+  // accumulator if `defer` (the integrators' own sweeps during an adjoint solve; end_adjoint sums
+  // them), else summed now (collective; the shells, whose products PETSc scales after the fact).
+  template <int CLO = 0, int CHI = C, int YLO = 0, int YHI = C>
+  PetscErrorCode transpose(PetscReal t, Vec Uloc, Vec y, bool add_y, PetscReal w, Vec mu, bool defer) {
     PetscFunctionBeginUser;
-    PetscCall(to_local(x, Xl_));
-    PetscScalar *m;
-    PetscCall(VecGetArray(mu, &m));
     {
       ConstArray xa(Xl_);
+      PetscScalar *ya = nullptr, *m = nullptr;
+      if (y) PetscCall(VecGetArray(y, &ya));
+      if (mu) PetscCall(VecGetArray(mu, &m));
       PetscReal *gk[NP > 0 ? NP : 1] = {};
-      fill_gradient_targets(m, in_adjoint, gk);
-      PetscCall(gather(t, Uloc, xa.data(), nullptr, false, w, gk));
+      if (mu) fill_gradient_targets(m, defer, gk);
+      PetscCall((gather<CLO, CHI, YLO, YHI>(t, Uloc, xa.data(), ya, add_y, w, mu ? gk : nullptr)));
+      if (mu) PetscCall(VecRestoreArray(mu, &m));
+      if (y) PetscCall(VecRestoreArray(y, &ya));
     }
-    PetscCall(VecRestoreArray(mu, &m));
-    if (!in_adjoint) PetscCall(flush_scratch_scalars(mu));
+    if (mu && !defer) PetscCall(flush_scratch_scalars(mu));
     PetscFunctionReturn(0);
   }
 
@@ -456,18 +461,7 @@ public:
     PetscFunctionBeginUser;
     PetscCall(to_local(U, Ul_));
     PetscCall(to_local(x, Xl_));
-    {
-      ConstArray xa(Xl_);
-      Array ya(y);
-      PetscCall(ya.error());
-      PetscScalar *m = nullptr;
-      if (mu) PetscCall(VecGetArray(mu, &m));
-      PetscReal *gk[NP > 0 ? NP : 1] = {};
-      if (mu) fill_gradient_targets(m, in_adjoint_, gk);
-      PetscCall(gather(t, Ul_, xa.data(), ya.data(), false, 1.0, mu ? gk : nullptr));
-      if (mu) PetscCall(VecRestoreArray(mu, &m));
-    }
-    if (mu && !in_adjoint_) PetscCall(flush_scratch_scalars(mu));
+    PetscCall(transpose(t, Ul_, y, false, 1.0, mu, in_adjoint_));
     PetscFunctionReturn(0);
   }
 
@@ -486,18 +480,7 @@ public:
         leapfrog_drift_transpose(l.data(), 0, grid_->local_points(), m, drift);
       }
       PetscCall(to_local(lambda, Xl_));
-      {
-        ConstArray xa(Xl_);
-        Array l(lambda);
-        PetscCall(l.error());
-        PetscScalar *mm = nullptr;
-        if (mu) PetscCall(VecGetArray(mu, &mm));
-        PetscReal *gk[NP > 0 ? NP : 1] = {};
-        if (mu) fill_gradient_targets(mm, in_adjoint_, gk);
-        PetscCall((gather<m, 2 * m, 0, m>(t, Ul_, xa.data(), l.data(), true, w, mu ? gk : nullptr)));
-        if (mu) PetscCall(VecRestoreArray(mu, &mm));
-      }
-      if (mu && !in_adjoint_) PetscCall(flush_scratch_scalars(mu, w));
+      PetscCall((transpose<m, 2 * m, 0, m>(t, Ul_, lambda, true, w, mu, in_adjoint_)));
     }
     PetscFunctionReturn(0);
   }
@@ -662,7 +645,7 @@ private:
       }
     }
   }
-  PetscErrorCode flush_scratch_scalars(Vec mu, PetscReal = 1.0) {
+  PetscErrorCode flush_scratch_scalars(Vec mu) {
     PetscFunctionBeginUser;
     for (int k = 0; k < NP; ++k)
       if (index_[k] >= 0 && params_->info(index_[k]).kind == ParamKind::Scalar && !scratch_scalar_[k].empty()) {
@@ -807,12 +790,7 @@ private:
     PetscFunctionBeginUser;
     PetscCall(MatShellGetContext(A, &m));
     PetscCall(m->to_local(x, m->Xl_));
-    {
-      ConstArray xa(m->Xl_);
-      Array ya(y);
-      PetscCall(ya.error());
-      PetscCall(m->gather(0, m->Ul_, xa.data(), ya.data(), false, 1.0, nullptr));
-    }
+    PetscCall(m->transpose(0, m->Ul_, y, false, 1.0, nullptr, false));
     PetscFunctionReturn(0);
   }
   static PetscErrorCode jp_mult(Mat A, Vec dp, Vec y) {
@@ -827,7 +805,8 @@ private:
     PetscFunctionBeginUser;
     PetscCall(MatShellGetContext(A, &m));
     PetscCall(VecSet(mu, 0.0));
-    PetscCall(m->jacobian_p_transpose(m->jp_t_, m->Jp_state_, x, mu, 1.0, false));
+    PetscCall(m->to_local(x, m->Xl_));
+    PetscCall(m->transpose(m->jp_t_, m->Jp_state_, nullptr, false, 1.0, mu, false));
     PetscFunctionReturn(0);
   }
 
