@@ -9,7 +9,9 @@
 // lower one never below the physical bound the model declares, e.g. -wave_c_min;
 // BLMVM is the default -tao_type, LMVM and the rest of TAO via -tao_type). The history records
 // per iteration the objective, the gradient norm and, when the true parameters are known, the
-// parameter RMSE sqrt(mean((p - p_true)^2)). -inv_scan N (one scalar parameter) first evaluates J at
+// parameter RMSE sqrt(mean((p - p_true)^2)). -inv_frtol r adds scipy L-BFGS-B's stop on a small relative
+// decrease of the objective, (f_k - f_{k+1}) / max(|f_k|, |f_{k+1}|, 1) <= r, to TAO's own tests (which
+// look at the gradient only). -inv_scan N (one scalar parameter) first evaluates J at
 // N points between the bounds and polishes its best local minima (-inv_scan_starts, default 3),
 // keeping the lowest objective: a terminal snapshot of a wave gives an objective with several
 // nearly equal minima (cycle skipping), and a scan is the honest cure for one unknown.
@@ -50,6 +52,7 @@ public:
 private:
   static PetscErrorCode form_function_gradient(Tao, Vec, PetscReal *, Vec, void *);
   static PetscErrorCode monitor(Tao, void *);
+  static PetscErrorCode convergence_test(Tao, void *);
   PetscErrorCode tikhonov(Vec p, PetscReal *R, Vec g);
   PetscErrorCode scan(Vec p, std::vector<PetscReal> &starts);
   PetscErrorCode resume(Vec p);
@@ -73,6 +76,7 @@ private:
   PetscReal alpha_ = 0, lower_value_ = PETSC_NINFINITY, upper_value_ = PETSC_INFINITY, last_misfit_ = 0;
   PetscInt evaluations_ = 0, scan_ = 0, scan_starts_ = 3;
   PetscReal scan_start_ = 0;
+  PetscReal frtol_ = 0, previous_f_ = PETSC_MAX_REAL; // -inv_frtol, and the last iteration's objective
   TaoConvergedReason reason_ = TAO_CONTINUE_ITERATING;
   PetscInt iterations_ = 0;
   std::vector<HistoryEntry> history_;
