@@ -62,7 +62,7 @@ def notebook_table(d):
         J = float(np.asarray(f["gradient/J"]).ravel()[0])
         g = np.asarray(f["gradient/dJdp"]).ravel()
     cmd = command(d, "notebook_linear_gradient")
-    rows.append(("linear case: initial loss ||u - d||", NOTEBOOK["loss"], "%.6f" % J, cmd))
+    rows.append(("linear case: initial loss J = norm of u(T) - d", NOTEBOOK["loss"], "%.6f" % J, cmd))
     rows.append(("linear case: gradient norm", NOTEBOOK["gnorm"], "%.6f" % np.linalg.norm(g), cmd))
     rows.append(("linear case: gradient range", NOTEBOOK["grange"], "[%.6f, %.6f]" % (g.min(), g.max()), cmd))
     if os.path.exists(p("notebook_constant_gradient")):

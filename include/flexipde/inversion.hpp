@@ -16,9 +16,9 @@
 // keeping the lowest objective: a terminal snapshot of a wave gives an objective with several
 // nearly equal minima (cycle skipping), and a scan is the honest cure for one unknown.
 //
-// Restart: with a checkpoint file set (the driver uses its -output file), every iteration rewrites
-// it with /restart/p (the iterate), /restart/iteration and /history (written to <file>.part, then
-// renamed, so an interrupted run leaves the last complete snapshot). -inv_restart <file> starts
+// Restart: with a checkpoint file set (the driver uses its -output file), every iteration (every N with
+// -inv_checkpoint_every N) rewrites it with /restart/p (the iterate), /restart/iteration and /history
+// (written to <file>.part, then renamed, so an interrupted run leaves the last complete snapshot). -inv_restart <file> starts
 // from that iterate and continues the history and the iteration count; the quasi-Newton memory
 // starts afresh (TAO keeps no state in the file).
 #pragma once
@@ -58,7 +58,7 @@ private:
   PetscErrorCode resume(Vec p);
 
 public:
-  // Every iteration rewrites `file` with the restart snapshot (empty: off).
+  // Every iteration (every -inv_checkpoint_every) rewrites `file` with the restart snapshot (empty: off).
   void set_checkpoint_file(const std::string &file) { checkpoint_file_ = file; }
   // Writes /restart/p, /restart/iteration and /history into an open writer.
   PetscErrorCode write_restart(class H5Writer &w, Vec p) const;
@@ -68,6 +68,7 @@ private:
   PetscErrorCode write_checkpoint(Vec p) const;
   std::string checkpoint_file_, restart_file_;
   PetscInt iteration_offset_ = 0;
+  PetscInt checkpoint_every_ = 1; // -inv_checkpoint_every
 
   Scene *scene_ = nullptr;
   OwnedTao tao_;

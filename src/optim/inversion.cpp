@@ -28,6 +28,10 @@ PetscErrorCode Inversion::setup(Scene &scene, Vec p_true) {
                             "Inversion", scan_, &scan_, nullptr));
   PetscCall(PetscOptionsInt("-inv_scan_starts", "With -inv_scan: number of scan minima polished by TAO; the lowest "
                             "objective wins", "Inversion", scan_starts_, &scan_starts_, nullptr));
+  PetscCall(PetscOptionsInt("-inv_checkpoint_every", "With a results file (the driver's -output): rewrite its restart "
+                            "snapshot every N iterations instead of every one (a snapshot costs an HDF5 file on every "
+                            "rank's communicator, more than a fast scene's gradient)",
+                            "Inversion", checkpoint_every_, &checkpoint_every_, nullptr));
   PetscCall(PetscOptionsReal("-inv_frtol", "Also stop (CONVERGED_USER) when an iteration lowers the objective by at most "
                              "this times max(|f_k|, |f_k+1|, 1), scipy L-BFGS-B's ftol (0: off)", "Inversion", frtol_,
                              &frtol_, nullptr));
@@ -46,6 +50,8 @@ PetscErrorCode Inversion::setup(Scene &scene, Vec p_true) {
   PetscCheck(tv_ >= 0 && tv_eps_ > 0, comm, PETSC_ERR_ARG_OUTOFRANGE,
              "-inv_tv must be non-negative and -inv_tv_eps positive, got %g and %g", (double)tv_, (double)tv_eps_);
   PetscCheck(alpha_ >= 0, comm, PETSC_ERR_ARG_OUTOFRANGE, "-inv_tikhonov must be non-negative, got %g", (double)alpha_);
+  PetscCheck(checkpoint_every_ >= 1, comm, PETSC_ERR_ARG_OUTOFRANGE, "-inv_checkpoint_every must be positive, got %" PetscInt_FMT,
+             checkpoint_every_);
   PetscCheck(frtol_ >= 0, comm, PETSC_ERR_ARG_OUTOFRANGE, "-inv_frtol must be non-negative, got %g", (double)frtol_);
   PetscCheck(lower_value_ < upper_value_, comm, PETSC_ERR_ARG_OUTOFRANGE,
              "Inverted bounds: -inv_lower %g is not below -inv_upper %g", (double)lower_value_, (double)upper_value_);
@@ -189,7 +195,8 @@ PetscErrorCode Inversion::monitor(Tao tao, void *ctx) {
   PetscCall(inv->rmse(x, &e));
   if (inv->iteration_offset_ > 0 && it == 0) PetscFunctionReturn(0); // the resumed iterate is already recorded
   inv->history_.push_back({it + inv->iteration_offset_, f, inv->last_misfit_, gnorm, e});
-  if (!inv->checkpoint_file_.empty()) PetscCall(inv->write_checkpoint(x));
+  if (!inv->checkpoint_file_.empty() && (it + inv->iteration_offset_) % inv->checkpoint_every_ == 0)
+    PetscCall(inv->write_checkpoint(x));
   PetscFunctionReturn(0);
 }
 
