@@ -84,7 +84,7 @@ $MPI $BIN -task gradient $LINEAR $RECEIVERS -survey_data_write results/fwi_recei
 $MPI $BIN -task invert $LINEAR $RECEIVERS -survey_data_file results/fwi_receivers_data.h5 -tao_max_it ${RECEIVER_IT:-100} \
   $SNAPSHOT -output results/fwi_receivers_blmvm.h5 | tee results/fwi_receivers_blmvm.log | grep -v " TAO, "
 
-log "Case 4: 2D layered model with a slow disc, 4 shots, 40 receivers, sponge, BLMVM + TV (examples/fwi_2d)"
+log "Case 4: 2D layered model with a slow disc, 4 shots, 48 receivers, sponge, BLMVM + TV (examples/fwi_2d)"
 $MPI build/fwi_2d -tao_max_it ${FWI2D_IT:-40} -output results/fwi_2d.h5 | tee results/fwi_2d.log | grep -v " TAO, "
 "$PYTHON" run/plot_fwi_2d.py results/fwi_2d.h5 results/fwi_2d
 

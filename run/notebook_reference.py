@@ -10,10 +10,12 @@ giving u^2 .. u^5001. Objective J(c) = ||u^5001 - d|| (the norm, not its square)
 
 The gradient is a hand-written reverse sweep of the recurrence, checked here by the complex step
 on a few entries. Optional optimisers reproduce the notebook's runs: optax's Adam
-(-adam ITER, lr 1e-3, b1 0.9, b2 0.999, eps 1e-8) and scipy's L-BFGS-B.
+(--adam ITER, lr 1e-3, b1 0.9, b2 0.999, eps 1e-8) and scipy's L-BFGS-B.
 
     /usr/bin/python3 run/notebook_reference.py               # losses, gradients, complex-step checks
     /usr/bin/python3 run/notebook_reference.py --adam 1000   # + Adam, constant and linear cases
+    /usr/bin/python3 run/notebook_reference.py --adam 1000 --perturb 5
+                     # + 5 linear Adam runs whose gradients are multiplied by 1 + 1e-12 N(0, 1)
     /usr/bin/python3 run/notebook_reference.py --lbfgs       # + L-BFGS-B on the linear case
 """
 import argparse
@@ -101,13 +103,16 @@ def complex_step(c, d, x, dx, index=None, h=1e-30):
     return loss(cc, d, x, dx).imag / h
 
 
-def adam(c, d, x, dx, iterations, lr=1e-3, b1=0.9, b2=0.999, eps=1e-8, scalar=False, log=None):
-    """optax.adam: m, v moments, bias-corrected, update -lr mhat / (sqrt(vhat) + eps)."""
+def adam(c, d, x, dx, iterations, lr=1e-3, b1=0.9, b2=0.999, eps=1e-8, scalar=False, log=None, noise=None):
+    """optax.adam: m, v moments, bias-corrected, update -lr mhat / (sqrt(vhat) + eps). noise: a numpy
+    Generator; each gradient is then multiplied by 1 + 1e-12 N(0, 1) (a round-off-sized change)."""
     c = np.array(c, dtype=float)
     m = np.zeros_like(c)
     v = np.zeros_like(c)
     for t in range(1, iterations + 1):
         J, g = loss_and_gradient(c, d, x, dx, scalar=scalar)
+        if noise is not None:
+            g = g * (1 + 1e-12 * noise.standard_normal(np.shape(g)))
         m = b1 * m + (1 - b1) * g
         v = b2 * v + (1 - b2) * g * g
         mhat = m / (1 - b1 ** t)
@@ -125,7 +130,10 @@ def rmse(a, b):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--adam", type=int, default=0, help="Adam iterations on both cases (0: none)")
-    ap.add_argument("--lbfgs", action="store_true", help="scipy L-BFGS-B on the linear case (gtol 1e-5)")
+    ap.add_argument("--perturb", type=int, default=0,
+                    help="with --adam: that many more linear Adam runs with gradients perturbed by 1e-12 (seeds 1..K)")
+    ap.add_argument("--lbfgs", action="store_true",
+                    help="scipy L-BFGS-B on the linear case: gtol 1e-5 alone, and tol=1e-5 (ftol and gtol)")
     args = ap.parse_args()
     x, dx = grid()
     ok = True
@@ -163,13 +171,19 @@ def main():
         t0 = time.time()
         cL = adam(c0, d, x, dx, args.adam, log=100)
         print(f"linear, Adam {args.adam}: RMSE = {rmse(cL, c_true):.6f}   (notebook: 0.016962)  [{time.time() - t0:.0f} s]")
+        for seed in range(1, args.perturb + 1):
+            cP = adam(c0, d, x, dx, args.adam, noise=np.random.default_rng(seed))
+            print(f"linear, Adam {args.adam}, gradients perturbed by 1e-12 (seed {seed}): RMSE = {rmse(cP, c_true):.6f}",
+                  flush=True)
     if args.lbfgs:
         from scipy.optimize import minimize
-        t0 = time.time()
-        res = minimize(lambda c: loss_and_gradient(c, d, x, dx), c0, jac=True, method="L-BFGS-B",
-                       options={"gtol": 1e-5, "maxiter": 1000})
-        print(f"linear, L-BFGS-B: {res.nit} iterations, {res.nfev} evaluations, J = {res.fun:.3e}, "
-              f"RMSE = {rmse(res.x, c_true):.6f}   (notebook: 0.014198)  [{time.time() - t0:.0f} s]")
+        fg = lambda c: loss_and_gradient(c, d, x, dx)
+        for label, kw in [("gtol 1e-5, at most 1000 iterations", dict(options={"gtol": 1e-5, "maxiter": 1000})),
+                          ("tol=1e-5 (ftol and gtol)", dict(tol=1e-5))]:
+            t0 = time.time()
+            res = minimize(fg, c0, jac=True, method="L-BFGS-B", **kw)
+            print(f"linear, L-BFGS-B {label}: {res.nit} iterations, {res.nfev} evaluations, J = {res.fun:.3e}, "
+                  f"RMSE = {rmse(res.x, c_true):.6f}   (notebook: 0.014198)  [{time.time() - t0:.0f} s]")
     print("reference: " + ("ok" if ok else "MISMATCH"))
     return 0 if ok else 1
 

@@ -240,7 +240,7 @@ public:
     lo_ = hw_;
     hi_ = xm - hw_;
     if (!grid.periodic()) {
-      const PetscInt end = boundary_ == ZeroOutside ? 0 : 1; // the first point the stencil may not read
+      const PetscInt end = boundary_ == ZeroOutside ? 0 : 1; // end points the plain stencil must not read (walls)
       lo_ = std::max(lo_, hw_ + end - xs);
       hi_ = std::min(hi_, n - end - hw_ - xs);
     }
