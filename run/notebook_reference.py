@@ -103,9 +103,11 @@ def complex_step(c, d, x, dx, index=None, h=1e-30):
     return loss(cc, d, x, dx).imag / h
 
 
-def adam(c, d, x, dx, iterations, lr=1e-3, b1=0.9, b2=0.999, eps=1e-8, scalar=False, log=None, noise=None):
+def adam(c, d, x, dx, iterations, lr=1e-3, b1=0.9, b2=0.999, eps=1e-8, scalar=False, log=None, noise=None,
+         truth=None):
     """optax.adam: m, v moments, bias-corrected, update -lr mhat / (sqrt(vhat) + eps). noise: a numpy
-    Generator; each gradient is then multiplied by 1 + 1e-12 N(0, 1) (a round-off-sized change)."""
+    Generator; each gradient is then multiplied by 1 + 1e-12 N(0, 1) (a round-off-sized change). log: print
+    J (and the RMSE against truth) of iterate k every log iterations, numbered as TAO numbers them."""
     c = np.array(c, dtype=float)
     m = np.zeros_like(c)
     v = np.zeros_like(c)
@@ -118,8 +120,9 @@ def adam(c, d, x, dx, iterations, lr=1e-3, b1=0.9, b2=0.999, eps=1e-8, scalar=Fa
         mhat = m / (1 - b1 ** t)
         vhat = v / (1 - b2 ** t)
         c = c - lr * mhat / (np.sqrt(vhat) + eps)
-        if log and (t % log == 0 or t == 1):
-            print(f"  adam {t:5d}: J = {J:.6e}", flush=True)
+        if log and (t - 1) % log == 0:
+            e = f", RMSE = {rmse(c, truth):.6f}" if truth is not None else ""
+            print(f"  adam {t - 1:5d}: J = {J:.6e}{e}", flush=True)
     return c
 
 
@@ -169,10 +172,10 @@ def main():
         cA = adam(0.8, dc, x, dx, args.adam, scalar=True, log=100)
         print(f"constant, Adam {args.adam}: c = {float(cA):.6f}   (notebook: 0.999937)  [{time.time() - t0:.0f} s]")
         t0 = time.time()
-        cL = adam(c0, d, x, dx, args.adam, log=100)
+        cL = adam(c0, d, x, dx, args.adam, log=100, truth=c_true)
         print(f"linear, Adam {args.adam}: RMSE = {rmse(cL, c_true):.6f}   (notebook: 0.016962)  [{time.time() - t0:.0f} s]")
         for seed in range(1, args.perturb + 1):
-            cP = adam(c0, d, x, dx, args.adam, noise=np.random.default_rng(seed))
+            cP = adam(c0, d, x, dx, args.adam, noise=np.random.default_rng(seed), log=100, truth=c_true)
             print(f"linear, Adam {args.adam}, gradients perturbed by 1e-12 (seed {seed}): RMSE = {rmse(cP, c_true):.6f}",
                   flush=True)
     if args.lbfgs:

@@ -29,8 +29,8 @@ PetscErrorCode Inversion::setup(Scene &scene, Vec p_true) {
   PetscCall(PetscOptionsInt("-inv_scan_starts", "With -inv_scan: number of scan minima polished by TAO; the lowest "
                             "objective wins", "Inversion", scan_starts_, &scan_starts_, nullptr));
   PetscCall(PetscOptionsInt("-inv_checkpoint_every", "With a results file (the driver's -output): rewrite its restart "
-                            "snapshot every N iterations instead of every one (a snapshot costs an HDF5 file on every "
-                            "rank's communicator, more than a fast scene's gradient)",
+                            "snapshot every N iterations instead of every one (each snapshot writes an HDF5 file, which "
+                            "can cost more than a fast scene's gradient)",
                             "Inversion", checkpoint_every_, &checkpoint_every_, nullptr));
   PetscCall(PetscOptionsReal("-inv_frtol", "Also stop (CONVERGED_USER) when an iteration lowers the objective by at most "
                              "this times max(|f_k|, |f_k+1|, 1), scipy L-BFGS-B's ftol (0: off)", "Inversion", frtol_,
