@@ -113,6 +113,9 @@ def adam(c, d, x, dx, iterations, lr=1e-3, b1=0.9, b2=0.999, eps=1e-8, scalar=Fa
     v = np.zeros_like(c)
     for t in range(1, iterations + 1):
         J, g = loss_and_gradient(c, d, x, dx, scalar=scalar)
+        if log and (t - 1) % log == 0:
+            e = f", RMSE = {rmse(c, truth):.6f}" if truth is not None else ""
+            print(f"  adam {t - 1:5d}: J = {J:.6e}{e}", flush=True)
         if noise is not None:
             g = g * (1 + 1e-12 * noise.standard_normal(np.shape(g)))
         m = b1 * m + (1 - b1) * g
@@ -120,9 +123,6 @@ def adam(c, d, x, dx, iterations, lr=1e-3, b1=0.9, b2=0.999, eps=1e-8, scalar=Fa
         mhat = m / (1 - b1 ** t)
         vhat = v / (1 - b2 ** t)
         c = c - lr * mhat / (np.sqrt(vhat) + eps)
-        if log and (t - 1) % log == 0:
-            e = f", RMSE = {rmse(c, truth):.6f}" if truth is not None else ""
-            print(f"  adam {t - 1:5d}: J = {J:.6e}{e}", flush=True)
     return c
 
 
