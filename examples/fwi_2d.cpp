@@ -13,7 +13,7 @@
 //   true c: layers 1.0 (y < 0.4), 1.15 (0.4 <= y < 0.6), 1.3 (y >= 0.6) and a slow disc c = 0.95
 //           of radius 0.08 at (0.5, 0.5) (-anomaly_x, -anomaly_y, -anomaly_radius, -anomaly_c);
 //   initial c: the smooth background 1.0 + 0.3 (y - 0.2) / 0.6, clipped to [1.0, 1.3];
-//   4 shots at y = 0.2, x = 0.2 ... 0.8 (f0 = 5), 40 receivers on the square ring at 0.2 / 0.8.
+//   4 shots at y = 0.2, x = 0.2 ... 0.8 (f0 = 5), 48 receivers on the square ring at 0.2 / 0.8.
 //
 // Sample runs (as root add --allow-run-as-root to mpiexec):
 //   mpiexec -n 2 build/fwi_2d -tao_monitor -output results/fwi_2d.h5

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The 2D demo of docs/fwi_receivers.md: examples/fwi_2d (layered model with a slow disc, 4 shots,
-# 40 receivers, sponge, BLMVM with TV, 40 iterations), then the images in docs/.
+# 48 receivers, sponge, BLMVM with TV, 40 iterations), then the images in docs/.
 #   BUILD_DIR=build NP=2 bash run/fwi_2d.sh [extra fwi_2d options]
 set -euo pipefail
 cd "$(dirname "$0")/.."

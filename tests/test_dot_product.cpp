@@ -1,6 +1,8 @@
 // Wave model derivatives: adjoint (dot-product) identities of dG/dU, dG/dp and dU0/dp, their
 // consistency with finite differences of rhs() and initial_condition(), and rhs() against an
-// independent evaluation of [v ; c^2 D2 u] from SecondDerivative::row on the gathered state.
+// independent evaluation of [v ; c^2 D2 u] on the gathered state (SecondDerivative::row with walls, a
+// stencil cut at the ends with -wave_boundary zero_outside). The two-level start (-wave_ic two_level)
+// against the plain recurrence it stands for.
 //
 // Scenes live on PETSC_COMM_WORLD; every check reduces to global numbers before asserting.
 #include "flexipde/differentiator.hpp"
@@ -21,11 +23,24 @@ struct Case {
   bool field;
   PetscInt order;
   bool periodic;
+  bool zero_outside = false; // -wave_boundary zero_outside (else walls)
 };
 
 std::string case_name(const ::testing::TestParamInfo<Case> &i) {
   return std::string(i.param.field ? "field" : "scalar") + "_fd" + std::to_string(i.param.order) +
-         (i.param.periodic ? "_periodic" : "_dirichlet");
+         (i.param.periodic ? "_periodic" : i.param.zero_outside ? "_zero_outside" : "_dirichlet");
+}
+
+// (D2 u)_i with the stencil cut at the ends (zeros outside the grid), from the weights themselves.
+PetscReal d2_zero_outside(const std::vector<PetscReal> &u, PetscInt stride, PetscInt n, PetscInt i, PetscInt order,
+                          PetscReal h) {
+  static const PetscReal w2[3] = {1, -2, 1}, w4[5] = {-1.0 / 12, 16.0 / 12, -30.0 / 12, 16.0 / 12, -1.0 / 12};
+  const PetscInt r = order / 2;
+  const PetscReal *w = order == 2 ? w2 : w4;
+  PetscReal s = 0;
+  for (PetscInt k = -r; k <= r; ++k)
+    if (i + k >= 0 && i + k < n) s += w[k + r] * u[stride * (i + k)];
+  return s / (h * h);
 }
 
 class WaveDerivatives : public ::testing::TestWithParam<Case> {
@@ -36,6 +51,7 @@ protected:
     opts_.set("-wave_c_field", c.field ? "1" : "0");
     opts_.set("-fd_order", std::to_string(c.order));
     opts_.set("-grid_periodic", c.periodic ? "1" : "0");
+    opts_.set("-wave_boundary", c.zero_outside ? "zero_outside" : "walls");
     opts_.set("-wave_c", "1.1");
     opts_.set("-wave_ic_width", "0.1");
     PETSC_ASSERT_OK(scene.setup(PETSC_COMM_WORLD));
@@ -86,8 +102,11 @@ TEST_P(WaveDerivatives, RhsMatchesStencil) {
   PetscReal maxerr = 0, maxg = 0;
   for (PetscInt i = 0; i < g.n(); ++i) {
     PetscReal eu = 0, ev = 0;
-    if (!g.is_boundary(i)) {
-      const PetscReal ci = c.field ? p_all[i] : p_all[0];
+    const PetscReal ci = c.field ? p_all[i] : p_all[0];
+    if (c.zero_outside) { // every point has an equation
+      eu = u_all[2 * i + 1];
+      ev = ci * ci * d2_zero_outside(u_all, 2, g.n(), i, c.order, g.h());
+    } else if (!g.is_boundary(i)) {
       PetscInt m = d.row(g, i, st);
       PetscReal s = 0;
       for (PetscInt q = 0; q < m; ++q) s += st[q].weight * u_all[2 * st[q].j];
@@ -234,7 +253,8 @@ TEST_P(WaveDerivatives, InitialConditionTranspose) {
   for (PetscInt i = 0; i < g.n(); ++i) {
     const PetscReal s = (g.x(i) - 0.5) / 0.1, e = std::exp(-s * s), de = -2 * s / 0.1 * e;
     const PetscReal c = GetParam().field ? pa[i] : pa[0];
-    const PetscReal eu = g.is_boundary(i) ? 0.0 : e, ev = g.is_boundary(i) ? 0.0 : -c * de;
+    const bool wall = g.is_boundary(i) && !GetParam().zero_outside;
+    const PetscReal eu = wall ? 0.0 : e, ev = wall ? 0.0 : -c * de;
     err = std::max({err, std::fabs(u0[2 * i] - eu), std::fabs(u0[2 * i + 1] - ev)});
   }
   EXPECT_LE(err, 1e-13);
@@ -243,7 +263,8 @@ TEST_P(WaveDerivatives, InitialConditionTranspose) {
 INSTANTIATE_TEST_SUITE_P(Wave, WaveDerivatives,
                          ::testing::Values(Case{false, 2, false}, Case{false, 4, false}, Case{true, 2, false},
                                            Case{true, 4, false}, Case{false, 4, true}, Case{true, 2, true},
-                                           Case{true, 4, true}),
+                                           Case{true, 4, true}, Case{true, 2, false, true}, Case{false, 4, false, true},
+                                           Case{true, 4, false, true}),
                          case_name);
 
 // -wave_ic rest: U0 does not depend on c, and the transpose adds nothing.
@@ -272,3 +293,122 @@ TEST(WaveInitialCondition, RestIsIndependentOfSpeed) {
   PETSC_ASSERT_OK(scene.model->initial_condition_transpose(p, lam, grad));
   EXPECT_EQ(norm(grad), 0.0);
 }
+
+// -wave_ic two_level: u^0 = P(x), u^1 = P(x - c dt) (P the pulse, pointwise in c), and the leapfrog from
+// the velocity it sets reproduces the recurrence u^{k+1} = 2 u^k - u^{k-1} + dt^2 c^2 D2 u^k: its first
+// step lands on u^1, and 40 steps on u^40 of that loop run here on the gathered arrays (zeros outside
+// the grid, or walls held at 0). dU0/dc's transpose passes the dot-product test against central
+// differences of the start, which depends on the integrator's step (told by Simulation::initial_condition;
+// the model refuses to make it without).
+namespace {
+struct TwoLevelCase {
+  bool field, zero_outside;
+  PetscInt order;
+};
+std::string two_level_name(const ::testing::TestParamInfo<TwoLevelCase> &i) {
+  return std::string(i.param.field ? "field" : "scalar") + (i.param.zero_outside ? "_zero_outside" : "_walls") + "_fd" +
+         std::to_string(i.param.order);
+}
+class WaveTwoLevel : public ::testing::TestWithParam<TwoLevelCase> {
+protected:
+  void SetUp() override {
+    const TwoLevelCase c = GetParam();
+    opts_.set("-da_grid_x", "61");
+    opts_.set("-wave_c_field", c.field ? "1" : "0");
+    opts_.set("-wave_c", "1.1");
+    opts_.set("-fd_order", std::to_string(c.order));
+    opts_.set("-wave_boundary", c.zero_outside ? "zero_outside" : "walls");
+    opts_.set("-wave_ic", "two_level");
+    opts_.set("-wave_ic_width", "0.1");
+    opts_.set("-ts_type", "leapfrog");
+    opts_.set("-ts_dt", "2e-3");
+    PETSC_ASSERT_OK(scene.setup(PETSC_COMM_WORLD));
+    PETSC_ASSERT_OK(scene.params.create_vec(p.out()));
+    PETSC_ASSERT_OK(scene.parameters_from_options("", p));
+    if (c.field) PETSC_ASSERT_OK(fill_random(p, 0.8, 1.2, 61));
+    PETSC_ASSERT_OK(scene.sim.create_state(U.out()));
+  }
+  ScopedOptions opts_;
+  Scene scene;
+  OwnedVec p, U;
+};
+} // namespace
+
+TEST_P(WaveTwoLevel, LeapfrogIsTheRecurrence) {
+  const TwoLevelCase c = GetParam();
+  const Grid &g = scene.grid;
+  const PetscInt n = g.n();
+  const PetscReal dt = 2e-3, h = g.h();
+  std::vector<PetscReal> pa;
+  PETSC_ASSERT_OK(flexipde_test::gather_all(p, pa));
+  auto speed = [&](PetscInt i) { return c.field ? pa[i] : pa[0]; };
+  auto wall = [&](PetscInt i) { return !c.zero_outside && (i == 0 || i == n - 1); };
+  std::vector<PetscReal> um(n), u(n), un(n);
+  for (PetscInt i = 0; i < n; ++i) {
+    const PetscReal s0 = (g.x(i) - 0.5) / 0.1, s1 = (g.x(i) - speed(i) * dt - 0.5) / 0.1;
+    um[i] = wall(i) ? 0.0 : std::exp(-s0 * s0);
+    u[i] = wall(i) ? 0.0 : std::exp(-s1 * s1);
+  }
+  PetscInt level = 1; // u holds u^level
+  for (PetscInt steps : {1, 40}) {
+    for (; level < steps; ++level) {
+      for (PetscInt i = 0; i < n; ++i) {
+        const PetscReal ci = speed(i);
+        un[i] = wall(i) ? 0.0 : 2 * u[i] - um[i] + dt * dt * ci * ci * d2_zero_outside(u, 1, n, i, c.order, h);
+      }
+      um.swap(u);
+      u.swap(un);
+    }
+    ScopedOptions t{{"-ts_max_time", std::to_string(steps * dt).c_str()}};
+    PETSC_ASSERT_OK(scene.sim.forward(p, U));
+    EXPECT_EQ(scene.sim.stats().steps, steps);
+    std::vector<PetscReal> Ua;
+    PETSC_ASSERT_OK(flexipde_test::gather_all(U, Ua));
+    PetscReal err = 0, umax = 0;
+    for (PetscInt i = 0; i < n; ++i) {
+      err = std::max(err, std::fabs(Ua[2 * i] - u[i]));
+      umax = std::max(umax, std::fabs(u[i]));
+    }
+    EXPECT_LE(err, 1e-12 * umax) << "after " << steps << " steps";
+  }
+}
+
+TEST_P(WaveTwoLevel, InitialConditionTranspose) {
+  OwnedVec dp, lam, grad, g0, q, Up, Um, dU0;
+  for (auto *v : {&dp, &grad, &g0, &q}) PETSC_ASSERT_OK(VecDuplicate(p, v->out()));
+  for (auto *v : {&lam, &Up, &Um, &dU0}) PETSC_ASSERT_OK(VecDuplicate(U, v->out()));
+  PETSC_ASSERT_OK(fill_random(dp, -1, 1, 62));
+  PETSC_ASSERT_OK(fill_random(lam, -1, 1, 63));
+  const PetscReal h = 1e-3;
+  PETSC_ASSERT_OK(VecWAXPY(q, h, dp, p));
+  PETSC_ASSERT_OK(scene.sim.initial_condition(q, Up));
+  PETSC_ASSERT_OK(VecWAXPY(q, -h, dp, p));
+  PETSC_ASSERT_OK(scene.sim.initial_condition(q, Um));
+  PETSC_ASSERT_OK(VecWAXPY(dU0, -1.0, Um, Up));
+  PETSC_ASSERT_OK(VecScale(dU0, 1.0 / (2 * h)));
+  EXPECT_GT(norm(dU0), 0.0) << "the two-level start depends on c";
+  PETSC_ASSERT_OK(scene.sim.initial_condition(p, U));
+  PETSC_ASSERT_OK(fill_random(g0, -1, 1, 64)); // the transpose adds to grad
+  PETSC_ASSERT_OK(VecCopy(g0, grad));
+  PETSC_ASSERT_OK(scene.model->initial_condition_transpose(p, lam, grad));
+  PETSC_ASSERT_OK(VecAXPY(grad, -1.0, g0));
+  const PetscReal lhs = dot(dU0, lam), rhs = dot(dp, grad);
+  EXPECT_LE(rel_diff(lhs, rhs), 1e-8) << "<dU0/dp dp, lam> = " << lhs << ", <dp, (dU0/dp)^T lam> = " << rhs;
+}
+
+TEST_P(WaveTwoLevel, NeedsTheStep) {
+  Scene fresh; // never told the integrator's step
+  OwnedVec q, V;
+  PETSC_ASSERT_OK(fresh.setup(PETSC_COMM_WORLD));
+  PETSC_ASSERT_OK(fresh.params.create_vec(q.out()));
+  PETSC_ASSERT_OK(fresh.parameters_from_options("", q));
+  PETSC_ASSERT_OK(fresh.sim.create_state(V.out()));
+  flexipde_test::QuietErrors quiet;
+  EXPECT_EQ(fresh.model->initial_condition(q, V), PETSC_ERR_ORDER);
+}
+
+INSTANTIATE_TEST_SUITE_P(Wave, WaveTwoLevel,
+                         ::testing::Values(TwoLevelCase{true, true, 2}, TwoLevelCase{false, true, 2},
+                                           TwoLevelCase{true, true, 4}, TwoLevelCase{true, false, 2},
+                                           TwoLevelCase{false, false, 2}),
+                         two_level_name);

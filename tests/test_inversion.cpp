@@ -1,7 +1,10 @@
 // Inversion (TAO with the adjoint gradient): recovery of a constant speed, a small field inversion
 // with Tikhonov regularisation, and the regularisation term and its gradient against an
-// independent evaluation on the gathered field.
+// independent evaluation on the gathered field; the restart snapshot every N iterations.
 #include "flexipde/inversion.hpp"
+#include "flexipde/io.hpp"
+#include <cstdio>
+#include <unistd.h>
 #include "flexipde/scene.hpp"
 #include "test_support.hpp"
 
@@ -167,3 +170,37 @@ TEST_P(Tikhonov, MatchesIndependentEvaluation) {
 
 INSTANTIATE_TEST_SUITE_P(Inversion, Tikhonov, ::testing::Values(false, true),
                          [](const ::testing::TestParamInfo<bool> &i) { return i.param ? "periodic" : "dirichlet"; });
+
+// -inv_checkpoint_every N: the restart snapshot is rewritten every N iterations only (the one of 4
+// iterations with N = 3 holds iterations 0..3 and the iterate of iteration 3).
+TEST(Inversion, CheckpointEveryN) {
+  ScopedOptions opts{{"-da_grid_x", "101"}, {"-ts_max_time", "0.2"}, {"-ts_dt", "2e-3"}, {"-wave_c", "0.8"},
+                     {"-true_wave_c", "1.0"}, {"-tao_type", "lmvm"}, {"-tao_gatol", "0"}, {"-tao_grtol", "0"},
+                     {"-tao_max_it", "4"}, {"-inv_checkpoint_every", "3"}};
+  InversionProblem pb;
+  PETSC_ASSERT_OK(pb.setup(PETSC_COMM_WORLD));
+  PetscMPIInt rank;
+  MPI_Comm_rank(PETSC_COMM_WORLD, &rank);
+  char file[PETSC_MAX_PATH_LEN] = "";
+  if (rank == 0) snprintf(file, sizeof(file), "/tmp/flexipde_checkpoint_every_%d.h5", (int)getpid());
+  MPI_Bcast(file, sizeof(file), MPI_CHAR, 0, PETSC_COMM_WORLD);
+  Inversion inv;
+  PETSC_ASSERT_OK(inv.setup(pb.scene, pb.p_true));
+  inv.set_checkpoint_file(file);
+  PETSC_ASSERT_OK(inv.solve(pb.p));
+  ASSERT_EQ(inv.history().size(), 5u);
+  H5Reader r;
+  std::vector<PetscReal> it, last;
+  OwnedVec p3;
+  PETSC_ASSERT_OK(VecDuplicate(pb.p, p3.out()));
+  PETSC_ASSERT_OK(r.open(PETSC_COMM_WORLD, file));
+  PETSC_ASSERT_OK(r.read_series("/history", "iteration", it));
+  PETSC_ASSERT_OK(r.read_series("/restart", "iteration", last));
+  PETSC_ASSERT_OK(r.read_vec("/restart", "p", p3));
+  PETSC_ASSERT_OK(r.close());
+  if (rank == 0) std::remove(file);
+  EXPECT_EQ(it, (std::vector<PetscReal>{0, 1, 2, 3}));
+  ASSERT_EQ(last.size(), 1u);
+  EXPECT_EQ(last[0], 3);
+  EXPECT_GT(flexipde_test::rel_diff(p3, pb.p), 0.0) << "the snapshot holds iteration 3's iterate, not the last one";
+}

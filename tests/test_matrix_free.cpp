@@ -16,7 +16,8 @@
 //     stage (PETSc's RK adjoint applies J^T and then (dG/dc)^T to one unchanged Vec): equal to the one
 //     from the columns, used only for that Vec in that state at that stage, <J x, y> = <x, J^T y> for
 //     both; dG/dc applied after its state changed is an error.
-// Cases: 1D fd2/fd4, Dirichlet/periodic; 2D Dirichlet/periodic, with a sponge (rhs only).
+// Cases: 1D fd2/fd4, Dirichlet/periodic/zero outside the grid (-wave_boundary zero_outside, two-level
+// start); 2D Dirichlet/periodic, with a sponge (rhs only).
 #include "flexipde/scene.hpp"
 #include "test_support.hpp"
 #include <string>
@@ -44,6 +45,11 @@ std::vector<MFCase> cases() {
       {"wave_fd4_dirichlet_field", {{"-da_grid_x", "61"}, {"-wave_c_field", "1"}, {"-fd_order", "4"}}, true},
       {"wave_fd4_periodic_scalar", {{"-da_grid_x", "61"}, {"-fd_order", "4"}, {"-grid_periodic", "1"}, {"-wave_ic", "rest"}}, true},
       {"wave_fd2_periodic_field", {{"-da_grid_x", "61"}, {"-wave_c_field", "1"}, {"-grid_periodic", "1"}, {"-wave_ic", "rest"}}, true},
+      // all points updated, zeros outside the grid (the end points have equations and columns)
+      {"wave_fd2_zero_outside_field",
+       {{"-da_grid_x", "61"}, {"-wave_c_field", "1"}, {"-wave_boundary", "zero_outside"}, {"-wave_ic", "two_level"}}, true},
+      {"wave_fd4_zero_outside_scalar",
+       {{"-da_grid_x", "61"}, {"-fd_order", "4"}, {"-wave_boundary", "zero_outside"}, {"-wave_ic", "two_level"}}, true},
       {"wave2d_dirichlet_field",
        {{"-model", "wave2d"}, {"-da_grid_x", "23"}, {"-da_grid_y", "19"}, {"-wave2d_c_field", "1"},
         {"-wave2d_sponge_width", "0"}, {"-wave2d_ic", "pulse"}, {"-wave2d_ic_width", "0.2"}},

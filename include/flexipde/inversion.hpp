@@ -9,14 +9,16 @@
 // lower one never below the physical bound the model declares, e.g. -wave_c_min;
 // BLMVM is the default -tao_type, LMVM and the rest of TAO via -tao_type). The history records
 // per iteration the objective, the gradient norm and, when the true parameters are known, the
-// parameter RMSE sqrt(mean((p - p_true)^2)). -inv_scan N (one scalar parameter) first evaluates J at
+// parameter RMSE sqrt(mean((p - p_true)^2)). -inv_frtol r adds scipy L-BFGS-B's stop on a small relative
+// decrease of the objective, (f_k - f_{k+1}) / max(|f_k|, |f_{k+1}|, 1) <= r, to TAO's own tests (which
+// look at the gradient only). -inv_scan N (one scalar parameter) first evaluates J at
 // N points between the bounds and polishes its best local minima (-inv_scan_starts, default 3),
 // keeping the lowest objective: a terminal snapshot of a wave gives an objective with several
 // nearly equal minima (cycle skipping), and a scan is the honest cure for one unknown.
 //
-// Restart: with a checkpoint file set (the driver uses its -output file), every iteration rewrites
-// it with /restart/p (the iterate), /restart/iteration and /history (written to <file>.part, then
-// renamed, so an interrupted run leaves the last complete snapshot). -inv_restart <file> starts
+// Restart: with a checkpoint file set (the driver uses its -output file), every iteration (every N with
+// -inv_checkpoint_every N) rewrites it with /restart/p (the iterate), /restart/iteration and /history
+// (written to <file>.part, then renamed, so an interrupted run leaves the last complete snapshot). -inv_restart <file> starts
 // from that iterate and continues the history and the iteration count; the quasi-Newton memory
 // starts afresh (TAO keeps no state in the file).
 #pragma once
@@ -50,12 +52,13 @@ public:
 private:
   static PetscErrorCode form_function_gradient(Tao, Vec, PetscReal *, Vec, void *);
   static PetscErrorCode monitor(Tao, void *);
+  static PetscErrorCode convergence_test(Tao, void *);
   PetscErrorCode tikhonov(Vec p, PetscReal *R, Vec g);
   PetscErrorCode scan(Vec p, std::vector<PetscReal> &starts);
   PetscErrorCode resume(Vec p);
 
 public:
-  // Every iteration rewrites `file` with the restart snapshot (empty: off).
+  // Every iteration (every -inv_checkpoint_every) rewrites `file` with the restart snapshot (empty: off).
   void set_checkpoint_file(const std::string &file) { checkpoint_file_ = file; }
   // Writes /restart/p, /restart/iteration and /history into an open writer.
   PetscErrorCode write_restart(class H5Writer &w, Vec p) const;
@@ -65,6 +68,7 @@ private:
   PetscErrorCode write_checkpoint(Vec p) const;
   std::string checkpoint_file_, restart_file_;
   PetscInt iteration_offset_ = 0;
+  PetscInt checkpoint_every_ = 1; // -inv_checkpoint_every
 
   Scene *scene_ = nullptr;
   OwnedTao tao_;
@@ -73,6 +77,7 @@ private:
   PetscReal alpha_ = 0, lower_value_ = PETSC_NINFINITY, upper_value_ = PETSC_INFINITY, last_misfit_ = 0;
   PetscInt evaluations_ = 0, scan_ = 0, scan_starts_ = 3;
   PetscReal scan_start_ = 0;
+  PetscReal frtol_ = 0, previous_f_ = PETSC_MAX_REAL; // -inv_frtol, and the last iteration's objective
   TaoConvergedReason reason_ = TAO_CONTINUE_ITERATING;
   PetscInt iterations_ = 0;
   std::vector<HistoryEntry> history_;

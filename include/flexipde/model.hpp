@@ -152,6 +152,10 @@ public:
             functional_names().empty() ? "" : ": choose one of ", functional_names().c_str());
   }
 
+  // The fixed step dt the integrator will take, given before every initial_condition by the
+  // Simulation: for initial conditions defined through the scheme's first step (the wave's two-level
+  // start). Most models ignore it.
+  virtual void set_time_step(PetscReal dt) { (void)dt; }
   // U0 = U0(p), and grad += (dU0/dp)^T lambda0.
   virtual PetscErrorCode initial_condition(Vec p, Vec U0) = 0;
   virtual PetscErrorCode initial_condition_transpose(Vec p, Vec lambda0, Vec grad) = 0;

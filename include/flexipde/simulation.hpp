@@ -43,6 +43,11 @@ public:
   }
 
   PetscErrorCode create_state(Vec *U) const { return DMCreateGlobalVector(dm_, U); }
+  // U0(p) as the solves start from it: the model is first told the step the integrator will take
+  // (Model::set_time_step; the step of -ts_dt and -ts_max_time, rounded to a whole number of steps).
+  PetscErrorCode initial_condition(Vec p, Vec U0);
+  // That step, from the options (a TS takes the same -ts_dt and -ts_max_time).
+  PetscErrorCode time_step(PetscReal *dt) const;
   // U(T) for parameters p.
   PetscErrorCode forward(Vec p, Vec UT);
   // J(p) = J_T(U(T)) + int_0^T r dt without the adjoint (no trajectory is stored).
@@ -119,6 +124,7 @@ private:
   Objective *objective_ = nullptr;
   DM dm_ = nullptr;
   PetscReal dt_ = 1e-3, final_time_ = 1.0;
+  PetscReal start_dt_ = 0; // the step the model was told for the initial condition of the solve being set up (0: none)
   OwnedMat J_, Jp_;
   OwnedVec lambda_, mu_;
   // The integrand's dr/dU and dr/dp as the dense N x 1 matrices the quadrature TS expects, and

@@ -422,7 +422,7 @@ static PetscErrorCode run(MPI_Comm comm) {
   PetscCall(VecDuplicate(p, p0.out()));
   PetscCall(VecCopy(p, p0));
   PetscCall(inv.setup(scene, p_true));
-  if (output[0]) inv.set_checkpoint_file(output); // rewritten every iteration: -inv_restart resumes from it
+  if (output[0]) inv.set_checkpoint_file(output); // rewritten every iteration (-inv_checkpoint_every): -inv_restart resumes from it
   PetscCall(inv.rmse(p, &e0));
   PetscCall(print_parameters(scene, p, "initial"));
   PetscCall(inv.solve(p));

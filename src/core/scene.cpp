@@ -65,8 +65,7 @@ PetscErrorCode Scene::make_synthetic_data(Vec p_true) {
     for (PetscInt s = 0; s < sv->shots(); ++s) {
       PetscReal J;
       PetscCall(sv->select_shot(s));
-      PetscCall(model->set_parameters(p_true));
-      PetscCall(model->initial_condition(p_true, U));
+      PetscCall(sim.initial_condition(p_true, U));
       PetscCall(sv->record_initial(U));
       PetscCall(sim.value(p_true, &J));
     }

@@ -326,6 +326,32 @@ PetscErrorCode Simulation::integral(TS ts, PetscReal *value) {
   PetscFunctionReturn(0);
 }
 
+// A whole number of equal steps to T, the nearest to T / dt; dt becomes T / steps.
+static PetscInt whole_steps(PetscReal T, PetscReal *dt) {
+  const PetscInt nsteps = std::max<PetscInt>(1, (PetscInt)std::llround(T / *dt));
+  *dt = T / nsteps;
+  return nsteps;
+}
+
+PetscErrorCode Simulation::time_step(PetscReal *dt) const {
+  PetscReal T = final_time_;
+  PetscFunctionBeginUser;
+  *dt = dt_;
+  PetscCall(PetscOptionsGetReal(nullptr, nullptr, "-ts_dt", dt, nullptr));
+  PetscCall(PetscOptionsGetReal(nullptr, nullptr, "-ts_max_time", &T, nullptr));
+  if (*dt > 0 && T > 0) (void)whole_steps(T, dt); // (create_ts reports bad values)
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Simulation::initial_condition(Vec p, Vec U0) {
+  PetscFunctionBeginUser;
+  PetscCall(time_step(&start_dt_));
+  model_->set_time_step(start_dt_);
+  PetscCall(model_->set_parameters(p));
+  PetscCall(model_->initial_condition(p, U0));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_integral) {
   MPI_Comm comm = grid_->comm();
   PetscMPIInt size;
@@ -509,14 +535,20 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
   PetscCheck(!(adaptive_ && leapfrog), comm, PETSC_ERR_SUP,
              "-ts_type leapfrog takes fixed steps only (it is symplectic for a constant dt): remove -ts_adapt_type %s",
              adapt_type);
-  const PetscInt nsteps = std::max<PetscInt>(1, (PetscInt)std::llround(T / dt));
+  PetscReal fixed_dt = dt;
+  const PetscInt nsteps = whole_steps(T, &fixed_dt);
   if (!adaptive_) {
-    dt = T / nsteps;
+    dt = fixed_dt;
+    // the solve's initial condition, made just before, was made for this step (time_step read the options)
+    PetscCheck(start_dt_ == 0 || dt == start_dt_, comm, PETSC_ERR_PLIB,
+               "The integrator's step %.17g differs from the step %.17g the initial condition was made for", (double)dt,
+               (double)start_dt_);
     PetscCall(TSSetTimeStep(ts, dt));
     PetscCall(TSSetMaxSteps(ts, nsteps));
   } else {
     PetscCall(TSSetMaxSteps(ts, PETSC_MAX_INT));
   }
+  start_dt_ = 0;
   stats_.steps = nsteps;
   stats_.dt = dt;
   stats_.final_time = T;
@@ -699,8 +731,7 @@ PetscErrorCode Simulation::forward(Vec p, Vec UT) {
   OwnedTS ts;
   PetscFunctionBeginUser;
   ++param_version_;
-  PetscCall(model_->set_parameters(p));
-  PetscCall(model_->initial_condition(p, UT));
+  PetscCall(initial_condition(p, UT));
   PetscCall(create_ts(false, ts, false));
   PetscCall(TSSolve(ts, UT));
   PetscCall(finish_solve(ts));
@@ -716,8 +747,7 @@ PetscErrorCode Simulation::value(Vec p, PetscReal *J) {
   PetscCheck(objective_, grid_->comm(), PETSC_ERR_ORDER, "Simulation::value needs an objective");
   ++param_version_;
   PetscCall(DMCreateGlobalVector(dm_, U.out()));
-  PetscCall(model_->set_parameters(p));
-  PetscCall(model_->initial_condition(p, U));
+  PetscCall(initial_condition(p, U));
   PetscCall(create_ts(false, ts));
   PetscCall(TSSolve(ts, U));
   PetscCall(finish_solve(ts));
@@ -735,8 +765,7 @@ PetscErrorCode Simulation::gradient(Vec p, PetscReal *J, Vec grad_p, Vec grad_u0
   PetscCheck(objective_, grid_->comm(), PETSC_ERR_ORDER, "Simulation::gradient needs an objective");
   ++param_version_;
   PetscCall(DMCreateGlobalVector(dm_, U.out()));
-  PetscCall(model_->set_parameters(p));
-  PetscCall(model_->initial_condition(p, U));
+  PetscCall(initial_condition(p, U));
   PetscCall(create_ts(true, ts));
   double t0 = MPI_Wtime();
   PetscCall(TSSolve(ts, U));

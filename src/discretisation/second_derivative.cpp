@@ -34,6 +34,8 @@ PetscInt SecondDerivative::row(const Grid &g, PetscInt i, std::array<StencilEntr
     PetscReal s = 1.0;
     if (g.periodic()) {
       j = (j % n + n) % n;
+    } else if (closure_ == Closure::ZeroOutside) {
+      if (j < 0 || j > n - 1) continue; // zero outside the grid
     } else if (j < 0) { // odd reflection about the wall at index 0
       j = -j;
       s = -1.0;
@@ -41,7 +43,7 @@ PetscInt SecondDerivative::row(const Grid &g, PetscInt i, std::array<StencilEntr
       j = 2 * (n - 1) - j;
       s = -1.0;
     }
-    if (!g.periodic() && (j == 0 || j == n - 1)) continue; // wall value is zero
+    if (!g.periodic() && closure_ == Closure::OddReflection && (j == 0 || j == n - 1)) continue; // wall value is zero
     PetscReal wk = s * w[k + r] * ih2;
     bool merged = false;
     for (PetscInt q = 0; q < m; ++q)

@@ -2,6 +2,13 @@
 //
 //   u_t = v,   v_t = c(x)^2 u_xx   on [x0, x1],   u = v = 0 at both walls (Dirichlet),
 //
+// Boundary (-wave_boundary, non-periodic grids): "walls" (default) holds the two end points at
+// u = v = 0 and gives them no equation (D2 with the odd reflection beyond them); "zero_outside"
+// updates all n points and takes the values outside the grid as 0 (D2's stencil cut at the ends:
+// SecondDerivative::Closure::ZeroOutside), as a loop over all points with zero neighbours does. Both
+// D2 are symmetric, so every transpose below is the same sweep; "walls" below means the walls of the
+// first treatment (the second has none).
+//
 // U = (u, v) interleaved per grid point; u_xx by the centred finite differences of
 // SecondDerivative (-fd_order 2|4). The parameter c is one scalar (-wave_c_field 0) or a field with
 // one value per grid point (-wave_c_field 1), distributed like the grid.
@@ -17,10 +24,17 @@
 // lambda_u += w D2 (c^2 lambda_v) (D2 is symmetric on the interior points, walls excluded) and
 // mu += w 2 c (D2 u) lambda_v.
 //
-// Initial condition (-wave_ic travelling|rest|zero): u0 = exp(-((x - x_c)/w)^2) (-wave_ic_center,
-// -wave_ic_width); "travelling" sets v0 = -c u0', a pulse moving right (the seed's leapfrog start
-// u1 = u0(x - c dt)), so U0 depends on c and dU0/dc enters the gradient; "rest" sets v0 = 0;
-// "zero" starts at rest with u0 = 0, for waves made by point sources only.
+// Initial condition (-wave_ic travelling|rest|zero|two_level): u0 = P(x) = exp(-((x - x_c)/w)^2)
+// (-wave_ic_center, -wave_ic_width); "travelling" sets v0 = -c u0', a pulse moving right (the
+// continuous form of the start u1 = u0(x - c dt)), so U0 depends on c and dU0/dc enters the gradient;
+// "rest" sets v0 = 0; "zero" starts at rest with u0 = 0, for waves made by point sources only.
+// "two_level" is the two-level start of the recurrence u^{k+1} = 2 u^k - u^{k-1} + dt^2 c^2 D2 u^k from
+// u^0 = P(x) and u^1 = P(x - c dt) (pointwise in c for a field): with the integrator's step dt
+// (Model::set_time_step) it sets
+//   v0 = (u^1 - u^0)/dt - (dt/2) c^2 D2 u^0,
+// the velocity whose first Stormer-Verlet step (-ts_type leapfrog) lands on u^1, so that the leapfrog
+// reproduces that recurrence from its second level on. dv0_i/dc_i = -P'(x_i - c_i dt) - dt c_i (D2 u^0)_i
+// (pointwise) enters the gradient.
 //
 // Point sources (survey.hpp, -objective_type receivers): v_t = c^2 u_xx + w(t) delta_h(x - x_s),
 // a forcing independent of U and c, so dG/dU and dG/dc are unchanged and the second-order form
@@ -162,7 +176,8 @@ public:
   }
 
   PetscErrorCode setup(const Grid &grid, DM state_dm, Parameters &params) override {
-    const char *ics[] = {"travelling", "rest", "zero"};
+    const char *ics[] = {"travelling", "rest", "zero", "two_level"};
+    const char *boundaries[] = {"walls", "zero_outside"};
     PetscFunctionBeginUser;
     grid_ = &grid;
     dm_ = state_dm;
@@ -171,7 +186,11 @@ public:
     PetscOptionsBegin(grid.comm(), nullptr, "Acoustic wave model u_tt = c(x)^2 u_xx", "Wave");
     PetscCall(PetscOptionsBool("-wave_c_field", "Speed c is a field (one value per grid point), else one scalar",
                                "Wave", c_field_, &c_field_, nullptr));
-    PetscCall(PetscOptionsEList("-wave_ic", "Initial condition", "Wave", ics, 3, ics[ic_], &ic_, nullptr));
+    PetscCall(PetscOptionsEList("-wave_ic", "Initial condition (two_level: u^0 = pulse, u^1 = pulse(x - c dt), the "
+                                "leapfrog's first step lands on u^1)", "Wave", ics, 4, ics[ic_], &ic_, nullptr));
+    PetscCall(PetscOptionsEList("-wave_boundary", "Ends of a non-periodic grid: walls (the end points held at 0) or "
+                                "zero_outside (all points updated, values outside the grid 0)", "Wave", boundaries, 2,
+                                boundaries[boundary_], &boundary_, nullptr));
     PetscCall(PetscOptionsReal("-wave_ic_center", "Centre of the initial Gaussian pulse", "Wave", center_, &center_,
                                nullptr));
     PetscCall(PetscOptionsReal("-wave_ic_width", "Width w of the pulse exp(-((x-x_c)/w)^2)", "Wave", width_, &width_,
@@ -182,6 +201,9 @@ public:
     PetscCheck(c_min_ > 0, grid.comm(), PETSC_ERR_ARG_OUTOFRANGE, "-wave_c_min must be positive, got %g", (double)c_min_);
     PetscCheck(width_ > 0, grid.comm(), PETSC_ERR_ARG_OUTOFRANGE, "-wave_ic_width must be positive, got %g",
                (double)width_);
+    PetscCheck(!(boundary_ == ZeroOutside && grid.periodic()), grid.comm(), PETSC_ERR_ARG_WRONG,
+               "-wave_boundary zero_outside needs a non-periodic grid (-grid_periodic 0)");
+    if (boundary_ == ZeroOutside) d2_.set_closure(SecondDerivative::Closure::ZeroOutside);
     c_index_ = params.add("wave_c", c_field_ ? ParamKind::Field : ParamKind::Scalar, c_min_);
     PetscCall(DMCreateGlobalVector(grid.dm(), c_.out()));
     PetscCall(create_operator(dm_));
@@ -196,14 +218,15 @@ public:
     PetscCall(pair_.setup_packed(grid, hw_, 2));
     PetscCall(halo_c_.setup(grid, grid.dm(), 0, hw_));
     // Owned points whose D2 row is the plain centred stencil with every point it reads owned and off
-    // the walls: swept without any test; the few others (walls, next to them, next to another rank)
-    // go through SecondDerivative::row and the halo.
+    // the walls (inside the grid): swept without any test; the few others (walls, next to them or to
+    // the ends, next to another rank) go through SecondDerivative::row and the halo.
     const PetscInt xs = grid.xs(), xm = grid.xm(), n = grid.n();
     lo_ = hw_;
     hi_ = xm - hw_;
     if (!grid.periodic()) {
-      lo_ = std::max(lo_, hw_ + 1 - xs);
-      hi_ = std::min(hi_, n - 1 - hw_ - xs);
+      const PetscInt end = boundary_ == ZeroOutside ? 0 : 1; // end points the plain stencil must not read (walls)
+      lo_ = std::max(lo_, hw_ + end - xs);
+      hi_ = std::min(hi_, n - end - hw_ - xs);
     }
     lo_ = std::min(lo_, xm);
     hi_ = std::max(hi_, lo_);
@@ -216,6 +239,7 @@ public:
       wt_[1] = wt_[3] = 16 * ih2 / 12;
       wt_[2] = -30 * ih2 / 12;
     }
+    if (ic_ == TwoLevel) PetscCall(pulse_d2());
     PetscFunctionReturn(0);
   }
 
@@ -356,7 +380,7 @@ public:
       PetscScalar *Y = ya.data();
       const PetscInt xm = grid_->xm();
       for (PetscInt il : {(PetscInt)0, xm - 1}) // the walls (no gradient there: 2c = 0)
-        if (xm > 0 && grid_->is_boundary(grid_->xs() + il)) {
+        if (xm > 0 && wall(grid_->xs() + il)) {
           Y[2 * il] = Y[2 * il + 1] = 0;
           if (!add) g[il] = 0;
         }
@@ -414,7 +438,7 @@ public:
       for (PetscInt il = 0; il < grid_->xm(); ++il) {
         const PetscReal ci = PetscRealPart(c[il]);
         c2_[il] = ci * ci;
-        two_c_[il] = grid_->is_boundary(grid_->xs() + il) ? 0.0 : 2 * ci;
+        two_c_[il] = wall(grid_->xs() + il) ? 0.0 : 2 * ci;
       }
     }
     PetscCall(halo_c_.update(c_));
@@ -456,7 +480,7 @@ public:
         if (REC) record[il] = du;
       }));
       for (PetscInt il : {(PetscInt)0, grid_->xm() - 1}) // the walls: G = 0
-        if (grid_->xm() > 0 && grid_->is_boundary(grid_->xs() + il)) {
+        if (grid_->xm() > 0 && wall(grid_->xs() + il)) {
           ga[2 * il] = ga[2 * il + 1] = 0;
           if (REC) record[il] = 0;
         }
@@ -466,7 +490,7 @@ public:
       PetscCall(g.error());
       for (PetscInt k = 0; k < source_->stencil.n; ++k) {
         const PetscInt il = source_->stencil.local[k];
-        if (grid_->is_boundary(grid_->xs() + il)) continue; // the walls hold u = v = 0
+        if (wall(grid_->xs() + il)) continue; // the walls hold u = v = 0
         g[2 * il + 1] += source_->density(k, t);
       }
     }
@@ -479,36 +503,56 @@ public:
     return 0;
   }
 
+  void set_time_step(PetscReal dt) override { ic_dt_ = dt; }
+
   PetscErrorCode initial_condition(Vec p, Vec U0) override {
     PetscFunctionBeginUser;
+    PetscCheck(ic_ != TwoLevel || ic_dt_ > 0, grid_->comm(), PETSC_ERR_ORDER,
+               "-wave_ic two_level needs the integrator's step: make the initial condition through "
+               "Simulation::initial_condition (Model::set_time_step)");
     PetscCall(set_parameters(p));
     Array U(U0);
     ConstArray c(c_);
     PetscCall(U.error());
     PetscCall(c.error());
+    const PetscReal dt = ic_dt_;
     for (PetscInt il = 0; il < grid_->xm(); ++il) {
       const PetscInt i = grid_->xs() + il;
-      PetscReal u0, du0;
+      const PetscReal ci = PetscRealPart(c[il]);
+      PetscReal u0, du0, u1, du1;
       pulse(grid_->x(i), &u0, &du0);
-      const bool wall = grid_->is_boundary(i);
-      U[2 * il] = (wall || ic_ == 2) ? 0.0 : u0;
-      U[2 * il + 1] = (wall || ic_ >= 1) ? 0.0 : -PetscRealPart(c[il]) * du0;
+      if (wall(i)) U[2 * il] = U[2 * il + 1] = 0.0;
+      else if (ic_ == TwoLevel) {
+        pulse(grid_->x(i) - ci * dt, &u1, &du1);
+        U[2 * il] = u0;
+        U[2 * il + 1] = (u1 - u0) / dt - 0.5 * dt * c2_[il] * d2u0_[il];
+      } else {
+        U[2 * il] = ic_ == Zero ? 0.0 : u0;
+        U[2 * il + 1] = ic_ == Travelling ? -ci * du0 : 0.0;
+      }
     }
     PetscFunctionReturn(0);
   }
 
+  // grad += (dU0/dc)^T lambda0: dv0_i/dc_i is -u0'(x_i) (travelling) or -P'(x_i - c_i dt) - dt c_i (D2 u^0)_i
+  // (two_level), pointwise; the other starts do not depend on c.
   PetscErrorCode initial_condition_transpose(Vec, Vec lambda0, Vec grad) override {
     PetscFunctionBeginUser;
-    if (ic_ >= 1) PetscFunctionReturn(0);
+    if (ic_ != Travelling && ic_ != TwoLevel) PetscFunctionReturn(0);
     std::vector<PetscReal> g(grid_->xm(), 0.0);
     {
-      ConstArray L(lambda0);
+      ConstArray L(lambda0), c(c_);
       PetscCall(L.error());
+      PetscCall(c.error());
       for (PetscInt il = 0; il < grid_->xm(); ++il) {
         const PetscInt i = grid_->xs() + il;
-        PetscReal u0, du0;
-        pulse(grid_->x(i), &u0, &du0);
-        g[il] = grid_->is_boundary(i) ? 0.0 : -du0 * PetscRealPart(L[2 * il + 1]);
+        if (wall(i)) continue;
+        const PetscReal ci = PetscRealPart(c[il]);
+        PetscReal u, du;
+        if (ic_ == TwoLevel) pulse(grid_->x(i) - ci * ic_dt_, &u, &du);
+        else pulse(grid_->x(i), &u, &du);
+        const PetscReal dv = ic_ == TwoLevel ? -du - ic_dt_ * ci * d2u0_[il] : -du;
+        g[il] = dv * PetscRealPart(L[2 * il + 1]);
       }
     }
     PetscCall(params_->add_pointwise(grad, c_index_, g));
@@ -628,7 +672,7 @@ private:
       if (il == lo_) il = hi_;
       if (il >= grid_->xm()) break;
       const PetscInt i = grid_->xs() + il;
-      if (grid_->is_boundary(i)) continue;
+      if (wall(i)) continue;
       std::array<StencilEntry, 5> st;
       f(il, st, d2_.row(*grid_, i, st));
     }
@@ -668,7 +712,7 @@ private:
     PetscScalar *Y = ya.data();
     const PetscInt xm = grid_->xm();
     for (PetscInt il : {(PetscInt)0, xm - 1}) // the walls
-      if (xm > 0 && grid_->is_boundary(grid_->xs() + il)) Y[2 * il] = Y[2 * il + 1] = 0;
+      if (xm > 0 && wall(grid_->xs() + il)) Y[2 * il] = Y[2 * il + 1] = 0;
     if (transpose)
       PetscCall(sweep_d2<true>(x, [&](PetscInt il, PetscReal dz, const PetscScalar *X) {
         Y[2 * il] = dz;
@@ -702,6 +746,30 @@ private:
     PetscFunctionReturn(0);
   }
 
+  // d2u0_ = D2 u^0 of the pulse u^0 (0 on the walls), by the sweep that gives the leapfrog its a(u^0).
+  PetscErrorCode pulse_d2() {
+    OwnedVec U;
+    PetscFunctionBeginUser;
+    PetscCall(DMCreateGlobalVector(dm_, U.out()));
+    {
+      Array u(U);
+      PetscCall(u.error());
+      for (PetscInt il = 0; il < grid_->xm(); ++il) {
+        const PetscInt i = grid_->xs() + il;
+        PetscReal u0, du0;
+        pulse(grid_->x(i), &u0, &du0);
+        u[2 * il] = wall(i) ? 0.0 : u0;
+        u[2 * il + 1] = 0.0;
+      }
+    }
+    d2u0_.assign(grid_->xm(), 0.0);
+    PetscCall(sweep_d2u(U, [&](PetscInt il, PetscReal du, const PetscScalar *) { d2u0_[il] = du; }));
+    PetscFunctionReturn(0);
+  }
+
+  // Walls of -wave_boundary walls: the end points of a non-periodic grid, held at u = v = 0.
+  bool wall(PetscInt i) const { return boundary_ == Walls && grid_->is_boundary(i); }
+
   void pulse(PetscReal x, PetscReal *u, PetscReal *du) const {
     const PetscReal s = (x - center_) / width_;
     *u = std::exp(-s * s);
@@ -716,7 +784,7 @@ private:
     PetscCall(MatZeroEntries(A));
     for (PetscInt il = 0; il < grid_->xm(); ++il) {
       const PetscInt i = grid_->xs() + il;
-      if (grid_->is_boundary(i)) continue;
+      if (wall(i)) continue;
       const PetscInt ru = 2 * i, rv = 2 * i + 1;
       const PetscScalar one = 1.0;
       PetscCall(MatSetValue(A, ru, rv, one, INSERT_VALUES));
@@ -787,7 +855,11 @@ private:
   Parameters *params_ = nullptr;
   SecondDerivative d2_;
   PetscBool c_field_ = PETSC_FALSE;
-  PetscInt ic_ = 0, c_index_ = -1;
+  enum { Travelling, Rest, Zero, TwoLevel };
+  enum { Walls, ZeroOutside };
+  PetscInt ic_ = Travelling, boundary_ = Walls, c_index_ = -1;
+  PetscReal ic_dt_ = 0; // the integrator's step (set_time_step), for the two-level start
+  std::vector<PetscReal> d2u0_; // D2 u^0 of the pulse, for the two-level start
   PetscReal center_ = 0.5, width_ = 0.2, cmax_ = 0, c_min_ = 0.01;
   OwnedVec c_;
   std::vector<PetscReal> dgdc_, c2_, two_c_, gbuf_; // 2 c D2 u at the last state; c^2; 2c (0 at walls); work

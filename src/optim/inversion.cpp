@@ -28,6 +28,13 @@ PetscErrorCode Inversion::setup(Scene &scene, Vec p_true) {
                             "Inversion", scan_, &scan_, nullptr));
   PetscCall(PetscOptionsInt("-inv_scan_starts", "With -inv_scan: number of scan minima polished by TAO; the lowest "
                             "objective wins", "Inversion", scan_starts_, &scan_starts_, nullptr));
+  PetscCall(PetscOptionsInt("-inv_checkpoint_every", "With a results file (the driver's -output): rewrite its restart "
+                            "snapshot every N iterations instead of every one (each snapshot writes an HDF5 file, which "
+                            "can cost more than a fast scene's gradient)",
+                            "Inversion", checkpoint_every_, &checkpoint_every_, nullptr));
+  PetscCall(PetscOptionsReal("-inv_frtol", "Also stop (CONVERGED_USER) when an iteration lowers the objective by at most "
+                             "this times max(|f_k|, |f_k+1|, 1), scipy L-BFGS-B's ftol (0: off)", "Inversion", frtol_,
+                             &frtol_, nullptr));
   {
     char file[PETSC_MAX_PATH_LEN] = "";
     PetscBool set;
@@ -43,6 +50,9 @@ PetscErrorCode Inversion::setup(Scene &scene, Vec p_true) {
   PetscCheck(tv_ >= 0 && tv_eps_ > 0, comm, PETSC_ERR_ARG_OUTOFRANGE,
              "-inv_tv must be non-negative and -inv_tv_eps positive, got %g and %g", (double)tv_, (double)tv_eps_);
   PetscCheck(alpha_ >= 0, comm, PETSC_ERR_ARG_OUTOFRANGE, "-inv_tikhonov must be non-negative, got %g", (double)alpha_);
+  PetscCheck(checkpoint_every_ >= 1, comm, PETSC_ERR_ARG_OUTOFRANGE, "-inv_checkpoint_every must be positive, got %" PetscInt_FMT,
+             checkpoint_every_);
+  PetscCheck(frtol_ >= 0, comm, PETSC_ERR_ARG_OUTOFRANGE, "-inv_frtol must be non-negative, got %g", (double)frtol_);
   PetscCheck(lower_value_ < upper_value_, comm, PETSC_ERR_ARG_OUTOFRANGE,
              "Inverted bounds: -inv_lower %g is not below -inv_upper %g", (double)lower_value_, (double)upper_value_);
   if (p_true) {
@@ -71,6 +81,7 @@ PetscErrorCode Inversion::setup(Scene &scene, Vec p_true) {
   }
   PetscCall(TaoSetVariableBounds(tao_, lower_, upper_));
   PetscCall(TaoSetMonitor(tao_, monitor, this, nullptr));
+  PetscCall(TaoSetConvergenceTest(tao_, convergence_test, this));
   PetscCall(TaoSetFromOptions(tao_));
   PetscFunctionReturn(0);
 }
@@ -184,7 +195,26 @@ PetscErrorCode Inversion::monitor(Tao tao, void *ctx) {
   PetscCall(inv->rmse(x, &e));
   if (inv->iteration_offset_ > 0 && it == 0) PetscFunctionReturn(0); // the resumed iterate is already recorded
   inv->history_.push_back({it + inv->iteration_offset_, f, inv->last_misfit_, gnorm, e});
-  if (!inv->checkpoint_file_.empty()) PetscCall(inv->write_checkpoint(x));
+  if (!inv->checkpoint_file_.empty() && (it + inv->iteration_offset_) % inv->checkpoint_every_ == 0)
+    PetscCall(inv->write_checkpoint(x));
+  PetscFunctionReturn(0);
+}
+
+// TAO's own tests, then (-inv_frtol) scipy L-BFGS-B's relative reduction of the objective between two
+// iterations, (f_k - f_{k+1}) / max(|f_k|, |f_{k+1}|, 1) <= frtol.
+PetscErrorCode Inversion::convergence_test(Tao tao, void *ctx) {
+  auto *inv = static_cast<Inversion *>(ctx);
+  PetscInt it;
+  PetscReal f;
+  TaoConvergedReason reason;
+  PetscFunctionBeginUser;
+  PetscCall(TaoDefaultConvergenceTest(tao, nullptr));
+  PetscCall(TaoGetSolutionStatus(tao, &it, &f, nullptr, nullptr, nullptr, &reason));
+  if (it == 0) inv->previous_f_ = PETSC_MAX_REAL;
+  if (reason == TAO_CONTINUE_ITERATING && inv->frtol_ > 0 && it > 0 &&
+      inv->previous_f_ - f <= inv->frtol_ * PetscMax(PetscMax(PetscAbsReal(inv->previous_f_), PetscAbsReal(f)), 1.0))
+    PetscCall(TaoSetConvergedReason(tao, TAO_CONVERGED_USER));
+  inv->previous_f_ = f;
   PetscFunctionReturn(0);
 }
 
