@@ -56,9 +56,9 @@ public:
   SpectralDifferentiator(SpectralDifferentiator &&) noexcept;
   SpectralDifferentiator &operator=(SpectralDifferentiator &&) noexcept;
 
-  // The largest 1D grid transformed whole on every rank when there are several: replicated transforms
-  // measured faster up to here (a gradient at N = 32768 on 2 ranks 0.412 s against the distributed
-  // transform's 0.513 s; at N = 131072 1.19 s against 1.13 s).
+  // The largest 1D grid transformed whole on every rank when there are several: up to about here a
+  // replicated transform costs less than the distributed one's all-to-all transposes
+  // (docs/performance.md).
   static constexpr PetscInt kReplicateMax = 32768;
   // Collective. u and y of apply() are global Vecs of grid.dm() (one value per grid point). The
   // grid must be periodic in every transformed direction with an even number of points there.

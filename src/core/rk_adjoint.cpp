@@ -59,7 +59,7 @@ PetscErrorCode combine(Vec w, PetscScalar c0, Vec x0, PetscInt m, const PetscSca
 
 // x += d[0] + ... + d[s-1] (ones: s unit coefficients). For s <= 4 in one pass of its own: the same
 // numbers as VecMAXPY, whose kernel adds x + (((1 d0 + 1 d1) + 1 d2) + 1 d3) for four terms, without its
-// pointer loop that the compiler cannot vectorise (seed wave RK4 adjoint 1.08x faster); else VecMAXPY.
+// pointer loop that the compiler cannot vectorise; else VecMAXPY.
 PetscErrorCode add_stages(Vec x, PetscInt s, const Vec *d, const PetscScalar *ones) {
   PetscScalar *xa;
   const PetscScalar *a[4];

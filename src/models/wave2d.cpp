@@ -236,7 +236,7 @@ public:
       // stores, past the caches: formed in a buffer of the whole block first (in cache) and streamed from
       // there in one contiguous pass after the sweep: whole cache lines, not the pieces that the interior
       // rows and, later, the perimeter would write (a line written in parts by non-temporal stores is
-      // flushed in parts: measured slower than plain stores).
+      // flushed in parts, slower than plain stores).
       const PetscInt n = grid_->local_points();
       if (REC && rec_stage_.size() < (size_t)n) rec_stage_.resize(n);
       PetscScalar *rec = REC ? rec_stage_.data() : nullptr;
