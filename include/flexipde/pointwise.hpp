@@ -234,7 +234,6 @@ class PointwiseModel final : public Model {
   static_assert(D == 1 || D == 2, "the grid is 1D or 2D");
 
 public:
-  const Eq &equations() const { return eq_; }
   const char *name() const override { return eq_.name(); }
   PetscInt dof() const override { return C; }
   const char *component_name(PetscInt c) const override { return eq_.component_name((int)c); }
@@ -512,11 +511,6 @@ public:
     PetscFunctionBeginUser;
     if constexpr (HasSpectrum<Eq>::value) PetscCall(eq_.spectrum(bounds_, s));
     else PetscCall(gershgorin(s));
-    PetscFunctionReturn(0);
-  }
-  PetscErrorCode set_spectrum_state(Vec U) {
-    PetscFunctionBeginUser;
-    PetscCall(to_local(U, Ul_));
     PetscFunctionReturn(0);
   }
 
