@@ -6,7 +6,8 @@
 //   - dG/dp and dU0/dp against central differences;
 //   - the gradient of a misfit (data from 1.05 p) through each integrator with an adjoint that the
 //     model admits (RK4, Crank-Nicolson, and the leapfrog for second-order models): a Taylor test
-//     (second-order remainders falling ~4x as the step halves) and a central difference;
+//     (second-order remainders falling ~4x as the step halves), a central difference, and the same
+//     gradient through PETSc's own adjoint step (-adjoint_petsc_step 1);
 //   - on several ranks, the same J and gradient as one rank alone (each rank solving the whole scene
 //     on PETSC_COMM_SELF), to 1e-12.
 #include "flexipde/scene.hpp"
@@ -229,6 +230,16 @@ TEST_P(ModelConformance, GradientTaylorCentralDifferenceAndRanks) {
       const PetscReal ratio = r[k - 1] / r[k];
       EXPECT_GT(ratio, 3.5) << "Taylor remainder ratio at level " << k;
       EXPECT_LT(ratio, 4.5) << "Taylor remainder ratio at level " << k;
+    }
+    // PETSc's own adjoint step (and the leapfrog through the assembled Jacobians): the same gradient
+    {
+      ScopedOptions oracle{{"-adjoint_petsc_step", "1"}};
+      OwnedVec g_ref;
+      PetscReal J_ref;
+      PETSC_ASSERT_OK(VecDuplicate(g, g_ref.out()));
+      PETSC_ASSERT_OK(scene.gradient(p, &J_ref, g_ref));
+      EXPECT_EQ(J_ref, J0);
+      EXPECT_LT(rel_diff(g, g_ref), 1e-9) << "gradient against -adjoint_petsc_step 1";
     }
     // central difference of J along d
     const PetscReal h = 1e-5;

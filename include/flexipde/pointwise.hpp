@@ -447,10 +447,12 @@ public:
   }
   // The shells read the state of the last rhs_jacobian_p call (and the matrix-free dG/dU, of the last
   // rhs_jacobian call or the state handed to stage products).
-  PetscErrorCode rhs_jacobian_p(PetscReal t, Vec U, Mat) override {
+  PetscErrorCode rhs_jacobian_p(PetscReal t, Vec U, Mat Jp) override {
     PetscFunctionBeginUser;
     PetscCall(to_local(U, Jp_state_));
     jp_t_ = t;
+    PetscCall(MatAssemblyBegin(Jp, MAT_FINAL_ASSEMBLY)); // resets the scaling a theta adjoint applied last time
+    PetscCall(MatAssemblyEnd(Jp, MAT_FINAL_ASSEMBLY));
     PetscFunctionReturn(0);
   }
 
