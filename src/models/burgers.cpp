@@ -72,6 +72,13 @@ public:
     else u[0] = std::fabs(x - center_) * 2 < width_ ? amplitude_ + offset_ : offset_;
   }
 
+  PetscErrorCode check_parameters(const ParameterBounds &b, MPI_Comm comm) const {
+    PetscFunctionBeginUser;
+    PetscCheck(b.min[nu] >= 0, comm, PETSC_ERR_ARG_OUTOFRANGE, "Viscosity must be non-negative, found nu = %g",
+               (double)b.min[nu]);
+    PetscFunctionReturn(0);
+  }
+
 private:
   template <class T> static T flux(const T &a, const T &b) {
     return 0.5 * sqr(max(a, T(0.0))) + 0.5 * sqr(min(b, T(0.0)));
