@@ -1,9 +1,11 @@
-// The one interface a PDE implements: dU/dt = G(t, U; p) on a grid.
+// The interface between a PDE and the integrators: dU/dt = G(t, U; p) on a grid.
 //
 // A model provides its components per grid point, G, dG/dU (an assembled Mat or a MatShell with
 // MultTranspose), dG/dp for the parameters it declares, and its initial condition U0(p) with the
 // transpose of dU0/dp. It never sees the adjoint, the trajectory, the optimiser or the output:
-// the Simulation owns those and works for every model alike.
+// the Simulation owns those and works for every model alike. A new model does not implement this
+// class by hand: it states G and U0 at one grid point and PointwiseModel (pointwise.hpp) derives all
+// of it (docs/adding_a_model.md); wave, wave2d, advection and vlasov still implement it directly.
 #pragma once
 #include "flexipde/grid.hpp"
 #include "flexipde/parameters.hpp"
