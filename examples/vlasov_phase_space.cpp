@@ -106,7 +106,7 @@ static PetscErrorCode run() {
   PetscCall(scene.params.create_vec(p.out()));
   PetscCall(scene.parameters_from_options("", p));
   PetscCall(scene.sim.create_state(U.out()));
-  PetscCall(scene.model->initial_condition(p, U));
+  PetscCall(scene.sim.initial_condition(p, U));
   PetscCall(TSCreate(comm, ts.out()));
   PetscCall(TSSetProblemType(ts, TS_NONLINEAR));
   PetscCall(TSSetRHSFunction(ts, nullptr, Recorder::rhs, &rec));

@@ -170,14 +170,14 @@ TEST_P(ModelConformance, InitialConditionTranspose) {
   PETSC_ASSERT_OK(fill_random(dp, -0.1, 0.1, 47));
   PETSC_ASSERT_OK(fill_random(lam, -1.0, 1.0, 48));
   PETSC_ASSERT_OK(VecWAXPY(q, eps, dp, p));
-  PETSC_ASSERT_OK(scene.model->initial_condition(q, Up));
+  PETSC_ASSERT_OK(scene.sim.initial_condition(q, Up));
   PETSC_ASSERT_OK(VecWAXPY(q, -eps, dp, p));
-  PETSC_ASSERT_OK(scene.model->initial_condition(q, Um));
+  PETSC_ASSERT_OK(scene.sim.initial_condition(q, Um));
   PETSC_ASSERT_OK(VecAXPY(Up, -1.0, Um));
   const PetscReal fd = dot(lam, Up) / (2 * eps);
   PETSC_ASSERT_OK(VecSet(g, 0.0));
   PETSC_ASSERT_OK(scene.model->set_parameters(p));
-  PETSC_ASSERT_OK(scene.model->initial_condition(p, Um));
+  PETSC_ASSERT_OK(scene.sim.initial_condition(p, Um));
   PETSC_ASSERT_OK(scene.model->initial_condition_transpose(p, lam, g));
   const PetscReal adj = dot(g, dp);
   if (std::fabs(fd) < 1e-12 && std::fabs(adj) < 1e-12) return; // U0 independent of these parameters

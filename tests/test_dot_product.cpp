@@ -224,9 +224,9 @@ TEST_P(WaveDerivatives, InitialConditionTranspose) {
   PETSC_ASSERT_OK(fill_random(lam, -1, 1, 42));
   const PetscReal h = 1e-3;
   PETSC_ASSERT_OK(VecWAXPY(q, h, dp, p));
-  PETSC_ASSERT_OK(scene.model->initial_condition(q, Up));
+  PETSC_ASSERT_OK(scene.sim.initial_condition(q, Up));
   PETSC_ASSERT_OK(VecWAXPY(q, -h, dp, p));
-  PETSC_ASSERT_OK(scene.model->initial_condition(q, Um));
+  PETSC_ASSERT_OK(scene.sim.initial_condition(q, Um));
   PETSC_ASSERT_OK(VecWAXPY(dU0, -1.0, Um, Up));
   PETSC_ASSERT_OK(VecScale(dU0, 1.0 / (2 * h)));
   EXPECT_GT(norm(dU0), 0.0) << "travelling IC should depend on c";
@@ -244,7 +244,7 @@ TEST_P(WaveDerivatives, InitialConditionTranspose) {
   // U0 satisfies the boundary conditions and v0 = -c u0' for the travelling pulse.
   OwnedVec U0;
   PETSC_ASSERT_OK(VecDuplicate(U, U0.out()));
-  PETSC_ASSERT_OK(scene.model->initial_condition(p, U0));
+  PETSC_ASSERT_OK(scene.sim.initial_condition(p, U0));
   std::vector<PetscReal> u0, pa;
   PETSC_ASSERT_OK(flexipde_test::gather_all(U0, u0));
   PETSC_ASSERT_OK(flexipde_test::gather_all(p, pa));
@@ -281,8 +281,8 @@ TEST(WaveInitialCondition, RestIsIndependentOfSpeed) {
   PETSC_ASSERT_OK(scene.sim.create_state(U0.out()));
   PETSC_ASSERT_OK(scene.sim.create_state(U1.out()));
   PETSC_ASSERT_OK(scene.sim.create_state(lam.out()));
-  PETSC_ASSERT_OK(scene.model->initial_condition(p, U0));
-  PETSC_ASSERT_OK(scene.model->initial_condition(q, U1));
+  PETSC_ASSERT_OK(scene.sim.initial_condition(p, U0));
+  PETSC_ASSERT_OK(scene.sim.initial_condition(q, U1));
   EXPECT_EQ(rel_diff(U0, U1), 0.0);
   PetscReal vmax = -1, umax = -1;
   PETSC_ASSERT_OK(VecStrideNorm(U0, 1, NORM_INFINITY, &vmax));

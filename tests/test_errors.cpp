@@ -123,7 +123,7 @@ TEST(Errors, ExplicitStepBeyondStabilityLimit) {
   EXPECT_EQ(r.forward(), PETSC_ERR_ARG_OUTOFRANGE);
   OwnedVec U0;
   PETSC_ASSERT_OK(VecDuplicate(r.U, U0.out()));
-  PETSC_ASSERT_OK(r.scene.model->initial_condition(r.p, U0));
+  PETSC_ASSERT_OK(r.scene.sim.initial_condition(r.p, U0));
   EXPECT_EQ(rel_diff(r.U, U0), 0.0) << "steps were taken before the refusal";
   EXPECT_EQ(r.gradient(), PETSC_ERR_ARG_OUTOFRANGE);
 }

@@ -46,7 +46,7 @@ struct History {
     OwnedTS ts;
     PetscFunctionBeginUser;
     model = scene.model.get();
-    if (p) PetscCall(scene.model->initial_condition(p, U));
+    if (p) PetscCall(scene.sim.initial_condition(p, U));
     PetscCall(TSCreate(scene.comm(), ts.out()));
     PetscCall(TSSetProblemType(ts, TS_NONLINEAR));
     PetscCall(TSSetRHSFunction(ts, nullptr, rhs, this));
@@ -560,9 +560,9 @@ TEST(VlasovGradient, InitialDistributionGradientMatchesParameterGradient) {
   PETSC_ASSERT_OK(scene.sim.gradient(p, &J, gp, gu));
   const PetscReal e = 1e-5;
   PETSC_ASSERT_OK(VecWAXPY(q, e, d, p));
-  PETSC_ASSERT_OK(scene.model->initial_condition(q, Up));
+  PETSC_ASSERT_OK(scene.sim.initial_condition(q, Up));
   PETSC_ASSERT_OK(VecWAXPY(q, -e, d, p));
-  PETSC_ASSERT_OK(scene.model->initial_condition(q, Um));
+  PETSC_ASSERT_OK(scene.sim.initial_condition(q, Um));
   PETSC_ASSERT_OK(VecAXPY(Up, -1.0, Um));
   const PetscReal via_u0 = dot(Up, gu) / (2 * e), via_p = dot(gp, d);
   PetscPrintf(PETSC_COMM_WORLD, "  dJ/dU0 . dU0/dp d = %.12e, dJ/dp . d = %.12e\n", (double)via_u0, (double)via_p);
@@ -587,7 +587,7 @@ TEST(VlasovGradient, InitialDistributionTaylor) {
   for (Vec *v : {gu.out(), U0.out(), d.out(), U.out()}) PETSC_ASSERT_OK(scene.sim.create_state(v));
   PetscReal J;
   PETSC_ASSERT_OK(scene.sim.gradient(p, &J, gp, gu));
-  PETSC_ASSERT_OK(scene.model->initial_condition(p, U0));
+  PETSC_ASSERT_OK(scene.sim.initial_condition(p, U0));
   PETSC_ASSERT_OK(fill_random(d, -0.01, 0.01, 48));
   History hist;
   auto J_from = [&](PetscReal eps, PetscReal *value) {

@@ -158,7 +158,8 @@ public:
   // Simulation: for initial conditions defined through the scheme's first step (the wave's two-level
   // start). Most models ignore it.
   virtual void set_time_step(PetscReal dt) { (void)dt; }
-  // U0 = U0(p), and grad += (dU0/dp)^T lambda0.
+  // U0 = U0(p), and grad += (dU0/dp)^T lambda0, at the parameters set last by set_parameters(p) (the
+  // Simulation sets them first: Simulation::initial_condition).
   virtual PetscErrorCode initial_condition(Vec p, Vec U0) = 0;
   virtual PetscErrorCode initial_condition_transpose(Vec p, Vec lambda0, Vec grad) = 0;
 };

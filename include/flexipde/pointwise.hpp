@@ -27,7 +27,6 @@
 #include "flexipde/model.hpp"
 #include "flexipde/leapfrog.hpp"
 #include "flexipde/survey.hpp"
-#include <petsc/private/petscimpl.h> // PetscObjectStateGet
 #include <array>
 #include <cmath>
 #include <string>
@@ -287,8 +286,6 @@ public:
   PetscErrorCode set_parameters(Vec p) override {
     OwnedVec f;
     PetscFunctionBeginUser;
-    PetscCall(PetscObjectStateGet((PetscObject)p, &p_state_));
-    p_set_ = p;
     PetscCall(DMCreateGlobalVector(grid_->dm(), f.out()));
     for (int k = 0; k < NP; ++k) {
       if (index_[k] >= 0) PetscCall(params_->as_field(p, index_[k], f));
@@ -518,10 +515,7 @@ public:
 
   // U0 = U0(p) pointwise, and grad += (dU0/dp)^T lambda0 from Dual numbers in the parameters.
   FLEXIPDE_SWEEP PetscErrorCode initial_condition(Vec p, Vec U0) override {
-    PetscObjectState state;
     PetscFunctionBeginUser;
-    PetscCall(PetscObjectStateGet((PetscObject)p, &state));
-    if (p != p_set_ || state != p_state_) PetscCall(set_parameters(p)); // a caller outside the Simulation
     {
       ConstArray pa(P_);
       Array u(U0);
@@ -817,8 +811,6 @@ private:
   PetscReal jp_t_ = 0;
   ParameterBounds bounds_;
   const PointSource *source_ = nullptr;
-  Vec p_set_ = nullptr; // the parameters last set, and their state then
-  PetscObjectState p_state_ = -1;
   pointwise::Frame frame_;
   std::vector<int> pattern_;
   std::vector<std::vector<PetscReal>> scalar_acc_;

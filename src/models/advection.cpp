@@ -728,7 +728,6 @@ public:
 
   PetscErrorCode initial_condition(Vec p, Vec U0) override {
     PetscFunctionBeginUser;
-    PetscCall(set_parameters(p));
     PetscReal A = amplitude_;
     if (amplitude_param_) PetscCall(params_->scalar(p, A_index_, &A));
     Array U(U0);

@@ -452,7 +452,6 @@ public:
   PetscErrorCode initial_condition(Vec p, Vec U0) override {
     PetscScalar **f;
     PetscFunctionBeginUser;
-    PetscCall(set_parameters(p));
     const Grid &g = *grid_;
     PetscCall(DMDAVecGetArray(dm_, U0, &f));
     for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j) {

@@ -510,7 +510,6 @@ public:
     PetscCheck(ic_ != TwoLevel || ic_dt_ > 0, grid_->comm(), PETSC_ERR_ORDER,
                "-wave_ic two_level needs the integrator's step: make the initial condition through "
                "Simulation::initial_condition (Model::set_time_step)");
-    PetscCall(set_parameters(p));
     Array U(U0);
     ConstArray c(c_);
     PetscCall(U.error());

@@ -589,7 +589,6 @@ public:
 
   PetscErrorCode initial_condition(Vec p, Vec U0) override {
     PetscFunctionBeginUser;
-    PetscCall(set_parameters(p));
     Array U(U0);
     PetscCall(U.error());
     for (PetscInt k = 0; k < grid_->local_points(); ++k) {
