@@ -98,7 +98,9 @@ struct Frame {
   const PetscScalar *X = nullptr;  // direction of the state (Tangent; null: 0)
   const PetscScalar *P = nullptr;  // parameters, `np` per point
   const PetscScalar *dP = nullptr; // direction of the parameters (Tangent; null: 0)
-  PetscInt np = 0, sy = 0;
+  const PetscScalar *A = nullptr;  // auxiliary fields a = L U, `na` per point (non-local linear maps of the state)
+  const PetscScalar *dA = nullptr; // their direction L X (Tangent; null: 0)
+  PetscInt np = 0, na = 0, sy = 0;
   PetscReal t = 0;
   PetscReal h[2] = {1, 1}, ih[2] = {1, 1}, x0[2] = {0, 0};
   PetscInt n[2] = {1, 1};
@@ -112,16 +114,17 @@ struct Frame {
 // The point view handed to a model's rhs() and initial(). Mode and seeds decide what a Number is:
 //   Value    double;  Tangent  Dual<double, 1> in the direction (X, dP);
 //   Rows     Dual<double, E * C>, lane e * C + c for state component c at stencil entry e;
-//   Gather   Dual<double, C + NP>, lanes c for U_c and C + k for parameter k at offset (SX, SY) only.
+//   Gather   Dual<double, C + K + NP>, lanes c for U_c, C + k for auxiliary field k and C + K + k for
+//            parameter k, at offset (SX, SY) only.
 // CK: the point is near a wall or the ghost band, and every read is checked: positions beyond a wall
 // are reflected or zero, and (Gather) the seeded input is found by its position (ti, tj) at run time.
-template <int C, int NP, class Sten, Mode M, int SX = 0, int SY = 0, bool CK = false>
+template <int C, int K, int NP, class Sten, Mode M, int SX = 0, int SY = 0, bool CK = false>
 class Point {
 public:
   using Number = std::conditional_t<
       M == Mode::Value, double,
       std::conditional_t<M == Mode::Tangent, Dual<double, 1>,
-                         std::conditional_t<M == Mode::Rows, Dual<double, Sten::size * C>, Dual<double, C + NP>>>>;
+                         std::conditional_t<M == Mode::Rows, Dual<double, Sten::size * C>, Dual<double, C + K + NP>>>>;
   Point(const Frame &f, PetscInt at, PetscInt i, PetscInt j, PetscInt ti = 0, PetscInt tj = 0)
       : f_(f), at_(at), i_(i), j_(j), ti_(ti), tj_(tj) {}
 
@@ -145,6 +148,20 @@ public:
     if constexpr (M == Mode::Tangent) {
       Number r(v);
       r.d[0] = f_.dP ? PetscRealPart(f_.dP[a]) : 0.0;
+      return r;
+    } else if constexpr (M == Mode::Gather) {
+      const bool seed = CK ? i_ + dx == ti_ && j_ + dy == tj_ : dx == SX && dy == SY;
+      return seed ? Number::seeded(v, C + K + k) : Number(v);
+    } else return v;
+  }
+  // Auxiliary field k (Eq::auxiliaries: a = L U from the model's non-local linear maps) at the offset.
+  Number aux(int k, int dx = 0, int dy = 0) const {
+    static_assert(M != Mode::Rows, "a model with auxiliary fields has no assembled Jacobian");
+    const PetscInt a = (at_ + dx + dy * f_.sy) * K + k;
+    const double v = PetscRealPart(f_.A[a]); // 0 beyond a wall
+    if constexpr (M == Mode::Tangent) {
+      Number r(v);
+      r.d[0] = f_.dA ? PetscRealPart(f_.dA[a]) : 0.0;
       return r;
     } else if constexpr (M == Mode::Gather) {
       const bool seed = CK ? i_ + dx == ti_ && j_ + dy == tj_ : dx == SX && dy == SY;
@@ -217,6 +234,12 @@ template <class Eq, class = void> struct HasForcing : std::false_type {};
 template <class Eq> struct HasForcing<Eq, std::void_t<decltype(Eq::forced_component)>> : std::true_type {};
 template <class Eq>
 struct PairsOf<Eq, std::void_t<decltype(Eq::second_order_pairs)>> : std::integral_constant<int, Eq::second_order_pairs> {};
+// Non-local couplings: `auxiliaries` fields a_k = L_k U read at points (pt.aux), and `outputs` fields h_m
+// written by rhs after the C components, entering G through G += B_m h_m (L, B: the model's linear maps).
+template <class Eq, class = void> struct AuxOf : std::integral_constant<int, 0> {};
+template <class Eq> struct AuxOf<Eq, std::void_t<decltype(Eq::auxiliaries)>> : std::integral_constant<int, Eq::auxiliaries> {};
+template <class Eq, class = void> struct OutputsOf : std::integral_constant<int, 0> {};
+template <class Eq> struct OutputsOf<Eq, std::void_t<decltype(Eq::outputs)>> : std::integral_constant<int, Eq::outputs> {};
 
 } // namespace pointwise
 
@@ -225,12 +248,19 @@ struct PairsOf<Eq, std::void_t<decltype(Eq::second_order_pairs)>> : std::integra
 template <class Eq>
 class PointwiseModel final : public Model {
   static constexpr int D = Eq::dim, C = Eq::components, R = Eq::radius, NP = Eq::parameters;
+  static constexpr int K = pointwise::AuxOf<Eq>::value, H = pointwise::OutputsOf<Eq>::value;
+  static constexpr bool Local = K == 0 && H == 0; // else dG/dU is applied, never assembled
   static constexpr StencilShape Shape = pointwise::ShapeOf<Eq>::value;
   using Sten = pointwise::Stencil<D, R, Shape>;
   using Mode = pointwise::Mode;
-  template <Mode M, int SX = 0, int SY = 0, bool CK = false> using Pt = pointwise::Point<C, NP, Sten, M, SX, SY, CK>;
+  template <Mode M, int SX = 0, int SY = 0, bool CK = false> using Pt = pointwise::Point<C, K, NP, Sten, M, SX, SY, CK>;
   template <bool CK> using Check = std::integral_constant<bool, CK>;
   static_assert(D == 1 || D == 2, "the grid is 1D or 2D");
+  static_assert(Local || pointwise::PairsOf<Eq>::value == 0, "the leapfrog kick handles local models only");
+  // A state as the sweeps read it: ghosted, with its auxiliary fields (K per point, ghosted) if any.
+  struct LocalState {
+    OwnedVec u, a;
+  };
 
 public:
   const char *name() const override { return eq_.name(); }
@@ -261,12 +291,32 @@ public:
     PetscCall(VecDuplicate(P_, dP_.out()));
     PetscCall(VecSet(dP_, 0.0));
     PetscCall(DMCreateGlobalVector(param_dm_, Pg_.out()));
-    PetscCall(DMCreateLocalVector(dm_, Ul_.out()));
-    PetscCall(VecSet(Ul_, 0.0));
-    PetscCall(VecDuplicate(Ul_, Xl_.out()));
+    PetscCall(DMCreateLocalVector(dm_, Xl_.out()));
     PetscCall(VecSet(Xl_, 0.0));
-    PetscCall(VecDuplicate(Ul_, Jp_state_.out()));
-    PetscCall(VecSet(Jp_state_, 0.0));
+    PetscCall(create_state(st_));
+    PetscCall(create_state(jac_));
+    PetscCall(create_state(jp_));
+    if constexpr (K > 0) {
+      PetscCall(grid.create_dm(K, aux_dm_.out()));
+      PetscCall(DMCreateGlobalVector(aux_dm_, Ag_.out()));
+      PetscCall(VecDuplicate(Ag_, Zg_.out()));
+      PetscCall(DMCreateLocalVector(aux_dm_, dAl_.out()));
+      PetscCall(VecSet(dAl_, 0.0));
+      for (auto *s : {&st_, &jac_, &jp_}) {
+        PetscCall(VecDuplicate(dAl_, s->a.out()));
+        PetscCall(VecSet(s->a, 0.0));
+      }
+    }
+    if constexpr (H > 0) {
+      PetscCall(grid.create_dm(H, out_dm_.out()));
+      PetscCall(DMCreateGlobalVector(out_dm_, Hg_.out()));
+      PetscCall(DMCreateLocalVector(out_dm_, XHl_.out()));
+      PetscCall(VecSet(XHl_, 0.0));
+    }
+    if constexpr (!Local) {
+      PetscCall(DMCreateGlobalVector(grid.dm(), field_.out()));
+      PetscCall(DMCreateGlobalVector(dm_, Yt_.out()));
+    }
     scalar_acc_.assign((size_t)NP, std::vector<PetscReal>());
     for (int k = 0; k < NP; ++k)
       if (index_[k] >= 0 && params.info(index_[k]).kind == ParamKind::Scalar) scalar_acc_[k].assign(grid.local_points(), 0.0);
@@ -278,6 +328,7 @@ public:
     frame_.periodic[0] = grid.periodic(), frame_.periodic[1] = grid.periodic_y();
     if constexpr (pointwise::HasOddWalls<Eq>::value) frame_.odd[0] = frame_.odd[1] = eq_.odd_walls();
     frame_.np = NP;
+    frame_.na = K;
     frame_.dim = D;
     PetscFunctionReturn(0);
   }
@@ -304,75 +355,96 @@ public:
 
   FLEXIPDE_SWEEP PetscErrorCode rhs(PetscReal t, Vec U, Vec G) override {
     PetscFunctionBeginUser;
-    PetscCall(to_local(U, Ul_));
+    PetscCall(load(U, st_));
     {
-      ConstArray u(Ul_), p(P_);
+      ConstArray u(st_.u), p(P_), a(st_.a);
       Array g(G);
       PetscCall(u.error());
       PetscCall(p.error());
       PetscCall(g.error());
       pointwise::Frame f = frame(t, u.data(), p.data());
+      f.A = a.data();
       PetscScalar *out = g.data();
+      PetscScalar *hout = nullptr;
+      if constexpr (H > 0) PetscCall(VecGetArray(Hg_, &hout));
       for_points(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
-        double gv[C];
+        double gv[C + H];
         eq_.rhs(Pt<Mode::Value, 0, 0, decltype(ck)::value>(f, at, i, j), gv);
         for (int c = 0; c < C; ++c) out[own * C + c] = gv[c];
+        for (int m = 0; m < H; ++m) hout[own * H + m] = gv[C + m];
       });
+      if constexpr (H > 0) PetscCall(VecRestoreArray(Hg_, &hout));
       if constexpr (pointwise::HasForcing<Eq>::value)
         if (source_)
           for (PetscInt k = 0; k < source_->stencil.n; ++k)
             out[source_->stencil.local[k] * C + Eq::forced_component] += source_->density(k, t);
     }
+    PetscCall(add_outputs(G));
     PetscFunctionReturn(0);
   }
 
   // y = dG/dU x + dG/dp dp at state U (either direction may be null), one sweep of Tangent numbers.
-  FLEXIPDE_SWEEP PetscErrorCode tangent(PetscReal t, Vec Uloc, Vec x, Vec dp, Vec y) {
+  FLEXIPDE_SWEEP PetscErrorCode tangent(PetscReal t, const LocalState &s, Vec x, Vec dp, Vec y) {
     PetscFunctionBeginUser;
     if (x) PetscCall(to_local(x, Xl_));
     if (dp) PetscCall(params_to_local(dp, dP_));
+    if constexpr (K > 0)
+      if (x) PetscCall(auxiliaries(x, dAl_));
     {
-      ConstArray u(Uloc), xa(x ? Xl_.get() : nullptr), p(P_), dpa(dp ? dP_.get() : nullptr);
+      ConstArray u(s.u), xa(x ? Xl_.get() : nullptr), p(P_), dpa(dp ? dP_.get() : nullptr), a(s.a),
+          da(K > 0 && x ? dAl_.get() : nullptr);
       Array ya(y);
       PetscCall(ya.error());
       pointwise::Frame f = frame(t, u.data(), p.data());
       f.X = xa.data();
       f.dP = dpa.data();
+      f.A = a.data();
+      f.dA = da.data();
       PetscScalar *out = ya.data();
+      PetscScalar *hout = nullptr;
+      if constexpr (H > 0) PetscCall(VecGetArray(Hg_, &hout));
       for_points(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
-        typename Pt<Mode::Tangent>::Number gv[C];
+        typename Pt<Mode::Tangent>::Number gv[C + H];
         eq_.rhs(Pt<Mode::Tangent, 0, 0, decltype(ck)::value>(f, at, i, j), gv);
         for (int c = 0; c < C; ++c) out[own * C + c] = gv[c].d[0];
+        for (int m = 0; m < H; ++m) hout[own * H + m] = gv[C + m].d[0];
       });
+      if constexpr (H > 0) PetscCall(VecRestoreArray(Hg_, &hout));
     }
+    PetscCall(add_outputs(y));
     PetscFunctionReturn(0);
   }
 
-  // The transposes at state Uloc (ghosted): y = (dG/dU)^T x (y null: not formed) and, for every
-  // parameter k, gk[j] += w sum (dG/dp_k(j))^T x (gk null: not wanted), in one gather sweep.
-  // Components of x outside [clo, chi) are taken as 0, and only y's components in [ylo, yhi) are
-  // written (added, times w, if add_y): the leapfrog's kick is this with x = lambda_p, y = lambda_q.
+  // The transposes at state s: y = (dG/dU)^T x (y null: not formed) and, for every parameter k,
+  // gk[j] += w sum (dG/dp_k(j))^T x (gk null: not wanted), in one gather sweep; xl is x ghosted and xh
+  // the outputs' B^T x ghosted. Components of x outside [clo, chi) are taken as 0, and only y's
+  // components in [ylo, yhi) are written (added, times w, if add_y): the leapfrog's kick is this with
+  // x = lambda_p, y = lambda_q. z (auxiliary fields; null: none) gets the gather of (dG/da)^T x.
   template <int CLO = 0, int CHI = C, int YLO = 0, int YHI = C>
-  FLEXIPDE_SWEEP PetscErrorCode gather(PetscReal t, Vec Uloc, const PetscScalar *xl, PetscScalar *y, bool add_y, PetscReal w,
-                        PetscReal *const *gk) {
+  FLEXIPDE_SWEEP PetscErrorCode gather(PetscReal t, const LocalState &s, const PetscScalar *xl, const PetscScalar *xh,
+                                       PetscScalar *y, bool add_y, PetscReal w, PetscReal *const *gk, PetscScalar *z) {
     PetscFunctionBeginUser;
     {
-      ConstArray u(Uloc), p(P_);
+      ConstArray u(s.u), p(P_), a(s.a);
       PetscCall(u.error());
       PetscCall(p.error());
-      const pointwise::Frame f = frame(t, u.data(), p.data());
+      pointwise::Frame f = frame(t, u.data(), p.data());
+      f.A = a.data();
       const PetscInt nx = grid_->n(), ny = grid_->ny();
       const bool px = grid_->periodic(), py = grid_->periodic_y();
       for_points(2 * R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
         double yv[C] = {};
+        double zv[K > 0 ? K : 1] = {};
         double gv[NP > 0 ? NP : 1] = {};
-        gather_offsets<CLO, CHI, decltype(ck)::value>(f, xl, at, i, j, nx, ny, px, py, yv, gv,
+        gather_offsets<CLO, CHI, decltype(ck)::value>(f, xl, xh, at, i, j, nx, ny, px, py, yv, zv, gv,
                                                        std::make_integer_sequence<int, Sten::size>());
         if (y)
           for (int c = YLO; c < YHI; ++c) {
             if (add_y) y[own * C + c] += w * yv[c];
             else y[own * C + c] = yv[c];
           }
+        if (z)
+          for (int k = 0; k < K; ++k) z[own * K + k] = zv[k];
         if (gk)
           for (int k = 0; k < NP; ++k)
             if (gk[k]) gk[k][own] += w * gv[k];
@@ -381,30 +453,58 @@ public:
     PetscFunctionReturn(0);
   }
 
-  // The gather from x's ghosted copy in Xl_ at the state Uloc into y (null: none) and, unless mu is
-  // null, mu += w (dG/dp)^T x: a field's entries in place, a scalar's pointwise terms into its
-  // accumulator if `defer` (the integrators' own sweeps during an adjoint solve; end_adjoint sums
-  // them), else summed now (collective; the shells, whose products PETSc scales after the fact).
+  // The gather of x at the state s into y (null: none) and, unless mu is null, mu += w (dG/dp)^T x: a
+  // field's entries in place, a scalar's pointwise terms into its accumulator if `defer` (the
+  // integrators' own sweeps during an adjoint solve; end_adjoint sums them), else summed now
+  // (collective; the shells, whose products PETSc scales after the fact). The non-local maps enter
+  // as B^T x before the sweep and L^T z after it.
   template <int CLO = 0, int CHI = C, int YLO = 0, int YHI = C>
-  PetscErrorCode transpose(PetscReal t, Vec Uloc, Vec y, bool add_y, PetscReal w, Vec mu, bool defer) {
+  PetscErrorCode transpose(PetscReal t, const LocalState &s, Vec x, Vec y, bool add_y, PetscReal w, Vec mu, bool defer) {
     PetscFunctionBeginUser;
+    PetscCall(to_local(x, Xl_));
+    if constexpr (H > 0) {
+      for (int m = 0; m < H; ++m) {
+        PetscCall(eq_.output_transpose(m, x, field_));
+        PetscCall(VecStrideScatter(field_, m, Hg_, INSERT_VALUES));
+      }
+      PetscCall(DMGlobalToLocal(out_dm_, Hg_, INSERT_VALUES, XHl_));
+    }
     {
-      ConstArray xa(Xl_);
-      PetscScalar *ya = nullptr, *m = nullptr;
+      ConstArray xa(Xl_), xha(XHl_);
+      PetscScalar *ya = nullptr, *m = nullptr, *za = nullptr;
       if (y) PetscCall(VecGetArray(y, &ya));
       if (mu) PetscCall(VecGetArray(mu, &m));
+      if (K > 0 && y) PetscCall(VecGetArray(Zg_, &za));
       PetscReal *gk[NP > 0 ? NP : 1] = {};
       if (mu) fill_gradient_targets(m, defer, gk);
-      PetscCall((gather<CLO, CHI, YLO, YHI>(t, Uloc, xa.data(), ya, add_y, w, mu ? gk : nullptr)));
+      PetscCall((gather<CLO, CHI, YLO, YHI>(t, s, xa.data(), xha.data(), ya, add_y, w, mu ? gk : nullptr, za)));
+      if (za) PetscCall(VecRestoreArray(Zg_, &za));
       if (mu) PetscCall(VecRestoreArray(mu, &m));
       if (y) PetscCall(VecRestoreArray(y, &ya));
     }
+    if constexpr (K > 0)
+      if (y) {
+        PetscCall(VecSet(Yt_, 0.0));
+        for (int k = 0; k < K; ++k) {
+          PetscCall(VecStrideGather(Zg_, k, field_, INSERT_VALUES));
+          PetscCall(eq_.auxiliary_transpose(k, field_, Yt_));
+        }
+        PetscCall(VecAXPY(y, add_y ? w : 1.0, Yt_));
+      }
     if (mu && !defer) PetscCall(flush_scratch_scalars(mu));
     PetscFunctionReturn(0);
   }
 
   PetscErrorCode create_jacobian(Mat *J) override {
     PetscFunctionBeginUser;
+    if constexpr (!Local) { // applied at the state of the last rhs_jacobian, solved with by Krylov methods
+      const PetscInt n = grid_->local_points() * C;
+      PetscCall(MatCreateShell(grid_->comm(), n, n, PETSC_DETERMINE, PETSC_DETERMINE, this, J));
+      PetscCall(MatShellSetOperation(*J, MATOP_MULT, (void (*)(void))jmf_mult));
+      PetscCall(MatShellSetOperation(*J, MATOP_MULT_TRANSPOSE, (void (*)(void))jmf_mult_transpose));
+      PetscCall(MatSetUp(*J));
+      PetscFunctionReturn(0);
+    }
     PetscCall(grid_->create_dm(C, matrix_dm_.out(), R, Shape == StencilShape::Star));
     PetscCall(DMSetMatrixPreallocateOnly(matrix_dm_, PETSC_TRUE));
     PetscCall(DMCreateMatrix(matrix_dm_, J));
@@ -416,9 +516,11 @@ public:
   // entries structurally nonzero (pattern_, found once at random inputs) are inserted.
   PetscErrorCode rhs_jacobian(PetscReal t, Vec U, Mat J) override {
     PetscFunctionBeginUser;
-    PetscCall(to_local(U, Ul_));
-    PetscCall(MatZeroEntries(J));
-    PetscCall(assemble_rows(t, Ul_, J, nullptr));
+    PetscCall(load(U, jac_));
+    if constexpr (Local) {
+      PetscCall(MatZeroEntries(J));
+      PetscCall(assemble_rows(t, jac_.u, J, nullptr));
+    }
     PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
     PetscCall(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
     PetscFunctionReturn(0);
@@ -428,7 +530,7 @@ public:
     const PetscInt n = grid_->local_points() * C;
     PetscFunctionBeginUser;
     *J = nullptr;
-    if (!pointwise::LinearOf<Eq>::value) PetscFunctionReturn(0);
+    if (!pointwise::LinearOf<Eq>::value || !Local) PetscFunctionReturn(0); // (non-local: the Jacobian is this shell)
     PetscCall(MatCreateShell(grid_->comm(), n, n, PETSC_DETERMINE, PETSC_DETERMINE, this, J));
     PetscCall(MatShellSetOperation(*J, MATOP_MULT, (void (*)(void))jmf_mult));
     PetscCall(MatShellSetOperation(*J, MATOP_MULT_TRANSPOSE, (void (*)(void))jmf_mult_transpose));
@@ -446,7 +548,7 @@ public:
   // rhs_jacobian call or the state handed to stage products).
   PetscErrorCode rhs_jacobian_p(PetscReal t, Vec U, Mat Jp) override {
     PetscFunctionBeginUser;
-    PetscCall(to_local(U, Jp_state_));
+    PetscCall(load(U, jp_));
     jp_t_ = t;
     PetscCall(MatAssemblyBegin(Jp, MAT_FINAL_ASSEMBLY)); // resets the scaling a theta adjoint applied last time
     PetscCall(MatAssemblyEnd(Jp, MAT_FINAL_ASSEMBLY));
@@ -457,9 +559,8 @@ public:
   bool has_stage_adjoint() const override { return true; }
   PetscErrorCode stage_adjoint(PetscReal t, Vec U, const PetscScalar *, Vec x, Vec y, Vec mu) override {
     PetscFunctionBeginUser;
-    PetscCall(to_local(U, Ul_));
-    PetscCall(to_local(x, Xl_));
-    PetscCall(transpose(t, Ul_, y, false, 1.0, mu, in_adjoint_));
+    PetscCall(load(U, st_));
+    PetscCall(transpose(t, st_, x, y, false, 1.0, mu, in_adjoint_));
     PetscFunctionReturn(0);
   }
 
@@ -471,14 +572,13 @@ public:
     constexpr int m = pointwise::PairsOf<Eq>::value;
     PetscFunctionBeginUser;
     if constexpr (m > 0) {
-      PetscCall(to_local(U, Ul_));
+      PetscCall(load(U, st_));
       if (drift != 0) {
         Array l(lambda);
         PetscCall(l.error());
         leapfrog_drift_transpose(l.data(), 0, grid_->local_points(), m, drift);
       }
-      PetscCall(to_local(lambda, Xl_));
-      PetscCall((transpose<m, 2 * m, 0, m>(t, Ul_, lambda, true, w, mu, in_adjoint_)));
+      PetscCall((transpose<m, 2 * m, 0, m>(t, st_, lambda, lambda, true, w, mu, in_adjoint_)));
     }
     PetscFunctionReturn(0);
   }
@@ -508,6 +608,7 @@ public:
   // (Eq::spectrum), else Gershgorin's discs of the assembled rows at the current state.
   PetscErrorCode spectrum(Spectrum *s) override {
     PetscFunctionBeginUser;
+    static_assert(HasSpectrum<Eq>::value || Local, "a model with non-local maps states its spectrum");
     if constexpr (HasSpectrum<Eq>::value) PetscCall(eq_.spectrum(bounds_, s));
     else PetscCall(gershgorin(s));
     PetscFunctionReturn(0);
@@ -528,7 +629,7 @@ public:
         for (int c = 0; c < C; ++c) out[own * C + c] = uv[c];
       });
     }
-    PetscCall(to_local(U0, Ul_)); // the state the default spectrum is taken at
+    PetscCall(to_local(U0, st_.u)); // the state the default spectrum is taken at
     PetscFunctionReturn(0);
   }
   FLEXIPDE_SWEEP PetscErrorCode initial_condition_transpose(Vec p, Vec lambda0, Vec grad) override {
@@ -548,7 +649,7 @@ public:
         for (int k = 0; k < NP; ++k)
           if (gk[k]) {
             double s = 0;
-            for (int c = 0; c < C; ++c) s += uv[c].d[C + k] * PetscRealPart(lam[own * C + c]);
+            for (int c = 0; c < C; ++c) s += uv[c].d[C + K + k] * PetscRealPart(lam[own * C + c]);
             gk[k][own] += s;
           }
       });
@@ -607,6 +708,41 @@ private:
     PetscCall(DMGlobalToLocal(dm_, g, INSERT_VALUES, l));
     PetscFunctionReturn(0);
   }
+  PetscErrorCode create_state(LocalState &s) const {
+    PetscFunctionBeginUser;
+    PetscCall(DMCreateLocalVector(dm_, s.u.out()));
+    PetscCall(VecSet(s.u, 0.0));
+    PetscFunctionReturn(0);
+  }
+  // The state U ghosted, and its auxiliary fields.
+  PetscErrorCode load(Vec U, LocalState &s) {
+    PetscFunctionBeginUser;
+    PetscCall(to_local(U, s.u));
+    if constexpr (K > 0) PetscCall(auxiliaries(U, s.a));
+    PetscFunctionReturn(0);
+  }
+  // a_k = L_k U for every k, ghosted into `local` (K per point).
+  PetscErrorCode auxiliaries(Vec U, Vec local) {
+    PetscFunctionBeginUser;
+    if constexpr (K > 0) {
+      for (int k = 0; k < K; ++k) {
+        PetscCall(eq_.auxiliary(k, U, field_));
+        PetscCall(VecStrideScatter(field_, k, Ag_, INSERT_VALUES));
+      }
+      PetscCall(DMGlobalToLocal(aux_dm_, Ag_, INSERT_VALUES, local));
+    }
+    PetscFunctionReturn(0);
+  }
+  // G += sum_m B_m h_m, the outputs h the last sweep left in Hg_.
+  PetscErrorCode add_outputs(Vec G) {
+    PetscFunctionBeginUser;
+    if constexpr (H > 0)
+      for (int m = 0; m < H; ++m) {
+        PetscCall(VecStrideGather(Hg_, m, field_, INSERT_VALUES));
+        PetscCall(eq_.output(m, field_, G));
+      }
+    PetscFunctionReturn(0);
+  }
   // A parameter-shaped Vec (packed, Parameters layout) into a ghosted array like P_.
   PetscErrorCode params_to_local(Vec p, Vec l) {
     OwnedVec f;
@@ -655,27 +791,29 @@ private:
   // The gather at owned point (i, j): for each stencil offset o, G at the point j - o (when it exists)
   // differentiated with respect to the inputs at j, contracted with x there.
   template <int CLO, int CHI, bool CK, int... E>
-  void gather_offsets(const pointwise::Frame &f, const PetscScalar *xl, PetscInt at, PetscInt i, PetscInt j,
-                      PetscInt nx, PetscInt ny, bool px, bool py, double *yv, double *gv,
+  void gather_offsets(const pointwise::Frame &f, const PetscScalar *xl, const PetscScalar *xh, PetscInt at, PetscInt i,
+                      PetscInt j, PetscInt nx, PetscInt ny, bool px, bool py, double *yv, double *zv, double *gv,
                       std::integer_sequence<int, E...>) const {
-    (gather_one<Sten::offset(E)[0], Sten::offset(E)[1], CLO, CHI, CK>(f, xl, at, i, j, nx, ny, px, py, yv, gv), ...);
+    (gather_one<Sten::offset(E)[0], Sten::offset(E)[1], CLO, CHI, CK>(f, xl, xh, at, i, j, nx, ny, px, py, yv, zv, gv), ...);
   }
   template <int OX, int OY, int CLO, int CHI, bool CK>
-  void gather_one(const pointwise::Frame &f, const PetscScalar *xl, PetscInt at, PetscInt i, PetscInt j, PetscInt nx,
-                  PetscInt ny, bool px, bool py, double *yv, double *gv) const {
+  void gather_one(const pointwise::Frame &f, const PetscScalar *xl, const PetscScalar *xh, PetscInt at, PetscInt i,
+                  PetscInt j, PetscInt nx, PetscInt ny, bool px, bool py, double *yv, double *zv, double *gv) const {
     const PetscInt si = i - OX, sj = j - OY;
     if constexpr (CK) {
       if (!px && (si < 0 || si >= nx)) return;
       if (D == 2 && !py && (sj < 0 || sj >= ny)) return;
     }
     const PetscInt sat = at - OX - OY * f.sy;
-    typename Pt<Mode::Gather, OX, OY, CK>::Number gd[C];
+    typename Pt<Mode::Gather, OX, OY, CK>::Number gd[C + H];
     eq_.rhs(Pt<Mode::Gather, OX, OY, CK>(f, sat, si, sj, i, j), gd);
-    for (int c = CLO; c < CHI; ++c) {
-      const double xc = PetscRealPart(xl[sat * C + c]);
-      for (int cc = 0; cc < C; ++cc) yv[cc] += gd[c].d[cc] * xc;
-      for (int k = 0; k < NP; ++k) gv[k] += gd[c].d[C + k] * xc;
-    }
+    auto contract = [&](const auto &g, double xc) {
+      for (int cc = 0; cc < C; ++cc) yv[cc] += g.d[cc] * xc;
+      for (int k = 0; k < K; ++k) zv[k] += g.d[C + k] * xc;
+      for (int k = 0; k < NP; ++k) gv[k] += g.d[C + K + k] * xc;
+    };
+    for (int c = CLO; c < CHI; ++c) contract(gd[c], PetscRealPart(xl[sat * C + c]));
+    for (int m = 0; m < H; ++m) contract(gd[C + m], PetscRealPart(xh[sat * H + m]));
   }
 
   // The structurally nonzero entries of a row block (stencil entry, output, input component): those
@@ -683,7 +821,9 @@ private:
   FLEXIPDE_SWEEP PetscErrorCode find_pattern() {
     OwnedVec Ur, Pr;
     PetscFunctionBeginUser;
-    PetscCall(VecDuplicate(Ul_, Ur.out()));
+    if constexpr (!Local) PetscFunctionReturn(0);
+    else {
+    PetscCall(VecDuplicate(st_.u, Ur.out()));
     PetscCall(VecDuplicate(P_, Pr.out()));
     {
       PetscRandom rnd;
@@ -707,10 +847,13 @@ private:
     }
     pattern_.assign(local.size(), 0);
     PetscCallMPI(MPI_Allreduce(local.data(), pattern_.data(), (int)local.size(), MPI_INT, MPI_MAX, grid_->comm()));
+    }
     PetscFunctionReturn(0);
   }
   FLEXIPDE_SWEEP PetscErrorCode assemble_rows(PetscReal t, Vec Uloc, Mat J, PetscReal *gersh) {
     PetscFunctionBeginUser;
+    if constexpr (!Local) PetscFunctionReturn(0);
+    else {
     ConstArray u(Uloc), p(P_);
     PetscCall(u.error());
     const pointwise::Frame f = frame(t, u.data(), p.data());
@@ -749,13 +892,14 @@ private:
       }
     });
     PetscCall(ierr);
+    }
     PetscFunctionReturn(0);
   }
   PetscErrorCode gershgorin(Spectrum *s) {
     PetscReal local[3] = {0, 0, 0}, global[3]; // max |diag| + off; max a; any disc not in the left disc
     PetscFunctionBeginUser;
     if (pattern_.empty()) PetscCall(find_pattern());
-    PetscCall(assemble_rows(0, Ul_, nullptr, local));
+    PetscCall(assemble_rows(0, st_.u, nullptr, local));
     PetscCallMPI(MPI_Allreduce(local, global, 3, MPIU_REAL, MPI_MAX, grid_->comm()));
     *s = Spectrum();
     if (global[2] == 0 && global[1] > 0) { // every disc in {|z + a| <= a}: its boundary
@@ -772,22 +916,21 @@ private:
     PointwiseModel *m;
     PetscFunctionBeginUser;
     PetscCall(MatShellGetContext(A, &m));
-    PetscCall(m->tangent(0, m->Ul_, x, nullptr, y));
+    PetscCall(m->tangent(0, m->jac_, x, nullptr, y));
     PetscFunctionReturn(0);
   }
   static PetscErrorCode jmf_mult_transpose(Mat A, Vec x, Vec y) {
     PointwiseModel *m;
     PetscFunctionBeginUser;
     PetscCall(MatShellGetContext(A, &m));
-    PetscCall(m->to_local(x, m->Xl_));
-    PetscCall(m->transpose(0, m->Ul_, y, false, 1.0, nullptr, false));
+    PetscCall(m->transpose(0, m->jac_, x, y, false, 1.0, nullptr, false));
     PetscFunctionReturn(0);
   }
   static PetscErrorCode jp_mult(Mat A, Vec dp, Vec y) {
     PointwiseModel *m;
     PetscFunctionBeginUser;
     PetscCall(MatShellGetContext(A, &m));
-    PetscCall(m->tangent(m->jp_t_, m->Jp_state_, nullptr, dp, y));
+    PetscCall(m->tangent(m->jp_t_, m->jp_, nullptr, dp, y));
     PetscFunctionReturn(0);
   }
   static PetscErrorCode jp_mult_transpose(Mat A, Vec x, Vec mu) {
@@ -795,8 +938,7 @@ private:
     PetscFunctionBeginUser;
     PetscCall(MatShellGetContext(A, &m));
     PetscCall(VecSet(mu, 0.0));
-    PetscCall(m->to_local(x, m->Xl_));
-    PetscCall(m->transpose(m->jp_t_, m->Jp_state_, nullptr, false, 1.0, mu, false));
+    PetscCall(m->transpose(m->jp_t_, m->jp_, x, nullptr, false, 1.0, mu, false));
     PetscFunctionReturn(0);
   }
 
@@ -806,8 +948,10 @@ private:
   const Parameters *params_ = nullptr;
   PetscInt index_[NP > 0 ? NP : 1] = {};
   PetscReal fixed_[NP > 0 ? NP : 1] = {};
-  OwnedDM param_dm_, matrix_dm_;
-  OwnedVec P_, dP_, Pg_, Ul_, Xl_, Jp_state_;
+  OwnedDM param_dm_, matrix_dm_, aux_dm_, out_dm_;
+  OwnedVec P_, dP_, Pg_, Xl_;
+  LocalState st_, jac_, jp_; // the state of rhs and the adjoint sweeps, of the Jacobian, of dG/dp
+  OwnedVec Ag_, dAl_, Zg_, Hg_, XHl_, field_, Yt_; // non-local maps: their fields and scratch
   PetscReal jp_t_ = 0;
   ParameterBounds bounds_;
   const PointSource *source_ = nullptr;
