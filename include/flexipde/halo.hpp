@@ -75,4 +75,9 @@ private:
   OwnedVec pack_;       // packed mode: this rank's strips of every field (the scatter's source)
 };
 
+// A scatter from a global Vec of the DMDA `dm` to the ghost entries of its ghosted local Vecs (every
+// component; entries beyond a wall and owned entries are not written), for sweeps that read the owned
+// block in place: *scatter null when no rank has a ghost to receive (1 rank with walls).
+PetscErrorCode create_ghost_scatter(DM dm, VecScatter *scatter);
+
 } // namespace flexipde

@@ -23,6 +23,7 @@
 // Ghost width: the transposes evaluate G at the neighbours of owned points, whose stencils reach
 // 2 * radius from them; the state DM therefore has 2 * radius ghosts, the assembled Jacobian radius.
 #pragma once
+#include "flexipde/halo.hpp"
 #include "flexipde/dual.hpp"
 #include "flexipde/model.hpp"
 #include "flexipde/leapfrog.hpp"
@@ -30,6 +31,7 @@
 #include <array>
 #include <cmath>
 #include <string>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -91,16 +93,21 @@ struct Stencil {
 
 enum class Mode { Value, Tangent, Rows, Gather };
 
-// Everything a sweep reads around one point. Arrays are the ghosted local ones (x fastest, components
-// interleaved): `at` is the point's index in them, `sy` their row length.
+// Everything a sweep reads around one point (x fastest, components interleaved). The state and its
+// direction are read in place from the owned block (index `own`, row length `syo`) and, beyond it,
+// from ghosted arrays whose ghost entries alone are filled (index `at`, row length `sy`); parameters
+// and auxiliary fields are ghosted arrays (index `at`).
 struct Frame {
-  const PetscScalar *U = nullptr;  // state
-  const PetscScalar *X = nullptr;  // direction of the state (Tangent; null: 0)
+  const PetscScalar *U = nullptr;  // state, owned block
+  const PetscScalar *Ug = nullptr; // state, ghosted (ghost entries)
+  const PetscScalar *X = nullptr;  // direction of the state (Tangent), or the transpose's x (Gather); null: 0
+  const PetscScalar *Xg = nullptr; // the same, ghosted (ghost entries)
   const PetscScalar *P = nullptr;  // parameters, `np` per point
   const PetscScalar *dP = nullptr; // direction of the parameters (Tangent; null: 0)
   const PetscScalar *A = nullptr;  // auxiliary fields a = L U, `na` per point (non-local linear maps of the state)
   const PetscScalar *dA = nullptr; // their direction L X (Tangent; null: 0)
-  PetscInt np = 0, na = 0, sy = 0;
+  PetscInt np = 0, na = 0, sy = 0, syo = 0;
+  PetscInt xs = 0, ys = 0, xm = 0, ym = 1; // the owned block
   PetscReal t = 0;
   PetscReal h[2] = {1, 1}, ih[2] = {1, 1}, x0[2] = {0, 0};
   PetscInt n[2] = {1, 1};
@@ -118,20 +125,24 @@ struct Frame {
 //            parameter k, at offset (SX, SY) only.
 // CK: the point is near a wall or the ghost band, and every read is checked: positions beyond a wall
 // are reflected or zero, and (Gather) the seeded input is found by its position (ti, tj) at run time.
-template <int C, int K, int NP, class Sten, Mode M, int SX = 0, int SY = 0, bool CK = false>
+// CS < C: the state arrays hold the first CS components alone (a second-order model's positions), and
+// the others read as 0.
+template <int C, int K, int NP, class Sten, Mode M, int SX = 0, int SY = 0, bool CK = false, int CS = C>
 class Point {
 public:
   using Number = std::conditional_t<
       M == Mode::Value, double,
       std::conditional_t<M == Mode::Tangent, Dual<double, 1>,
                          std::conditional_t<M == Mode::Rows, Dual<double, Sten::size * C>, Dual<double, C + K + NP>>>>;
-  Point(const Frame &f, PetscInt at, PetscInt i, PetscInt j, PetscInt ti = 0, PetscInt tj = 0)
-      : f_(f), at_(at), i_(i), j_(j), ti_(ti), tj_(tj) {}
+  Point(const Frame &f, PetscInt at, PetscInt own, PetscInt i, PetscInt j, PetscInt ti = 0, PetscInt tj = 0)
+      : f_(f), at_(at), own_(own), i_(i), j_(j), ti_(ti), tj_(tj) {}
 
   // State component c at offset (dx, dy) from the point.
   Number u(int c, int dx, int dy = 0) const {
+    if constexpr (CS < C)
+      if (c >= CS) return Number(0.0);
     if constexpr (CK) return u_checked(c, dx, dy);
-    const PetscInt k = (at_ + dx + dy * f_.sy) * C + c;
+    const PetscInt k = (own_ + dx + dy * f_.syo) * CS + c;
     const double v = PetscRealPart(f_.U[k]);
     if constexpr (M == Mode::Value) return v;
     else if constexpr (M == Mode::Tangent) {
@@ -198,12 +209,16 @@ private:
     PetscInt gi = i_ + dx, gj = j_ + dy;
     double sign = 1;
     if (!fold(0, gi, sign) || !fold(1, gj, sign)) return Number(0.0);
-    const PetscInt k = (at_ + (gi - i_) + (gj - j_) * f_.sy) * C + c;
-    const double v = sign * PetscRealPart(f_.U[k]);
+    const bool owned = gi >= f_.xs && gi < f_.xs + f_.xm && gj >= f_.ys && gj < f_.ys + f_.ym;
+    const PetscInt k = owned ? ((gj - f_.ys) * f_.syo + gi - f_.xs) * CS + c : (at_ + (gi - i_) + (gj - j_) * f_.sy) * CS + c;
+    const double v = sign * PetscRealPart((owned ? f_.U : f_.Ug)[k]);
     if constexpr (M == Mode::Value) return v;
     else {
       Number r(v);
-      if constexpr (M == Mode::Tangent) r.d[0] = f_.X ? sign * PetscRealPart(f_.X[k]) : 0.0;
+      if constexpr (M == Mode::Tangent) {
+        const PetscScalar *x = owned ? f_.X : f_.Xg;
+        r.d[0] = x ? sign * PetscRealPart(x[k]) : 0.0;
+      }
       else if constexpr (M == Mode::Rows) r.d[Sten::entry((int)(gi - i_), (int)(gj - j_)) * C + c] = sign;
       else if (gi == ti_ && gj == tj_) r.d[c] = sign;
       return r;
@@ -211,8 +226,16 @@ private:
   }
 
   const Frame &f_;
-  PetscInt at_, i_, j_, ti_, tj_;
+  PetscInt at_, own_, i_, j_, ti_, tj_;
 };
+
+// x (a state-shaped array read like U: owned block in place, ghosts from xg) at point (i, j), whose
+// ghosted index is `at` and owned index `own`; `checked`: the point may lie outside the owned block.
+inline const PetscScalar &read_split(const Frame &f, const PetscScalar *x, const PetscScalar *xg, PetscInt at,
+                                     PetscInt own, PetscInt i, PetscInt j, PetscInt ncomp, int c, bool checked) {
+  if (checked && !(i >= f.xs && i < f.xs + f.xm && j >= f.ys && j < f.ys + f.ym)) return xg[at * ncomp + c];
+  return x[own * ncomp + c];
+}
 
 template <class Eq, class = void> struct ShapeOf {
   static constexpr StencilShape value = StencilShape::Star;
@@ -253,13 +276,21 @@ class PointwiseModel final : public Model {
   static constexpr StencilShape Shape = pointwise::ShapeOf<Eq>::value;
   using Sten = pointwise::Stencil<D, R, Shape>;
   using Mode = pointwise::Mode;
-  template <Mode M, int SX = 0, int SY = 0, bool CK = false> using Pt = pointwise::Point<C, K, NP, Sten, M, SX, SY, CK>;
+  template <Mode M, int SX = 0, int SY = 0, bool CK = false, int CS = C>
+  using Pt = pointwise::Point<C, K, NP, Sten, M, SX, SY, CK, CS>;
   template <bool CK> using Check = std::integral_constant<bool, CK>;
   static_assert(D == 1 || D == 2, "the grid is 1D or 2D");
   static_assert(Local || pointwise::PairsOf<Eq>::value == 0, "the leapfrog kick handles local models only");
   // A state as the sweeps read it: ghosted, with its auxiliary fields (K per point, ghosted) if any.
   struct LocalState {
-    OwnedVec u, a;
+    Vec ref = nullptr;  // the state itself (global layout): `copy`, or a Vec the caller holds
+    OwnedVec copy, g, a; // a kept copy; ghosted with the ghost entries filled; auxiliary fields
+  };
+  // The arrays of a state for a sweep's frame.
+  struct StateView {
+    StateView(const LocalState &s) : u(s.ref), g(s.g), a(s.a) {}
+    PetscErrorCode error() const { return u.error() ? u.error() : (g.error() ? g.error() : a.error()); }
+    ConstArray u, g, a;
   };
 
 public:
@@ -329,6 +360,15 @@ public:
     if constexpr (pointwise::HasOddWalls<Eq>::value) frame_.odd[0] = frame_.odd[1] = eq_.odd_walls();
     frame_.np = NP;
     frame_.na = K;
+    frame_.syo = grid.xm();
+    frame_.xs = grid.xs(), frame_.ys = grid.ys(), frame_.xm = grid.xm(), frame_.ym = grid.ym();
+    PetscCall(create_ghost_scatter(dm_, ghost_scatter_.out()));
+    if constexpr (pointwise::PairsOf<Eq>::value > 0) {
+      PetscCall(grid.create_dm(pointwise::PairsOf<Eq>::value, pos_dm_.out()));
+      PetscCall(create_ghost_scatter(pos_dm_, pos_scatter_.out()));
+      PetscCall(DMCreateLocalVector(pos_dm_, pos_.g.out()));
+      PetscCall(VecSet(pos_.g, 0.0));
+    }
     frame_.dim = D;
     PetscFunctionReturn(0);
   }
@@ -357,21 +397,23 @@ public:
     PetscFunctionBeginUser;
     PetscCall(load(U, st_));
     {
-      ConstArray u(st_.u), p(P_), a(st_.a);
+      StateView sv(st_);
+      ConstArray p(P_);
       Array g(G);
-      PetscCall(u.error());
+      PetscCall(sv.error());
       PetscCall(p.error());
       PetscCall(g.error());
-      pointwise::Frame f = frame(t, u.data(), p.data());
-      f.A = a.data();
+      pointwise::Frame f = frame(t, sv, p.data());
       PetscScalar *out = g.data();
       PetscScalar *hout = nullptr;
       if constexpr (H > 0) PetscCall(VecGetArray(Hg_, &hout));
-      for_points(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
-        double gv[C + H];
-        eq_.rhs(Pt<Mode::Value, 0, 0, decltype(ck)::value>(f, at, i, j), gv);
-        for (int c = 0; c < C; ++c) out[own * C + c] = gv[c];
-        for (int m = 0; m < H; ++m) hout[own * H + m] = gv[C + m];
+      with_model([&](const Eq &eq) {
+        for_points(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+          double gv[C + H];
+          eq.rhs(Pt<Mode::Value, 0, 0, decltype(ck)::value>(f, at, own, i, j), gv);
+          for (int c = 0; c < C; ++c) out[own * C + c] = gv[c];
+          for (int m = 0; m < H; ++m) hout[own * H + m] = gv[C + m];
+        });
       });
       if constexpr (H > 0) PetscCall(VecRestoreArray(Hg_, &hout));
       if constexpr (pointwise::HasForcing<Eq>::value)
@@ -386,28 +428,32 @@ public:
   // y = dG/dU x + dG/dp dp at state U (either direction may be null), one sweep of Tangent numbers.
   FLEXIPDE_SWEEP PetscErrorCode tangent(PetscReal t, const LocalState &s, Vec x, Vec dp, Vec y) {
     PetscFunctionBeginUser;
-    if (x) PetscCall(to_local(x, Xl_));
+    if (x) PetscCall(fill_ghosts(x, Xl_));
     if (dp) PetscCall(params_to_local(dp, dP_));
     if constexpr (K > 0)
       if (x) PetscCall(auxiliaries(x, dAl_));
     {
-      ConstArray u(s.u), xa(x ? Xl_.get() : nullptr), p(P_), dpa(dp ? dP_.get() : nullptr), a(s.a),
+      StateView sv(s);
+      ConstArray xo(x), xg(x ? Xl_.get() : nullptr), p(P_), dpa(dp ? dP_.get() : nullptr),
           da(K > 0 && x ? dAl_.get() : nullptr);
       Array ya(y);
+      PetscCall(sv.error());
       PetscCall(ya.error());
-      pointwise::Frame f = frame(t, u.data(), p.data());
-      f.X = xa.data();
+      pointwise::Frame f = frame(t, sv, p.data());
+      f.X = xo.data();
+      f.Xg = xg.data();
       f.dP = dpa.data();
-      f.A = a.data();
       f.dA = da.data();
       PetscScalar *out = ya.data();
       PetscScalar *hout = nullptr;
       if constexpr (H > 0) PetscCall(VecGetArray(Hg_, &hout));
-      for_points(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
-        typename Pt<Mode::Tangent>::Number gv[C + H];
-        eq_.rhs(Pt<Mode::Tangent, 0, 0, decltype(ck)::value>(f, at, i, j), gv);
-        for (int c = 0; c < C; ++c) out[own * C + c] = gv[c].d[0];
-        for (int m = 0; m < H; ++m) hout[own * H + m] = gv[C + m].d[0];
+      with_model([&](const Eq &eq) {
+        for_points(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+          typename Pt<Mode::Tangent>::Number gv[C + H];
+          eq.rhs(Pt<Mode::Tangent, 0, 0, decltype(ck)::value>(f, at, own, i, j), gv);
+          for (int c = 0; c < C; ++c) out[own * C + c] = gv[c].d[0];
+          for (int m = 0; m < H; ++m) hout[own * H + m] = gv[C + m].d[0];
+        });
       });
       if constexpr (H > 0) PetscCall(VecRestoreArray(Hg_, &hout));
     }
@@ -420,34 +466,38 @@ public:
   // the outputs' B^T x ghosted. Components of x outside [clo, chi) are taken as 0, and only y's
   // components in [ylo, yhi) are written (added, times w, if add_y): the leapfrog's kick is this with
   // x = lambda_p, y = lambda_q. z (auxiliary fields; null: none) gets the gather of (dG/da)^T x.
-  template <int CLO = 0, int CHI = C, int YLO = 0, int YHI = C>
-  FLEXIPDE_SWEEP PetscErrorCode gather(PetscReal t, const LocalState &s, const PetscScalar *xl, const PetscScalar *xh,
-                                       PetscScalar *y, bool add_y, PetscReal w, PetscReal *const *gk, PetscScalar *z) {
+  // What is written is known at compile time (WY: y, ADDY: added, WG: gk), so the loop has no branch.
+  template <int CLO, int CHI, int YLO, int YHI, int CS, bool WY, bool ADDY, bool WG>
+  FLEXIPDE_SWEEP PetscErrorCode gather(PetscReal t, const LocalState &s, const PetscScalar *xo, const PetscScalar *xl,
+                                       const PetscScalar *xh, PetscScalar *y, PetscReal w, PetscReal *const *gk,
+                                       PetscScalar *z) {
     PetscFunctionBeginUser;
     {
-      ConstArray u(s.u), p(P_), a(s.a);
-      PetscCall(u.error());
+      StateView sv(s);
+      ConstArray p(P_);
+      PetscCall(sv.error());
       PetscCall(p.error());
-      pointwise::Frame f = frame(t, u.data(), p.data());
-      f.A = a.data();
+      pointwise::Frame f = frame(t, sv, p.data());
+      f.X = xo, f.Xg = xl;
       const PetscInt nx = grid_->n(), ny = grid_->ny();
       const bool px = grid_->periodic(), py = grid_->periodic_y();
+      with_model([&](const Eq &eq) {
       for_points(2 * R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
         double yv[C] = {};
         double zv[K > 0 ? K : 1] = {};
         double gv[NP > 0 ? NP : 1] = {};
-        gather_offsets<CLO, CHI, decltype(ck)::value>(f, xl, xh, at, i, j, nx, ny, px, py, yv, zv, gv,
-                                                       std::make_integer_sequence<int, Sten::size>());
-        if (y)
+        gather_offsets<CLO, CHI, decltype(ck)::value, CS>(eq, f, xh, at, own, i, j, nx, ny, px, py, yv, zv, gv,
+                                                          std::make_integer_sequence<int, Sten::size>());
+        if constexpr (WY)
           for (int c = YLO; c < YHI; ++c) {
-            if (add_y) y[own * C + c] += w * yv[c];
+            if constexpr (ADDY) y[own * C + c] += w * yv[c];
             else y[own * C + c] = yv[c];
           }
-        if (z)
+        if constexpr (K > 0 && WY)
           for (int k = 0; k < K; ++k) z[own * K + k] = zv[k];
-        if (gk)
-          for (int k = 0; k < NP; ++k)
-            if (gk[k]) gk[k][own] += w * gv[k];
+        if constexpr (WG)
+          for (int k = 0; k < NP; ++k) gk[k][own] += w * gv[k];
+      });
       });
     }
     PetscFunctionReturn(0);
@@ -458,10 +508,10 @@ public:
   // integrators' own sweeps during an adjoint solve; end_adjoint sums them), else summed now
   // (collective; the shells, whose products PETSc scales after the fact). The non-local maps enter
   // as B^T x before the sweep and L^T z after it.
-  template <int CLO = 0, int CHI = C, int YLO = 0, int YHI = C>
+  template <int CLO = 0, int CHI = C, int YLO = 0, int YHI = C, int CS = C>
   PetscErrorCode transpose(PetscReal t, const LocalState &s, Vec x, Vec y, bool add_y, PetscReal w, Vec mu, bool defer) {
     PetscFunctionBeginUser;
-    PetscCall(to_local(x, Xl_));
+    PetscCall(fill_ghosts(x, Xl_));
     if constexpr (H > 0) {
       for (int m = 0; m < H; ++m) {
         PetscCall(eq_.output_transpose(m, x, field_));
@@ -470,14 +520,26 @@ public:
       PetscCall(DMGlobalToLocal(out_dm_, Hg_, INSERT_VALUES, XHl_));
     }
     {
-      ConstArray xa(Xl_), xha(XHl_);
+      ConstArray xg(Xl_), xha(XHl_);
       PetscScalar *ya = nullptr, *m = nullptr, *za = nullptr;
+      const PetscScalar *xo;
       if (y) PetscCall(VecGetArray(y, &ya));
+      if (y == x) xo = ya; // the leapfrog kick: reads x's components, writes others
+      else PetscCall(VecGetArrayRead(x, &xo));
       if (mu) PetscCall(VecGetArray(mu, &m));
       if (K > 0 && y) PetscCall(VecGetArray(Zg_, &za));
       PetscReal *gk[NP > 0 ? NP : 1] = {};
-      if (mu) fill_gradient_targets(m, defer, gk);
-      PetscCall((gather<CLO, CHI, YLO, YHI>(t, s, xa.data(), xha.data(), ya, add_y, w, mu ? gk : nullptr, za)));
+      if (mu) fill_gradient_targets(m, defer, gk, true);
+      auto run = [&](auto wy, auto addy, auto wg) {
+        return gather<CLO, CHI, YLO, YHI, CS, decltype(wy)::value, decltype(addy)::value, decltype(wg)::value>(
+            t, s, xo, xg.data(), xha.data(), ya, w, gk, za);
+      };
+      using T = std::true_type;
+      using F = std::false_type;
+      if (!y) PetscCall(mu ? run(F(), F(), T()) : 0);
+      else if (add_y) PetscCall(mu ? run(T(), T(), T()) : run(T(), T(), F()));
+      else PetscCall(mu ? run(T(), F(), T()) : run(T(), F(), F()));
+      if (y != x) PetscCall(VecRestoreArrayRead(x, &xo));
       if (za) PetscCall(VecRestoreArray(Zg_, &za));
       if (mu) PetscCall(VecRestoreArray(mu, &m));
       if (y) PetscCall(VecRestoreArray(y, &ya));
@@ -516,10 +578,10 @@ public:
   // entries structurally nonzero (pattern_, found once at random inputs) are inserted.
   PetscErrorCode rhs_jacobian(PetscReal t, Vec U, Mat J) override {
     PetscFunctionBeginUser;
-    PetscCall(load(U, jac_));
+    PetscCall(load(U, jac_, true));
     if constexpr (Local) {
       PetscCall(MatZeroEntries(J));
-      PetscCall(assemble_rows(t, jac_.u, J, nullptr));
+      PetscCall(assemble_rows(t, jac_, J, nullptr));
     }
     PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
     PetscCall(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
@@ -548,7 +610,7 @@ public:
   // rhs_jacobian call or the state handed to stage products).
   PetscErrorCode rhs_jacobian_p(PetscReal t, Vec U, Mat Jp) override {
     PetscFunctionBeginUser;
-    PetscCall(load(U, jp_));
+    PetscCall(load(U, jp_, true));
     jp_t_ = t;
     PetscCall(MatAssemblyBegin(Jp, MAT_FINAL_ASSEMBLY)); // resets the scaling a theta adjoint applied last time
     PetscCall(MatAssemblyEnd(Jp, MAT_FINAL_ASSEMBLY));
@@ -566,19 +628,29 @@ public:
 
   // Leapfrog kick at one time level: lambda_p += drift lambda_q, then lambda_q += w (dG_p/dq)^T lambda_p
   // and mu += w (dG_p/dp)^T lambda_p, the transposes in one gather sweep.
+  // U may be the positions alone (m per point; G_p reads nothing else), which is all a trajectory then
+  // stores.
   bool has_second_order_adjoint() const override { return pointwise::PairsOf<Eq>::value > 0; }
+  bool second_order_adjoint_takes_positions() const override { return pointwise::PairsOf<Eq>::value > 0; }
   PetscErrorCode second_order_adjoint(PetscReal t, Vec U, const PetscScalar *, Vec lambda, PetscReal w, Vec mu,
                                       PetscReal drift, const PetscScalar *) override {
     constexpr int m = pointwise::PairsOf<Eq>::value;
     PetscFunctionBeginUser;
     if constexpr (m > 0) {
-      PetscCall(load(U, st_));
+      PetscInt n;
+      PetscCall(VecGetLocalSize(U, &n));
+      const bool positions = n == grid_->local_points() * m;
+      if (positions) {
+        pos_.ref = U;
+        PetscCall(fill_ghosts(U, pos_.g, pos_scatter_));
+      } else PetscCall(load(U, st_));
       if (drift != 0) {
         Array l(lambda);
         PetscCall(l.error());
         leapfrog_drift_transpose(l.data(), 0, grid_->local_points(), m, drift);
       }
-      PetscCall((transpose<m, 2 * m, 0, m>(t, st_, lambda, lambda, true, w, mu, in_adjoint_)));
+      if (positions) PetscCall((transpose<m, 2 * m, 0, m, m>(t, pos_, lambda, lambda, true, w, mu, in_adjoint_)));
+      else PetscCall((transpose<m, 2 * m, 0, m>(t, st_, lambda, lambda, true, w, mu, in_adjoint_)));
     }
     PetscFunctionReturn(0);
   }
@@ -621,15 +693,16 @@ public:
       ConstArray pa(P_);
       Array u(U0);
       PetscCall(u.error());
-      pointwise::Frame f = frame(0, nullptr, pa.data());
+      pointwise::Frame f = frame_;
+      f.P = pa.data();
       PetscScalar *out = u.data();
       for_points(0, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
         double uv[C];
-        eq_.initial(Pt<Mode::Value, 0, 0, decltype(ck)::value>(f, at, i, j), uv);
+        eq_.initial(Pt<Mode::Value, 0, 0, decltype(ck)::value>(f, at, own, i, j), uv);
         for (int c = 0; c < C; ++c) out[own * C + c] = uv[c];
       });
     }
-    PetscCall(to_local(U0, st_.u)); // the state the default spectrum is taken at
+    PetscCall(load(U0, jac_, true)); // the state the default spectrum is taken at
     PetscFunctionReturn(0);
   }
   FLEXIPDE_SWEEP PetscErrorCode initial_condition_transpose(Vec p, Vec lambda0, Vec grad) override {
@@ -641,11 +714,12 @@ public:
       PetscCall(VecGetArray(grad, &g));
       PetscReal *gk[NP > 0 ? NP : 1] = {};
       fill_gradient_targets(g, false, gk);
-      pointwise::Frame f = frame(0, nullptr, pa.data());
+      pointwise::Frame f = frame_;
+      f.P = pa.data();
       const PetscScalar *lam = l.data();
       for_points(0, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
         typename Pt<Mode::Gather>::Number uv[C];
-        eq_.initial(Pt<Mode::Gather, 0, 0, decltype(ck)::value>(f, at, i, j, i, j), uv);
+        eq_.initial(Pt<Mode::Gather, 0, 0, decltype(ck)::value>(f, at, own, i, j, i, j), uv);
         for (int k = 0; k < NP; ++k)
           if (gk[k]) {
             double s = 0;
@@ -675,25 +749,33 @@ private:
     DMDAGetGhostCorners(dm_, nullptr, nullptr, nullptr, &gxm, nullptr, nullptr);
     return gxm;
   }
-  pointwise::Frame frame(PetscReal t, const PetscScalar *U, const PetscScalar *P) const {
+  // The model as the sweeps read it: a copy on the stack when it can be copied, so that the compiler
+  // knows no store of a sweep changes its members: it keeps them in registers, hoists the branches
+  // on them out of the loop over points, and vectorises.
+  template <class F> void with_model(F &&f) const {
+    if constexpr (std::is_trivially_copyable_v<Eq>) {
+      const Eq eq = eq_;
+      f(eq);
+    } else f(eq_);
+  }
+  pointwise::Frame frame(PetscReal t, const StateView &s, const PetscScalar *P) const {
     pointwise::Frame f = frame_;
-    f.t = t, f.U = U, f.P = P;
+    f.t = t, f.U = s.u.data(), f.Ug = s.g.data(), f.A = s.a.data(), f.P = P;
     return f;
   }
   // Every owned point: its index in the ghosted arrays, in the owned block, its grid indices, and
-  // Check<true> when it lies within `margin` of a wall (its reads are checked), else Check<false>.
+  // Check<true> when it lies within `margin` of the owned block's edge (its reads are checked: they
+  // may reach ghosts or beyond a wall), else Check<false>.
   template <class F> void for_points(PetscInt margin, F &&body) const {
     PetscInt gxs, gys, gxm, gym;
     DMDAGetGhostCorners(dm_, &gxs, &gys, nullptr, &gxm, &gym, nullptr);
     const PetscInt xs = grid_->xs(), xm = grid_->xm(), ys = grid_->ys(), ym = grid_->ym();
-    const PetscInt nx = grid_->n(), ny = grid_->ny();
     if (D == 1) gys = 0;
-    PetscInt lo = xs, hi = xs + xm;
     margin = std::max<PetscInt>(margin, 1); // wall points are always checked
-    if (!grid_->periodic()) lo = std::max(lo, margin), hi = std::max(lo, std::min(hi, nx - margin));
+    const PetscInt lo = std::min(xs + margin, xs + xm), hi = std::max(lo, xs + xm - margin);
     for (PetscInt j = ys; j < ys + ym; ++j) {
       const PetscInt row = (j - gys) * gxm - gxs, own_row = (j - ys) * xm - xs;
-      const bool inside = D == 1 || grid_->periodic_y() || (j >= margin && j < ny - margin);
+      const bool inside = D == 1 || (j >= ys + margin && j < ys + ym - margin);
       if (!inside) {
         for (PetscInt i = xs; i < xs + xm; ++i) body(row + i, own_row + i, i, j, Check<true>());
         continue;
@@ -710,15 +792,31 @@ private:
   }
   PetscErrorCode create_state(LocalState &s) const {
     PetscFunctionBeginUser;
-    PetscCall(DMCreateLocalVector(dm_, s.u.out()));
-    PetscCall(VecSet(s.u, 0.0));
+    PetscCall(DMCreateLocalVector(dm_, s.g.out()));
+    PetscCall(VecSet(s.g, 0.0)); // beyond a wall: never written
+    PetscCall(DMCreateGlobalVector(dm_, s.copy.out()));
+    PetscCall(VecSet(s.copy, 0.0));
+    s.ref = s.copy;
     PetscFunctionReturn(0);
   }
-  // The state U ghosted, and its auxiliary fields.
-  PetscErrorCode load(Vec U, LocalState &s) {
+  // The ghost entries of the ghosted `local` from the global x (its owned entries are not written).
+  PetscErrorCode fill_ghosts(Vec x, Vec local, VecScatter sc) const {
     PetscFunctionBeginUser;
-    PetscCall(to_local(U, s.u));
-    if constexpr (K > 0) PetscCall(auxiliaries(U, s.a));
+    if (sc) {
+      PetscCall(VecScatterBegin(sc, x, local, INSERT_VALUES, SCATTER_FORWARD));
+      PetscCall(VecScatterEnd(sc, x, local, INSERT_VALUES, SCATTER_FORWARD));
+    }
+    PetscFunctionReturn(0);
+  }
+  PetscErrorCode fill_ghosts(Vec x, Vec local) const { return fill_ghosts(x, local, ghost_scatter_); }
+  // The state U for the sweeps: read in place (the caller keeps U unchanged while s is used) or, if
+  // `keep`, from a copy (for products applied later); its ghosts and auxiliary fields.
+  PetscErrorCode load(Vec U, LocalState &s, bool keep = false) {
+    PetscFunctionBeginUser;
+    if (keep) PetscCall(VecCopy(U, s.copy));
+    s.ref = keep ? s.copy.get() : U;
+    PetscCall(fill_ghosts(s.ref, s.g));
+    if constexpr (K > 0) PetscCall(auxiliaries(s.ref, s.a));
     PetscFunctionReturn(0);
   }
   // a_k = L_k U for every k, ghosted into `local` (K per point).
@@ -758,10 +856,18 @@ private:
   }
   // Where parameter k's pointwise gradient goes: a field's entries of the packed array m, a scalar's
   // accumulator during an adjoint, else a scratch array summed by flush_scratch_scalars.
-  void fill_gradient_targets(PetscScalar *m, bool in_adjoint, PetscReal **gk) {
+  // With `dummy`, a slot that is not a parameter gets a scratch target instead of null (one per slot:
+  // the sweeps add to every target without a branch, and no two targets overlap).
+  void fill_gradient_targets(PetscScalar *m, bool in_adjoint, PetscReal **gk, bool dummy = false) {
     for (int k = 0; k < NP; ++k) {
       gk[k] = nullptr;
-      if (index_[k] < 0) continue;
+      if (index_[k] < 0) {
+        if (dummy) {
+          if (dummy_target_[k].size() != (size_t)grid_->local_points()) dummy_target_[k].assign(grid_->local_points(), 0.0);
+          gk[k] = dummy_target_[k].data();
+        }
+        continue;
+      }
       const ParamInfo &pi = params_->info(index_[k]);
       if (pi.kind == ParamKind::Field) gk[k] = reinterpret_cast<PetscReal *>(m + pi.local_offset);
       else if (in_adjoint) gk[k] = scalar_acc_[k].data();
@@ -790,56 +896,61 @@ private:
 
   // The gather at owned point (i, j): for each stencil offset o, G at the point j - o (when it exists)
   // differentiated with respect to the inputs at j, contracted with x there.
-  template <int CLO, int CHI, bool CK, int... E>
-  void gather_offsets(const pointwise::Frame &f, const PetscScalar *xl, const PetscScalar *xh, PetscInt at, PetscInt i,
-                      PetscInt j, PetscInt nx, PetscInt ny, bool px, bool py, double *yv, double *zv, double *gv,
-                      std::integer_sequence<int, E...>) const {
-    (gather_one<Sten::offset(E)[0], Sten::offset(E)[1], CLO, CHI, CK>(f, xl, xh, at, i, j, nx, ny, px, py, yv, zv, gv), ...);
+  template <int CLO, int CHI, bool CK, int CS, int... E>
+  static void gather_offsets(const Eq &eq, const pointwise::Frame &f, const PetscScalar *xh, PetscInt at, PetscInt own, PetscInt i, PetscInt j,
+                      PetscInt nx, PetscInt ny, bool px, bool py, double *yv, double *zv, double *gv,
+                      std::integer_sequence<int, E...>) {
+    (gather_one<Sten::offset(E)[0], Sten::offset(E)[1], CLO, CHI, CK, CS>(eq, f, xh, at, own, i, j, nx, ny, px, py, yv, zv, gv), ...);
   }
-  template <int OX, int OY, int CLO, int CHI, bool CK>
-  void gather_one(const pointwise::Frame &f, const PetscScalar *xl, const PetscScalar *xh, PetscInt at, PetscInt i,
-                  PetscInt j, PetscInt nx, PetscInt ny, bool px, bool py, double *yv, double *zv, double *gv) const {
+  template <int OX, int OY, int CLO, int CHI, bool CK, int CS>
+  static void gather_one(const Eq &eq, const pointwise::Frame &f, const PetscScalar *xh, PetscInt at, PetscInt own,
+                         PetscInt i, PetscInt j, PetscInt nx, PetscInt ny, bool px, bool py, double *yv, double *zv,
+                         double *gv) {
     const PetscInt si = i - OX, sj = j - OY;
     if constexpr (CK) {
       if (!px && (si < 0 || si >= nx)) return;
       if (D == 2 && !py && (sj < 0 || sj >= ny)) return;
     }
-    const PetscInt sat = at - OX - OY * f.sy;
-    typename Pt<Mode::Gather, OX, OY, CK>::Number gd[C + H];
-    eq_.rhs(Pt<Mode::Gather, OX, OY, CK>(f, sat, si, sj, i, j), gd);
+    const PetscInt sat = at - OX - OY * f.sy, sown = own - OX - OY * f.syo;
+    typename Pt<Mode::Gather, OX, OY, CK, CS>::Number gd[C + H];
+    eq.rhs(Pt<Mode::Gather, OX, OY, CK, CS>(f, sat, sown, si, sj, i, j), gd);
     auto contract = [&](const auto &g, double xc) {
       for (int cc = 0; cc < C; ++cc) yv[cc] += g.d[cc] * xc;
       for (int k = 0; k < K; ++k) zv[k] += g.d[C + k] * xc;
       for (int k = 0; k < NP; ++k) gv[k] += g.d[C + K + k] * xc;
     };
-    for (int c = CLO; c < CHI; ++c) contract(gd[c], PetscRealPart(xl[sat * C + c]));
+    for (int c = CLO; c < CHI; ++c)
+      contract(gd[c], PetscRealPart(pointwise::read_split(f, f.X, f.Xg, sat, sown, si, sj, C, c, CK)));
     for (int m = 0; m < H; ++m) contract(gd[C + m], PetscRealPart(xh[sat * H + m]));
   }
 
   // The structurally nonzero entries of a row block (stencil entry, output, input component): those
   // nonzero at random state and parameters at any owned point, or at any point on any rank.
   FLEXIPDE_SWEEP PetscErrorCode find_pattern() {
-    OwnedVec Ur, Pr;
+    OwnedVec Pr;
+    LocalState Ur;
     PetscFunctionBeginUser;
     if constexpr (!Local) PetscFunctionReturn(0);
     else {
-    PetscCall(VecDuplicate(st_.u, Ur.out()));
+    PetscCall(create_state(Ur));
     PetscCall(VecDuplicate(P_, Pr.out()));
     {
       PetscRandom rnd;
       PetscCall(PetscRandomCreate(PETSC_COMM_SELF, &rnd));
       PetscCall(PetscRandomSetInterval(rnd, 0.5, 1.5));
-      PetscCall(VecSetRandom(Ur, rnd));
+      PetscCall(VecSetRandom(Ur.copy, rnd));
+      PetscCall(VecSetRandom(Ur.g, rnd));
       PetscCall(VecSetRandom(Pr, rnd));
       PetscCall(PetscRandomDestroy(&rnd));
     }
     std::vector<int> local(Sten::size * C * C, 0);
     {
-      ConstArray u(Ur), p(Pr);
-      const pointwise::Frame f = frame(0.5, u.data(), p.data());
-      for_points(R, [&](PetscInt at, PetscInt, PetscInt i, PetscInt j, auto ck) {
+      StateView u(Ur);
+      ConstArray p(Pr);
+      const pointwise::Frame f = frame(0.5, u, p.data());
+      for_points(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
         typename Pt<Mode::Rows>::Number gd[C];
-        eq_.rhs(Pt<Mode::Rows, 0, 0, decltype(ck)::value>(f, at, i, j), gd);
+        eq_.rhs(Pt<Mode::Rows, 0, 0, decltype(ck)::value>(f, at, own, i, j), gd);
         for (int c = 0; c < C; ++c)
           for (int l = 0; l < Sten::size * C; ++l)
             if (gd[c].d[l] != 0) local[(l / C) * C * C + c * C + l % C] = 1;
@@ -850,18 +961,19 @@ private:
     }
     PetscFunctionReturn(0);
   }
-  FLEXIPDE_SWEEP PetscErrorCode assemble_rows(PetscReal t, Vec Uloc, Mat J, PetscReal *gersh) {
+  FLEXIPDE_SWEEP PetscErrorCode assemble_rows(PetscReal t, const LocalState &s, Mat J, PetscReal *gersh) {
     PetscFunctionBeginUser;
     if constexpr (!Local) PetscFunctionReturn(0);
     else {
-    ConstArray u(Uloc), p(P_);
+    StateView u(s);
+    ConstArray p(P_);
     PetscCall(u.error());
-    const pointwise::Frame f = frame(t, u.data(), p.data());
+    const pointwise::Frame f = frame(t, u, p.data());
     PetscErrorCode ierr = 0;
-    for_points(R, [&](PetscInt at, PetscInt, PetscInt i, PetscInt j, auto ck) {
+    for_points(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
       if (ierr) return;
       typename Pt<Mode::Rows>::Number gd[C];
-      eq_.rhs(Pt<Mode::Rows, 0, 0, decltype(ck)::value>(f, at, i, j), gd);
+      eq_.rhs(Pt<Mode::Rows, 0, 0, decltype(ck)::value>(f, at, own, i, j), gd);
       for (int c = 0; c < C; ++c) {
         MatStencil row{};
         row.i = i, row.j = j, row.c = c;
@@ -899,7 +1011,7 @@ private:
     PetscReal local[3] = {0, 0, 0}, global[3]; // max |diag| + off; max a; any disc not in the left disc
     PetscFunctionBeginUser;
     if (pattern_.empty()) PetscCall(find_pattern());
-    PetscCall(assemble_rows(0, st_.u, nullptr, local));
+    PetscCall(assemble_rows(0, jac_, nullptr, local));
     PetscCallMPI(MPI_Allreduce(local, global, 3, MPIU_REAL, MPI_MAX, grid_->comm()));
     *s = Spectrum();
     if (global[2] == 0 && global[1] > 0) { // every disc in {|z + a| <= a}: its boundary
@@ -951,6 +1063,10 @@ private:
   OwnedDM param_dm_, matrix_dm_, aux_dm_, out_dm_;
   OwnedVec P_, dP_, Pg_, Xl_;
   LocalState st_, jac_, jp_; // the state of rhs and the adjoint sweeps, of the Jacobian, of dG/dp
+  OwnedScatter ghost_scatter_; // global -> the ghost entries of a ghosted Vec (null: no rank has any)
+  OwnedDM pos_dm_;             // second-order models: the positions alone,
+  LocalState pos_;             // as the leapfrog's trajectory stores them
+  OwnedScatter pos_scatter_;
   OwnedVec Ag_, dAl_, Zg_, Hg_, XHl_, field_, Yt_; // non-local maps: their fields and scratch
   PetscReal jp_t_ = 0;
   ParameterBounds bounds_;
@@ -958,7 +1074,7 @@ private:
   pointwise::Frame frame_;
   std::vector<int> pattern_;
   std::vector<std::vector<PetscReal>> scalar_acc_;
-  std::vector<PetscReal> scratch_scalar_[NP > 0 ? NP : 1];
+  std::vector<PetscReal> scratch_scalar_[NP > 0 ? NP : 1], dummy_target_[NP > 0 ? NP : 1];
   bool in_adjoint_ = false;
 };
 
