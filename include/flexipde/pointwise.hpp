@@ -126,7 +126,7 @@ struct Frame {
 // CK: the point is near a wall or the ghost band, and every read is checked: positions beyond a wall
 // are reflected or zero, and (Gather) the seeded input is found by its position (ti, tj) at run time.
 // CS < C: the state arrays hold the first CS components alone (a second-order model's positions), and
-// the others read as 0.
+// the others read as 0. NP: the parameters with a lane (those G reads: Eq::rhs_parameters, the first ones).
 template <int C, int K, int NP, class Sten, Mode M, int SX = 0, int SY = 0, bool CK = false, int CS = C>
 class Point {
 public:
@@ -161,7 +161,7 @@ public:
       r.d[0] = f_.dP ? PetscRealPart(f_.dP[a]) : 0.0;
       return r;
     } else if constexpr (M == Mode::Gather) {
-      const bool seed = CK ? i_ + dx == ti_ && j_ + dy == tj_ : dx == SX && dy == SY;
+      const bool seed = k < NP && (CK ? i_ + dx == ti_ && j_ + dy == tj_ : dx == SX && dy == SY);
       return seed ? Number::seeded(v, C + K + k) : Number(v);
     } else return v;
   }
@@ -261,6 +261,9 @@ struct PairsOf<Eq, std::void_t<decltype(Eq::second_order_pairs)>> : std::integra
 // written by rhs after the C components, entering G through G += B_m h_m (L, B: the model's linear maps).
 template <class Eq, class = void> struct AuxOf : std::integral_constant<int, 0> {};
 template <class Eq> struct AuxOf<Eq, std::void_t<decltype(Eq::auxiliaries)>> : std::integral_constant<int, Eq::auxiliaries> {};
+template <class Eq, class = void> struct RhsParametersOf : std::integral_constant<int, Eq::parameters> {};
+template <class Eq>
+struct RhsParametersOf<Eq, std::void_t<decltype(Eq::rhs_parameters)>> : std::integral_constant<int, Eq::rhs_parameters> {};
 template <class Eq, class = void> struct OutputsOf : std::integral_constant<int, 0> {};
 template <class Eq> struct OutputsOf<Eq, std::void_t<decltype(Eq::outputs)>> : std::integral_constant<int, Eq::outputs> {};
 
@@ -272,12 +275,16 @@ template <class Eq>
 class PointwiseModel final : public Model {
   static constexpr int D = Eq::dim, C = Eq::components, R = Eq::radius, NP = Eq::parameters;
   static constexpr int K = pointwise::AuxOf<Eq>::value, H = pointwise::OutputsOf<Eq>::value;
+  // The parameters G reads (the first NG; the others enter U0 alone): the transposes carry lanes for those.
+  static constexpr int NG = pointwise::RhsParametersOf<Eq>::value;
+  static_assert(NG <= NP, "rhs_parameters: at most parameters");
   static constexpr bool Local = K == 0 && H == 0; // else dG/dU is applied, never assembled
   static constexpr StencilShape Shape = pointwise::ShapeOf<Eq>::value;
   using Sten = pointwise::Stencil<D, R, Shape>;
   using Mode = pointwise::Mode;
   template <Mode M, int SX = 0, int SY = 0, bool CK = false, int CS = C>
-  using Pt = pointwise::Point<C, K, NP, Sten, M, SX, SY, CK, CS>;
+  using Pt = pointwise::Point<C, K, NG, Sten, M, SX, SY, CK, CS>;
+  template <bool CK> using PtInitial = pointwise::Point<C, 0, NP, Sten, Mode::Gather, 0, 0, CK>;
   template <bool CK> using Check = std::integral_constant<bool, CK>;
   static_assert(D == 1 || D == 2, "the grid is 1D or 2D");
   static_assert(Local || pointwise::PairsOf<Eq>::value == 0, "the leapfrog kick handles local models only");
@@ -485,7 +492,7 @@ public:
       for_points(2 * R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
         double yv[C] = {};
         double zv[K > 0 ? K : 1] = {};
-        double gv[NP > 0 ? NP : 1] = {};
+        double gv[NG > 0 ? NG : 1] = {};
         gather_offsets<CLO, CHI, decltype(ck)::value, CS>(eq, f, xh, at, own, i, j, nx, ny, px, py, yv, zv, gv,
                                                           std::make_integer_sequence<int, Sten::size>());
         if constexpr (WY)
@@ -496,7 +503,7 @@ public:
         if constexpr (K > 0 && WY)
           for (int k = 0; k < K; ++k) z[own * K + k] = zv[k];
         if constexpr (WG)
-          for (int k = 0; k < NP; ++k) gk[k][own] += w * gv[k];
+          for (int k = 0; k < NG; ++k) gk[k][own] += w * gv[k];
       });
       });
     }
@@ -718,12 +725,12 @@ public:
       f.P = pa.data();
       const PetscScalar *lam = l.data();
       for_points(0, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
-        typename Pt<Mode::Gather>::Number uv[C];
-        eq_.initial(Pt<Mode::Gather, 0, 0, decltype(ck)::value>(f, at, own, i, j, i, j), uv);
+        typename PtInitial<false>::Number uv[C];
+        eq_.initial(PtInitial<decltype(ck)::value>(f, at, own, i, j, i, j), uv);
         for (int k = 0; k < NP; ++k)
           if (gk[k]) {
             double s = 0;
-            for (int c = 0; c < C; ++c) s += uv[c].d[C + K + k] * PetscRealPart(lam[own * C + c]);
+            for (int c = 0; c < C; ++c) s += uv[c].d[C + k] * PetscRealPart(lam[own * C + c]);
             gk[k][own] += s;
           }
       });
@@ -917,7 +924,7 @@ private:
     auto contract = [&](const auto &g, double xc) {
       for (int cc = 0; cc < C; ++cc) yv[cc] += g.d[cc] * xc;
       for (int k = 0; k < K; ++k) zv[k] += g.d[C + k] * xc;
-      for (int k = 0; k < NP; ++k) gv[k] += g.d[C + K + k] * xc;
+      for (int k = 0; k < NG; ++k) gv[k] += g.d[C + K + k] * xc;
     };
     for (int c = CLO; c < CHI; ++c)
       contract(gd[c], PetscRealPart(pointwise::read_split(f, f.X, f.Xg, sat, sown, si, sj, C, c, CK)));
