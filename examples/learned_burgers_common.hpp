@@ -7,6 +7,7 @@
 // -grid_x1 1 + h/2; the random start is a function of x, the same on every grid).
 #pragma once
 #include "flexipde/scene.hpp"
+#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <string>
@@ -62,6 +63,18 @@ public:
     char v[64];
     std::snprintf(v, sizeof v, "%.17g", value);
     return set(name, std::string(v));
+  }
+  // Removed until the scope ends.
+  PetscErrorCode clear(const std::string &name) {
+    Saved s;
+    char old[PETSC_MAX_PATH_LEN] = "";
+    PetscBool had;
+    PetscFunctionBeginUser;
+    PetscCall(PetscOptionsGetString(nullptr, nullptr, name.c_str(), old, sizeof(old), &had));
+    s.name = name, s.old = old, s.had = had;
+    saved_.push_back(s);
+    PetscCall(PetscOptionsClearValue(nullptr, name.c_str()));
+    PetscFunctionReturn(0);
   }
   // The cell-centred grid of n cells on [0, 1) (see the top of this file).
   PetscErrorCode cells(PetscInt n) {
@@ -150,16 +163,23 @@ private:
   PetscInt refine_ = 1;
 };
 
-// The fine Burgers solution (-model burgers, `refine` times the cells of `coarse`, the step s.dt scaled
-// from s.n cells to the fine grid's, RK4) from the random start `seed`, averaged onto `coarse` every
-// `every_fine` fine steps up to T: times and snapshots.
+// The fine Burgers solution (-model burgers, `refine` times the cells of `coarse`, RK4 with the step
+// s.dt scaled from s.n cells to the fine grid's, or a whole fraction of it where the viscous limit
+// needs) from the random start `seed`, averaged onto `coarse` every `every_fine` of those scaled steps
+// up to T: times and snapshots.
 inline PetscErrorCode fine_reference(MPI_Comm comm, const Settings &s, PetscInt refine, PetscInt seed, PetscReal T,
                                      PetscInt every_fine, const Grid &coarse, std::vector<PetscReal> &times,
                                      std::vector<OwnedVec> &snapshots) {
   Scene fine;
   OwnedVec p, U;
   Averager avg;
-  const PetscReal dtf = s.dt * s.n / (coarse.n() * refine); // the step of s.n cells scaled to the fine grid
+  // The step of s.n cells scaled to the fine grid, divided further until the viscous term is stable
+  // with RK4 (dt < 0.69 h^2 / nu; 0.5 taken).
+  const PetscReal hf = 1.0 / (coarse.n() * refine);
+  PetscReal dtf = s.dt * s.n * hf;
+  const PetscInt split = s.nu > 0 ? std::max<PetscInt>(1, (PetscInt)std::ceil(dtf / (0.5 * hf * hf / s.nu))) : 1;
+  dtf /= split;
+  every_fine *= split;
   PetscFunctionBeginUser;
   {
     OptionScope o;
@@ -207,7 +227,8 @@ inline PetscErrorCode l2_error(Vec a, Vec b, PetscReal *e) {
 }
 
 // A coarse learned_burgers scene on n cells, step dt to T, from the random start `seed`, averaged over `subsamples`
-// points per cell (the fine grid's cells), with the options in `extra` in force during its set-up.
+// points per cell (the fine grid's cells), with the options in `extra` in force during its set-up (an
+// empty value removes the option).
 inline PetscErrorCode coarse_scene(MPI_Comm comm, Scene &scene, PetscInt n, PetscReal dt, PetscReal T, PetscInt seed,
                                    PetscInt subsamples, const std::vector<std::pair<std::string, std::string>> &extra = {}) {
   OptionScope o;
@@ -217,7 +238,10 @@ inline PetscErrorCode coarse_scene(MPI_Comm comm, Scene &scene, PetscInt n, Pets
   PetscCall(o.set("-learned_burgers_ic", "random"));
   PetscCall(o.set("-learned_burgers_ic_seed", std::to_string(seed)));
   PetscCall(o.set("-learned_burgers_ic_subsamples", std::to_string(subsamples)));
-  for (auto &kv : extra) PetscCall(o.set(kv.first, kv.second));
+  for (auto &kv : extra) {
+    if (kv.second.empty()) PetscCall(o.clear(kv.first));
+    else PetscCall(o.set(kv.first, kv.second));
+  }
   SceneDefaults d; // the step and horizon the Simulation takes unless -ts_dt, -ts_max_time say otherwise
   d.dt = dt, d.final_time = T;
   PetscCall(scene.setup(comm, d));
