@@ -192,9 +192,9 @@ inline PetscErrorCode fine_reference(MPI_Comm comm, const Settings &s, PetscInt 
     PetscCall(o.set("-burgers_nu", s.nu));
     PetscCall(o.set("-burgers_nu_field", "0"));
     PetscCall(fine.setup(comm));
+    PetscCall(fine.params.create_vec(p.out()));
+    PetscCall(fine.parameters_from_options("", p)); // the values are read here, not at set-up
   }
-  PetscCall(fine.params.create_vec(p.out()));
-  PetscCall(fine.parameters_from_options("", p));
   PetscCall(fine.sim.create_state(U.out()));
   PetscCall(fine.sim.initial_condition(p, U));
   PetscCall(avg.setup(U, coarse, refine));

@@ -124,8 +124,7 @@ static PetscErrorCode run(MPI_Comm comm) {
   std::map<std::string, std::vector<PetscReal>> err2;       // sum over seeds of error^2 per sample, training grid
   std::map<std::string, std::vector<PetscReal>> wp_err, wp_time, wp_cells; // work-precision
   std::map<std::string, std::vector<PetscReal>> snaps;       // first seed, training grid: samples x n
-  H5Writer w;
-  if (output[0]) PetscCall(w.open(comm, output));
+  std::vector<PetscReal> snapshot_times;
 
   // 2. For each grid: the reference, then every scheme that runs there, from every held-out start
   for (PetscInt N : grids) {
@@ -154,7 +153,7 @@ static PetscErrorCode run(MPI_Comm comm) {
               all.insert(all.end(), rows.begin(), rows.end());
             }
             snaps["reference"] = all;
-            if (output[0]) PetscCall(w.write_series("/snapshots", "time", times));
+            snapshot_times = times;
           }
         }
         OwnedVec p, U;
@@ -220,7 +219,10 @@ static PetscErrorCode run(MPI_Comm comm) {
     for (auto &kv : err2) PetscCall(PetscPrintf(comm, " %10.3e", (double)std::sqrt(kv.second[k])));
     PetscCall(PetscPrintf(comm, "\n"));
   }
-  if (output[0]) {
+  if (output[0]) { // written at the end: an error on the way leaves no half-written file
+    H5Writer w;
+    PetscCall(w.open(comm, output));
+    PetscCall(w.write_series("/snapshots", "time", snapshot_times));
     std::vector<PetscReal> tk;
     for (PetscInt k = 0; k < samples; ++k) tk.push_back(k * sample);
     PetscCall(w.write_series("/error", "time", tk));

@@ -33,10 +33,13 @@
 // -learned_burgers_ic_subsamples points per cell, the cell average of the fine grid that many times
 // finer; or "sine".
 //
-//   mpiexec -n 2 ./flexipde -model learned_burgers -task gradient -check_fd
-//   mpiexec -n 2 ./flexipde -model learned_burgers -task taylor -learned_burgers_weights network
-//   ./flexipde -model learned_burgers -task forward -learned_burgers_theta_file results/learned_burgers.h5
-//           -learned_burgers_weights network
+//   mpiexec -n 2 ./flexipde -model learned_burgers -ts_dt 0.005 -ts_max_time 0.5 -task gradient -check_fd
+//           -true_learned_burgers_theta 0,0,0
+//   mpiexec -n 2 ./flexipde -model learned_burgers -ts_dt 0.005 -ts_max_time 0.5 -task taylor
+//           -learned_burgers_weights network -objective_type mean_square
+//   ./flexipde -model learned_burgers -ts_dt 0.005 -ts_max_time 0.5 -task forward -learned_burgers_weights network
+//           -learned_burgers_theta_file learned_burgers.h5          (weights from examples/learned_burgers_train)
+//   (each one command line)
 #include "flexipde/pointwise.hpp"
 #include "flexipde/random_start.hpp"
 
