@@ -59,14 +59,14 @@ def main(argv):
     t = series(ev_n, "snapshots/time")
     x = (np.arange(n) + 0.5) / n
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8), sharey=True)
-    for ax, tt in zip(axes, (0.25, 0.5, 1.0)):
+    for ax, tt in zip(axes, (0.1, 0.2, 0.5)):
         k = int(np.argmin(abs(t - tt)))
         ref = series(ev_n, "snapshots/reference").reshape(len(t), n)[k]
         ax.step(np.r_[0, (np.arange(n) + 1) / n], np.r_[ref[0], ref], "k-", where="pre", lw=1, label="reference (cell averages)")
-        ax.plot(x, series(ev_n, "snapshots/learned").reshape(len(t), n)[k], "o-", ms=3, label="learned network")
-        ax.plot(x, series(ev_s, "snapshots/learned").reshape(len(t), n)[k], "s-", ms=3, label="learned stencil")
         for name, lab in CLASSICAL[:1] + CLASSICAL[3:]:
             ax.plot(x, series(ev_n, "snapshots/" + name).reshape(len(t), n)[k], ".--", lw=1, label=lab)
+        ax.plot(x, series(ev_s, "snapshots/learned").reshape(len(t), n)[k], "s-", ms=4, lw=1.5, label="learned stencil")
+        ax.plot(x, series(ev_n, "snapshots/learned").reshape(len(t), n)[k], "o-", ms=4, lw=1.5, label="learned network")
         ax.set_title("t = %.2f (%d cells)" % (t[k], n))
         ax.set_xlabel("x")
         ax.grid(alpha=0.3)
