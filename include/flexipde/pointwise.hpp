@@ -648,7 +648,7 @@ private:
   // acc[e] += w sum_i sum_{c in [CLO, CHI)} x_c(i) dG_c(i)/dtheta_e over the owned points i: G(i) taped
   // at Rev numbers and swept backward once per point.
   template <int CLO, int CHI>
-  PetscErrorCode theta_gather(PetscReal t, Vec Uloc, const PetscScalar *xl, PetscReal w, PetscReal *acc) const {
+  FLEXIPDE_SWEEP PetscErrorCode theta_gather(PetscReal t, Vec Uloc, const PetscScalar *xl, PetscReal w, PetscReal *acc) const {
     PetscFunctionBeginUser;
     ConstArray u(Uloc), p(P_);
     PetscCall(u.error());

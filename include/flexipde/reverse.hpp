@@ -32,7 +32,7 @@ public:
   }
   int inputs() const { return base_; }
   int push(int a, double da, int b, double db) {
-    if (n_ == nodes_.size()) grow();
+    if (n_ == cap_) grow();
     nodes_[n_] = {a, b, da, db};
     return base_ + (int)n_++;
   }
@@ -56,19 +56,19 @@ public:
 
 private:
   __attribute__((noinline)) void grow() {
-    nodes_.resize(std::max<size_t>(1024, 2 * nodes_.size()));
-    adj_.resize(base_ + nodes_.size());
+    store_.resize(std::max<size_t>(1024, 2 * store_.size()));
+    nodes_ = store_.data(), cap_ = store_.size();
+    adj_.resize(base_ + cap_);
   }
-  std::vector<Node> nodes_;
+  std::vector<Node> store_;
+  Node *nodes_ = nullptr; // store_'s data and size, read on every push
+  size_t n_ = 0, cap_ = 0;
   std::vector<double> adj_;
-  size_t n_ = 0;
   int base_ = 0;
 };
 
-inline Tape &active_tape() {
-  static Tape tape;
-  return tape;
-}
+inline Tape process_tape; // a namespace-scope variable: no initialisation check on every operation
+inline Tape &active_tape() { return process_tape; }
 
 struct Rev {
   double v = 0;
