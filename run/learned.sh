@@ -29,6 +29,13 @@ $B/learned_burgers_evaluate $NET -eval_final_time 3 -eval_sample_every 0.1 -eval
   | tee $R/eval_network_long.log | grep -vE "^ +[0-9]+ cells"
 log "Gradient cost: 3 weights against networks of 31, 115 and 451"
 $B/learned_burgers_gradient_cost -cost_hidden 4,16,64 -cost_repeats 7 | tee $R/gradient_cost.log
+$B/learned_burgers_gradient_cost -cost_hidden 4,16,64 -cost_repeats 7 -da_grid_x 128 -ts_dt 0.00125 -ts_max_time 0.125 \
+  | tee $R/gradient_cost_128.log
+log "A smaller network (8 hidden units, 59 weights)"
+$B/learned_burgers_train -learned_burgers_weights network -learned_burgers_hidden 8 -tao_max_it 60 -output $R/train_network8.h5 \
+  | tee $R/train_network8.log | grep -v " TAO, "
+$B/learned_burgers_evaluate -learned_burgers_weights network -learned_burgers_hidden 8 -learned_burgers_theta_file $R/train_network8.h5 \
+  -eval_resolutions 32 -output $R/eval_network8.h5 | tee $R/eval_network8.log | grep -E "32 cells|held-out"
 log "Figures"
 "$PYTHON" run/plot_learned.py $R/train_stencil.h5 $R/train_network.h5 $R/eval_stencil.h5 $R/eval_network.h5 docs \
   | tee $R/crossings.md
