@@ -115,7 +115,10 @@ static PetscErrorCode run(MPI_Comm comm) {
   PetscCall(PetscOptionsHasHelp(nullptr, &help));
   if (help) { // the learned scene's options too, then stop
     Scene scene;
+    OwnedVec p;
     PetscCall(coarse_scene(comm, scene, s.n, s.dt, T, seeds[0], ref_cells / s.n));
+    PetscCall(scene.params.create_vec(p.out()));
+    PetscCall(scene.parameters_from_options("", p));
     PetscFunctionReturn(0);
   }
   const std::vector<Scheme> classical = {
