@@ -75,7 +75,14 @@ static PetscErrorCode run(MPI_Comm comm) {
     PetscCheck(hidden[k] > 0, comm, PETSC_ERR_ARG_OUTOFRANGE, "-cost_hidden values must be positive");
     options.push_back({{"-learned_burgers_weights", "network"}, {"-learned_burgers_hidden", std::to_string(hidden[k])}});
   }
+  PetscBool help = PETSC_FALSE;
+  PetscCall(PetscOptionsHasHelp(nullptr, &help));
   for (auto &o : options) {
+    if (help) { // the model's options, once, then stop
+      Scene scene;
+      PetscCall(coarse_scene(comm, scene, s.n, s.dt, s.T, 1, 1, o));
+      PetscFunctionReturn(0);
+    }
     Variant v;
     OwnedVec p_true;
     v.scene = std::make_unique<Scene>();
