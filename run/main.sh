@@ -88,6 +88,11 @@ log "Case 4: 2D layered model with a slow disc, 4 shots, 48 receivers, sponge, B
 $MPI build/fwi_2d -tao_max_it ${FWI2D_IT:-40} -output results/fwi_2d.h5 | tee results/fwi_2d.log | grep -v " TAO, "
 "$PYTHON" run/plot_fwi_2d.py results/fwi_2d.h5 results/fwi_2d
 
+log "Learned discretisation: one Burgers stencil trained on 32 cells, checked on held-out starts (docs/learned_discretisation.md)"
+$MPI build/learned_burgers_train -output results/learned_stencil.h5 | tee results/learned_stencil.log
+$MPI build/learned_burgers_evaluate -learned_burgers_theta_file results/learned_stencil.h5 -eval_resolutions 32,64 \
+  -output results/learned_stencil_eval.h5 | tee results/learned_stencil_eval.log | grep -E "consistency|cells|held-out"
+
 log "Plots"
 "$PYTHON" run/plot_fwi.py results/notebook_constant_adam.h5 results/notebook_linear_adam.h5 results/notebook_linear_lmvm.h5 \
   results/notebook_linear_lmvm_frtol.h5 results/notebook_linear_blmvm.h5 results/fwi_constant_from_0.8.h5 results/fwi_constant.h5 results/fwi_linear_blmvm.h5 \

@@ -346,6 +346,12 @@ inline PetscErrorCode to_serial_parameters(const flexipde::Scene &dist, Vec v, c
       PetscCall(serial.params.set_scalar(out, k, value));
       continue;
     }
+    if (dist.params.info(k).kind == flexipde::ParamKind::Vector) {
+      std::vector<PetscReal> values;
+      PetscCall(dist.params.vector_values(v, k, values));
+      PetscCall(serial.params.set_vector(out, k, values));
+      continue;
+    }
     OwnedVec f, nat, fs;
     PetscCall(DMCreateGlobalVector(dist.grid.dm(), f.out()));
     PetscCall(dist.params.get_field(v, k, f));

@@ -19,6 +19,11 @@
 //   and their nestings for second derivatives.
 // Its `Jacobian` is never written by hand. Every parameter is held as a field on the ghosted grid (a
 // scalar parameter as a constant one): a scalar's gradient is the sum of the field gradient.
+// Parameter vectors (Declarations::vector: one name, many entries, e.g. the weights of a learned
+// flux) are held once per rank instead and read with pt.theta(e). Lanes per entry would make their
+// transposes cost O(entries) per point; instead rhs() is evaluated at reverse-mode numbers
+// (reverse.hpp) with the entries as the tape's inputs, point by point, and one backward pass gives
+// sum_i x(i)^T dG(i)/dtheta for all entries at a cost independent of their number.
 //
 // Ghost width: the transposes evaluate G at the neighbours of owned points, whose stencils reach
 // 2 * radius from them; the state DM therefore has 2 * radius ghosts, the assembled Jacobian radius.
@@ -27,6 +32,7 @@
 #include "flexipde/dual.hpp"
 #include "flexipde/model.hpp"
 #include "flexipde/leapfrog.hpp"
+#include "flexipde/reverse.hpp"
 #include "flexipde/survey.hpp"
 #include <array>
 #include <cmath>
@@ -62,8 +68,23 @@ public:
   void fixed(int k, PetscReal value) { fixed_[k] = value, index_[k] = -1; }
   PetscInt index(int k) const { return index_[k]; }
   PetscReal fixed_value(int k) const { return fixed_[k]; }
+  // A parameter vector `name` with these defaults (its length). Returns the offset of its first entry:
+  // rhs() and initial() read entry e as pt.theta(offset + e).
+  PetscInt vector(const std::string &name, const std::vector<PetscReal> &initial, PetscReal lower = PETSC_NINFINITY) {
+    const PetscInt offset = theta_count_;
+    vectors_.push_back({params_.add_vector(name, initial, lower), offset, (PetscInt)initial.size()});
+    theta_count_ += (PetscInt)initial.size();
+    return offset;
+  }
+  struct VectorSlot {
+    PetscInt index, offset, entries;
+  };
+  const std::vector<VectorSlot> &vectors() const { return vectors_; }
+  PetscInt theta_count() const { return theta_count_; }
 
 private:
+  std::vector<VectorSlot> vectors_;
+  PetscInt theta_count_ = 0;
   Parameters &params_;
   std::vector<PetscInt> index_;
   std::vector<PetscReal> fixed_;
@@ -106,6 +127,7 @@ struct Frame {
   const PetscScalar *dP = nullptr; // direction of the parameters (Tangent; null: 0)
   const PetscScalar *A = nullptr;  // auxiliary fields a = L U, `na` per point (non-local linear maps of the state)
   const PetscScalar *dA = nullptr; // their direction L X (Tangent; null: 0)
+  const PetscReal *theta = nullptr, *dtheta = nullptr; // parameter vectors' entries, and their direction
   PetscInt np = 0, na = 0, sy = 0, syo = 0;
   PetscInt xs = 0, ys = 0, xm = 0, ym = 1; // the owned block
   PetscReal t = 0;
@@ -179,6 +201,15 @@ public:
       return seed ? Number::seeded(v, C + k) : Number(v);
     } else return v;
   }
+  // Entry e of the parameter vectors (Declarations::vector). In Rows and Gather modes a constant: their
+  // transposes come from the reverse sweep (ReversePoint).
+  Number theta(int e) const {
+    if constexpr (M == Mode::Tangent) {
+      Number r(f_.theta[e]);
+      r.d[0] = f_.dtheta ? f_.dtheta[e] : 0.0;
+      return r;
+    } else return Number(f_.theta[e]);
+  }
   PetscReal t() const { return f_.t; }
   PetscInt index(int d = 0) const { return d == 0 ? i_ : j_; }
   PetscReal h(int d = 0) const { return f_.h[d]; }
@@ -236,6 +267,21 @@ inline const PetscScalar &read_split(const Frame &f, const PetscScalar *x, const
   if (checked && !(i >= f.xs && i < f.xs + f.xm && j >= f.ys && j < f.ys + f.ym)) return xg[at * ncomp + c];
   return x[own * ncomp + c];
 }
+
+// The point view of the reverse sweep: Rev numbers whose tape inputs are the parameter vectors'
+// entries (input e: entry e); the state and the per-point parameters are constants.
+template <int C, int K, int NP, class Sten, bool CK, int CS = C>
+class ReversePoint : public Point<C, K, NP, Sten, Mode::Value, 0, 0, CK, CS> {
+  using Base = Point<C, K, NP, Sten, Mode::Value, 0, 0, CK, CS>;
+
+public:
+  using Number = Rev;
+  using Base::Base;
+  Number u(int c, int dx, int dy = 0) const { return Base::u(c, dx, dy); }
+  Number param(int k, int dx = 0, int dy = 0) const { return Base::param(k, dx, dy); }
+  Number aux(int k, int dx = 0, int dy = 0) const { return Base::aux(k, dx, dy); }
+  Number theta(int e) const { return Rev::input(Base::theta(e), e); }
+};
 
 template <class Eq, class = void> struct ShapeOf {
   static constexpr StencilShape value = StencilShape::Star;
@@ -323,6 +369,8 @@ public:
     Declarations decl(params, NP);
     PetscCall(eq_.setup(grid, decl));
     for (int k = 0; k < NP; ++k) index_[k] = decl.index(k), fixed_[k] = decl.fixed_value(k);
+    vector_slots_ = decl.vectors();
+    theta_.assign(decl.theta_count(), 0.0), dtheta_ = theta_acc_ = theta_;
     PetscCall(grid.create_dm(NP, param_dm_.out()));
     PetscCall(DMCreateLocalVector(param_dm_, P_.out()));
     PetscCall(VecSet(P_, 0.0)); // beyond a wall: never written, reads 0
@@ -377,6 +425,7 @@ public:
       PetscCall(VecSet(pos_.g, 0.0));
     }
     frame_.dim = D;
+    frame_.theta = theta_.data();
     PetscFunctionReturn(0);
   }
 
@@ -391,6 +440,7 @@ public:
       PetscCall(VecStrideScatter(f, k, Pg_, INSERT_VALUES));
     }
     PetscCall(DMGlobalToLocal(param_dm_, Pg_, INSERT_VALUES, P_));
+    PetscCall(vectors_from(p, theta_));
     bounds_.min.assign(NP, 0.0), bounds_.max.assign(NP, 0.0);
     for (int k = 0; k < NP; ++k) {
       PetscCall(VecStrideMin(Pg_, k, nullptr, &bounds_.min[k]));
@@ -439,6 +489,7 @@ public:
     if (dp) PetscCall(params_to_local(dp, dP_));
     if constexpr (K > 0)
       if (x) PetscCall(auxiliaries(x, dAl_));
+    if (dp) PetscCall(vectors_from(dp, dtheta_));
     {
       StateView sv(s);
       ConstArray xo(x), xg(x ? Xl_.get() : nullptr), p(P_), dpa(dp ? dP_.get() : nullptr),
@@ -451,6 +502,7 @@ public:
       f.Xg = xg.data();
       f.dP = dpa.data();
       f.dA = da.data();
+      f.dtheta = dp && !dtheta_.empty() ? dtheta_.data() : nullptr;
       PetscScalar *out = ya.data();
       PetscScalar *hout = nullptr;
       if constexpr (H > 0) PetscCall(VecGetArray(Hg_, &hout));
@@ -546,6 +598,10 @@ public:
       if (!y) PetscCall(mu ? run(F(), F(), T()) : 0);
       else if (add_y) PetscCall(mu ? run(T(), T(), T()) : run(T(), T(), F()));
       else PetscCall(mu ? run(T(), F(), T()) : run(T(), F(), F()));
+      if (mu && !theta_.empty()) {
+        if (!defer) std::fill(dtheta_.begin(), dtheta_.end(), 0.0);
+        PetscCall((theta_gather<CLO, CHI, CS>(t, s, xo, w, defer ? theta_acc_.data() : dtheta_.data())));
+      }
       if (y != x) PetscCall(VecRestoreArrayRead(x, &xo));
       if (za) PetscCall(VecRestoreArray(Zg_, &za));
       if (mu) PetscCall(VecRestoreArray(mu, &m));
@@ -561,6 +617,7 @@ public:
         PetscCall(VecAXPY(y, add_y ? w : 1.0, Yt_));
       }
     if (mu && !defer) PetscCall(flush_scratch_scalars(mu));
+    if (mu && !defer) PetscCall(add_vector_sums(mu, dtheta_));
     PetscFunctionReturn(0);
   }
 
@@ -664,6 +721,7 @@ public:
   // Within one adjoint solve a scalar's pointwise terms accumulate, summed once at the end.
   void begin_adjoint() override {
     in_adjoint_ = true;
+    std::fill(theta_acc_.begin(), theta_acc_.end(), 0.0);
     for (auto &a : scalar_acc_) std::fill(a.begin(), a.end(), 0.0);
   }
   PetscErrorCode end_adjoint(Vec mu) override {
@@ -673,6 +731,7 @@ public:
     if (!was || !mu) PetscFunctionReturn(0);
     for (int k = 0; k < NP; ++k)
       if (!scalar_acc_[k].empty()) PetscCall(params_->add_local_sum(mu, index_[k], sum(scalar_acc_[k])));
+    PetscCall(add_vector_sums(mu, theta_acc_));
     PetscFunctionReturn(0);
   }
 
@@ -714,6 +773,8 @@ public:
   }
   FLEXIPDE_SWEEP PetscErrorCode initial_condition_transpose(Vec p, Vec lambda0, Vec grad) override {
     PetscFunctionBeginUser;
+    if (NP == 0 && theta_.empty()) PetscFunctionReturn(0);
+    if (!theta_.empty()) PetscCall(theta_initial_gather(lambda0, grad));
     if (NP == 0) PetscFunctionReturn(0);
     {
       ConstArray pa(P_), l(lambda0);
@@ -750,6 +811,70 @@ private:
   template <class E>
   struct HasCheck<E, std::void_t<decltype(std::declval<const E &>().check_parameters(std::declval<const ParameterBounds &>(),
                                                                                       MPI_Comm()))>> : std::true_type {};
+
+  // The parameter vectors' entries of a parameter-shaped Vec, on every rank (collective).
+  PetscErrorCode vectors_from(Vec p, std::vector<PetscReal> &theta) const {
+    std::vector<PetscReal> v;
+    PetscFunctionBeginUser;
+    for (const auto &s : vector_slots_) {
+      PetscCall(params_->vector_values(p, s.index, v));
+      std::copy(v.begin(), v.end(), theta.begin() + s.offset);
+    }
+    PetscFunctionReturn(0);
+  }
+  // mu[vectors] += the sums over ranks of the per-rank terms in acc (collective).
+  PetscErrorCode add_vector_sums(Vec mu, const std::vector<PetscReal> &acc) const {
+    PetscFunctionBeginUser;
+    for (const auto &s : vector_slots_) PetscCall(params_->add_local_sums(mu, s.index, acc.data() + s.offset));
+    PetscFunctionReturn(0);
+  }
+  // acc[e] += w sum_i sum_{c in [CLO, CHI)} x_c(i) dG_c(i)/dtheta_e over the owned points i: G(i) taped
+  // at Rev numbers and swept backward once per point.
+  template <int CLO, int CHI, int CS>
+  FLEXIPDE_SWEEP PetscErrorCode theta_gather(PetscReal t, const LocalState &s, const PetscScalar *xo, PetscReal w,
+                                             PetscReal *acc) const {
+    PetscFunctionBeginUser;
+    StateView sv(s);
+    ConstArray p(P_);
+    PetscCall(sv.error());
+    const pointwise::Frame f = frame(t, sv, p.data());
+    Tape &tape = active_tape();
+    const int ne = (int)theta_.size();
+    for_points(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+      Rev g[C];
+      tape.begin(ne);
+      eq_.rhs(pointwise::ReversePoint<C, K, NG, Sten, decltype(ck)::value, CS>(f, at, own, i, j), g);
+      tape.begin_seeding();
+      for (int c = CLO; c < CHI; ++c) tape.seed(g[c].i, w * PetscRealPart(xo[own * C + c]));
+      tape.backward();
+      for (int e = 0; e < ne; ++e) acc[e] += tape.adjoint(e);
+    });
+    PetscFunctionReturn(0);
+  }
+  // grad[vectors] += (dU0/dtheta)^T lambda0, the same way from initial().
+  PetscErrorCode theta_initial_gather(Vec lambda0, Vec grad) {
+    PetscFunctionBeginUser;
+    std::fill(dtheta_.begin(), dtheta_.end(), 0.0);
+    {
+      ConstArray pa(P_), l(lambda0);
+      PetscCall(l.error());
+      pointwise::Frame f = frame_;
+      f.P = pa.data();
+      Tape &tape = active_tape();
+      const int ne = (int)theta_.size();
+      for_points(0, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+        Rev uv[C];
+        tape.begin(ne);
+        eq_.initial(pointwise::ReversePoint<C, K, NG, Sten, decltype(ck)::value>(f, at, own, i, j), uv);
+        tape.begin_seeding();
+        for (int c = 0; c < C; ++c) tape.seed(uv[c].i, PetscRealPart(l[own * C + c]));
+        tape.backward();
+        for (int e = 0; e < ne; ++e) dtheta_[e] += tape.adjoint(e);
+      });
+    }
+    PetscCall(add_vector_sums(grad, dtheta_));
+    PetscFunctionReturn(0);
+  }
 
   PetscInt ghost_xm() const {
     PetscInt gxm;
@@ -941,6 +1066,7 @@ private:
     else {
     PetscCall(create_state(Ur));
     PetscCall(VecDuplicate(P_, Pr.out()));
+    std::vector<PetscReal> theta_r(theta_.size()); // random parameter vectors too (the pattern is found before any are set)
     {
       PetscRandom rnd;
       PetscCall(PetscRandomCreate(PETSC_COMM_SELF, &rnd));
@@ -948,13 +1074,20 @@ private:
       PetscCall(VecSetRandom(Ur.copy, rnd));
       PetscCall(VecSetRandom(Ur.g, rnd));
       PetscCall(VecSetRandom(Pr, rnd));
+      for (auto &v : theta_r) PetscCall(PetscRandomGetValueReal(rnd, &v));
       PetscCall(PetscRandomDestroy(&rnd));
     }
     std::vector<int> local(Sten::size * C * C, 0);
-    {
+    // At positive and at negative states: an upwind flux reads one side's values for one sign only.
+    for (int pass = 0; pass < 2; ++pass) {
+      if (pass) {
+        PetscCall(VecScale(Ur.copy, -1.0));
+        PetscCall(VecScale(Ur.g, -1.0));
+      }
       StateView u(Ur);
       ConstArray p(Pr);
-      const pointwise::Frame f = frame(0.5, u, p.data());
+      pointwise::Frame f = frame(0.5, u, p.data());
+      f.theta = theta_r.data();
       for_points(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
         typename Pt<Mode::Rows>::Number gd[C];
         eq_.rhs(Pt<Mode::Rows, 0, 0, decltype(ck)::value>(f, at, own, i, j), gd);
@@ -1083,6 +1216,10 @@ private:
   std::vector<std::vector<PetscReal>> scalar_acc_;
   std::vector<PetscReal> scratch_scalar_[NP > 0 ? NP : 1], dummy_target_[NP > 0 ? NP : 1];
   bool in_adjoint_ = false;
+  // Parameter vectors: their slots, the entries (every rank), a direction or scratch gradient, and the
+  // per-rank gradient accumulated during an adjoint solve (summed over ranks by end_adjoint).
+  std::vector<Declarations::VectorSlot> vector_slots_;
+  std::vector<PetscReal> theta_, dtheta_, theta_acc_;
 };
 
 } // namespace flexipde

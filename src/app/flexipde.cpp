@@ -45,6 +45,10 @@ static PetscErrorCode write_parameters(H5Writer &w, const Scene &s, Vec p, const
     if (pi.kind == ParamKind::Field) {
       PetscCall(s.params.get_field(p, k, f));
       PetscCall(w.write_vec("/fields", name.c_str(), f));
+    } else if (pi.kind == ParamKind::Vector) {
+      std::vector<PetscReal> v;
+      PetscCall(s.params.vector_values(p, k, v));
+      PetscCall(w.write_series("/vectors", name.c_str(), v));
     } else {
       PetscReal v;
       PetscCall(s.params.scalar(p, k, &v));
@@ -62,6 +66,12 @@ static PetscErrorCode print_parameters(const Scene &s, Vec p, const char *label)
       PetscReal v;
       PetscCall(s.params.scalar(p, k, &v));
       PetscCall(PetscPrintf(s.comm(), "%s %s = %.10f\n", label, pi.name.c_str(), (double)v));
+    } else if (pi.kind == ParamKind::Vector && pi.entries <= 8) {
+      std::vector<PetscReal> v;
+      PetscCall(s.params.vector_values(p, k, v));
+      PetscCall(PetscPrintf(s.comm(), "%s %s =", label, pi.name.c_str()));
+      for (PetscReal x : v) PetscCall(PetscPrintf(s.comm(), " %.10f", (double)x));
+      PetscCall(PetscPrintf(s.comm(), "\n"));
     }
   }
   PetscFunctionReturn(0);

@@ -1,11 +1,22 @@
 #include "flexipde/parameters.hpp"
+#include "flexipde/io.hpp"
 #include <cmath>
+#include <cstring>
+#include <fstream>
 
 namespace flexipde {
 
 PetscInt Parameters::add(const std::string &name, ParamKind kind, PetscReal lower, PetscReal initial) {
   ParamInfo pi;
   pi.name = name, pi.kind = kind, pi.lower = lower, pi.initial = initial;
+  info_.push_back(pi);
+  return static_cast<PetscInt>(info_.size()) - 1;
+}
+
+PetscInt Parameters::add_vector(const std::string &name, const std::vector<PetscReal> &initial, PetscReal lower) {
+  ParamInfo pi;
+  pi.name = name, pi.kind = ParamKind::Vector, pi.lower = lower, pi.initial = 0.0;
+  pi.entries = (PetscInt)initial.size(), pi.initial_entries = initial;
   info_.push_back(pi);
   return static_cast<PetscInt>(info_.size()) - 1;
 }
@@ -27,6 +38,14 @@ PetscErrorCode Parameters::finalize(const Grid &grid) {
     pi.local_offset = off;
     pi.local_size = rank == 0 ? 1 : 0;
     pi.global_start = nscalar++;
+    off += pi.local_size;
+  }
+  for (auto &pi : info_) { // then the vectors, also on rank 0
+    if (pi.kind != ParamKind::Vector) continue;
+    pi.local_offset = off;
+    pi.local_size = rank == 0 ? pi.entries : 0;
+    pi.global_start = nscalar;
+    nscalar += pi.entries;
     off += pi.local_size;
   }
   for (auto &pi : info_) {
@@ -77,6 +96,44 @@ PetscErrorCode Parameters::set_scalar(Vec p, PetscInt k, PetscReal value) const 
   Array a(p);
   PetscCall(a.error());
   if (info_[k].local_size) a[info_[k].local_offset] = value;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Parameters::vector_values(Vec p, PetscInt k, std::vector<PetscReal> &values) const {
+  const ParamInfo &pi = info_[k];
+  PetscFunctionBeginUser;
+  PetscCheck(pi.kind == ParamKind::Vector, PETSC_COMM_SELF, PETSC_ERR_ARG_WRONG, "%s is not a vector", pi.name.c_str());
+  values.assign(pi.entries, 0.0);
+  {
+    ConstArray a(p);
+    PetscCall(a.error());
+    for (PetscInt i = 0; i < pi.local_size; ++i) values[i] = PetscRealPart(a[pi.local_offset + i]);
+  }
+  PetscCallMPI(MPI_Bcast(values.data(), (int)pi.entries, MPIU_REAL, 0, grid_->comm()));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Parameters::set_vector(Vec p, PetscInt k, const std::vector<PetscReal> &values) const {
+  const ParamInfo &pi = info_[k];
+  PetscFunctionBeginUser;
+  PetscCheck(pi.kind == ParamKind::Vector, PETSC_COMM_SELF, PETSC_ERR_ARG_WRONG, "%s is not a vector", pi.name.c_str());
+  PetscCheck((PetscInt)values.size() == pi.entries, PETSC_COMM_SELF, PETSC_ERR_ARG_SIZ,
+             "%s has %" PetscInt_FMT " entries, got %zu values", pi.name.c_str(), pi.entries, values.size());
+  Array a(p);
+  PetscCall(a.error());
+  for (PetscInt i = 0; i < pi.local_size; ++i) a[pi.local_offset + i] = values[i];
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Parameters::add_local_sums(Vec grad, PetscInt k, const PetscReal *local) const {
+  const ParamInfo &pi = info_[k];
+  std::vector<PetscReal> total(pi.entries, 0.0);
+  PetscFunctionBeginUser;
+  PetscCheck(pi.kind == ParamKind::Vector, PETSC_COMM_SELF, PETSC_ERR_ARG_WRONG, "%s is not a vector", pi.name.c_str());
+  PetscCallMPI(MPI_Reduce(local, total.data(), (int)pi.entries, MPIU_REAL, MPI_SUM, 0, grid_->comm()));
+  Array G(grad); // on every rank (see add_local_sum)
+  PetscCall(G.error());
+  for (PetscInt i = 0; i < pi.local_size; ++i) G[pi.local_offset + i] += total[i];
   PetscFunctionReturn(0);
 }
 
@@ -148,6 +205,8 @@ PetscErrorCode Parameters::set_field(Vec p, PetscInt k, Vec field) const {
 
 PetscErrorCode Parameters::as_field(Vec p, PetscInt k, Vec field) const {
   PetscFunctionBeginUser;
+  PetscCheck(info_[k].kind != ParamKind::Vector, PETSC_COMM_SELF, PETSC_ERR_ARG_WRONG, "%s is a vector, not a field",
+             info_[k].name.c_str());
   if (info_[k].kind == ParamKind::Field) {
     PetscCall(get_field(p, k, field));
   } else {
@@ -170,6 +229,80 @@ PetscErrorCode Parameters::get_field(Vec p, PetscInt k, Vec field) const {
   PetscFunctionReturn(0);
 }
 
+// Numbers from a text file (whitespace or commas between them), or the series /vectors/<name> of an
+// HDF5 file (recognised by its signature).
+static PetscErrorCode read_vector_file(MPI_Comm comm, const char *file, const char *name, const char *dataset,
+                                       std::vector<PetscReal> &v) {
+  char sig[8] = {0};
+  PetscFunctionBeginUser;
+  std::ifstream in(file, std::ios::binary);
+  PetscCheck(in.good(), comm, PETSC_ERR_FILE_OPEN, "-%s_file %s cannot be read", name, file);
+  in.read(sig, 8);
+  if (in.gcount() == 8 && !std::memcmp(sig, "\x89HDF\r\n\x1a\n", 8)) {
+    H5Reader r;
+    bool exists = false;
+    PetscCall(r.open(comm, file));
+    PetscCall(r.has("/vectors", dataset, &exists));
+    PetscCheck(exists, comm, PETSC_ERR_FILE_UNEXPECTED, "-%s_file %s has no dataset /vectors/%s", name, file, dataset);
+    PetscCall(r.read_series("/vectors", dataset, v));
+    PetscCall(r.close());
+    PetscFunctionReturn(0);
+  }
+  in.clear();
+  in.seekg(0);
+  std::string tok;
+  v.clear();
+  while (in >> tok) {
+    for (char &c : tok)
+      if (c == ',') c = ' ';
+    char *end = nullptr;
+    const char *s = tok.c_str();
+    while (*s) {
+      while (*s == ' ') ++s;
+      if (!*s) break;
+      const double x = std::strtod(s, &end);
+      PetscCheck(end != s, comm, PETSC_ERR_FILE_UNEXPECTED, "-%s_file %s: \"%s\" is not a number", name, file, s);
+      v.push_back(x);
+      s = end;
+    }
+  }
+  PetscFunctionReturn(0);
+}
+
+// A vector parameter: -<prefix> v1,v2,... or -<prefix>_file F, else its declared defaults.
+static PetscErrorCode vector_from_options(const Parameters &params, PetscInt k, const char *prefix, Vec p) {
+  const ParamInfo &pi = params.info(k);
+  MPI_Comm comm = params.grid()->comm();
+  const std::string pre = std::string("-") + prefix;
+  std::vector<PetscReal> v = pi.initial_entries;
+  if (v.empty()) v.assign(pi.entries, pi.initial);
+  std::vector<PetscReal> given(pi.entries + 1);
+  PetscInt n = pi.entries + 1;
+  PetscBool set = PETSC_FALSE, fset = PETSC_FALSE;
+  char file[PETSC_MAX_PATH_LEN] = "";
+  PetscFunctionBeginUser;
+  const std::string title = "Parameter vector " + std::string(prefix) + " (" + std::to_string(pi.entries) + " entries)";
+  PetscOptionsBegin(comm, nullptr, title.c_str(), "Parameters");
+  PetscCall(PetscOptionsRealArray(pre.c_str(), "All entries, comma-separated", "Parameters", given.data(), &n, &set));
+  PetscCall(PetscOptionsString((pre + "_file").c_str(), "File of the entries: text, or HDF5 with /vectors/<name>",
+                               "Parameters", file, file, sizeof(file), &fset));
+  PetscOptionsEnd();
+  PetscCheck(!(set && fset), comm, PETSC_ERR_ARG_INCOMP, "Give %s or %s_file, not both", pre.c_str(), pre.c_str());
+  if (set) {
+    PetscCheck(n == pi.entries, comm, PETSC_ERR_ARG_SIZ, "%s needs %" PetscInt_FMT " values, got %" PetscInt_FMT, pre.c_str(),
+               pi.entries, n);
+    v.assign(given.begin(), given.begin() + n);
+  }
+  if (fset) {
+    PetscCall(read_vector_file(comm, file, prefix, pi.name.c_str(), v));
+    PetscCheck((PetscInt)v.size() == pi.entries, comm, PETSC_ERR_ARG_SIZ,
+               "%s_file %s holds %zu values, %s has %" PetscInt_FMT, pre.c_str(), file, v.size(), prefix, pi.entries);
+  }
+  for (PetscReal x : v) PetscCheck(std::isfinite(x), comm, PETSC_ERR_ARG_WRONG, "%s: non-finite value", pre.c_str());
+  PetscCall(params.set_vector(p, k, v));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode fill_from_options(const Parameters &params, PetscInt k, const char *prefix, PetscReal default_value,
                                  Vec p) {
   const ParamInfo &pi = params.info(k);
@@ -180,6 +313,10 @@ PetscErrorCode fill_from_options(const Parameters &params, PetscInt k, const cha
   const char *types[] = {"constant", "linear", "gaussian"};
   PetscInt type = 0;
   PetscFunctionBeginUser;
+  if (pi.kind == ParamKind::Vector) {
+    PetscCall(vector_from_options(params, k, prefix, p));
+    PetscFunctionReturn(0);
+  }
   // One help section per parameter: PETSc lists a section title only once.
   const std::string title = "Parameter " + std::string(prefix);
   PetscOptionsBegin(g.comm(), nullptr, title.c_str(), "Parameters");

@@ -13,7 +13,9 @@
 //
 // Initial condition (-burgers_ic): "sine" u0 = A sin(2 pi (x - x0)/L) + B, which steepens into a
 // shock at t = L / (2 pi A) when nu is small; "square" u0 = A on [xc - w/2, xc + w/2), B elsewhere,
-// a shock and a rarefaction from the start. A = -burgers_ic_amplitude, B = -burgers_ic_offset.
+// a shock and a rarefaction from the start; "random" a sum of -burgers_ic_modes sines with random
+// amplitudes and phases drawn from -burgers_ic_seed (random_start.hpp: the same function of x as the
+// learned_burgers model's, for reference solutions). A = -burgers_ic_amplitude, B = -burgers_ic_offset.
 //
 // Everything else (dG/du, dG/dnu, their transposes, the assembled Jacobian for implicit integrators,
 // the fused adjoint sweeps) is derived from rhs() below by the pointwise layer.
@@ -24,6 +26,7 @@
 //           -true_burgers_nu_profile gaussian -true_burgers_nu 0.01 -true_burgers_nu_bump 0.01 -tao_monitor
 //   (one command line)
 #include "flexipde/pointwise.hpp"
+#include "flexipde/random_start.hpp"
 
 namespace flexipde {
 
@@ -40,18 +43,22 @@ public:
   }
 
   PetscErrorCode setup(const Grid &grid, Declarations &decl) {
-    const char *ics[] = {"sine", "square"};
+    const char *ics[] = {"sine", "square", "random"};
     PetscBool nu_field = PETSC_FALSE;
     PetscFunctionBeginUser;
     PetscOptionsBegin(grid.comm(), nullptr, "Viscous Burgers u_t + (u^2/2)_x = (nu u_x)_x", "Burgers");
     PetscCall(PetscOptionsBool("-burgers_nu_field", "Viscosity nu is a field (one value per grid point), else one scalar",
                                "Burgers", nu_field, &nu_field, nullptr));
-    PetscCall(PetscOptionsEList("-burgers_ic", "Initial condition", "Burgers", ics, 2, ics[ic_], &ic_, nullptr));
+    PetscCall(PetscOptionsEList("-burgers_ic", "Initial condition", "Burgers", ics, 3, ics[ic_], &ic_, nullptr));
     PetscCall(PetscOptionsReal("-burgers_ic_amplitude", "Amplitude A of the start", "Burgers", amplitude_, &amplitude_, nullptr));
     PetscCall(PetscOptionsReal("-burgers_ic_offset", "Offset B added to the start", "Burgers", offset_, &offset_, nullptr));
     PetscCall(PetscOptionsReal("-burgers_ic_center", "Square start: centre xc", "Burgers", center_, &center_, nullptr));
     PetscCall(PetscOptionsReal("-burgers_ic_width", "Square start: width w", "Burgers", width_, &width_, nullptr));
+    PetscCall(PetscOptionsInt("-burgers_ic_seed", "Random start: seed", "Burgers", seed_, &seed_, nullptr));
+    PetscCall(PetscOptionsInt("-burgers_ic_modes", "Random start: number of sine modes", "Burgers", modes_, &modes_, nullptr));
     PetscOptionsEnd();
+    PetscCheck(modes_ > 0, grid.comm(), PETSC_ERR_ARG_OUTOFRANGE, "-burgers_ic_modes must be positive");
+    random_.make((unsigned)seed_, (int)modes_, amplitude_, offset_, grid.x1() - grid.x0());
     PetscCheck(grid.periodic(), grid.comm(), PETSC_ERR_ARG_WRONG, "burgers: the grid must be periodic (-grid_periodic 1)");
     x0_ = grid.x0(), length_ = grid.x1() - grid.x0();
     decl.parameter(nu, "burgers_nu", nu_field, 0.0, 0.01);
@@ -69,7 +76,8 @@ public:
   template <class P> void initial(const P &pt, typename P::Number *u) const {
     const double x = pt.x();
     if (ic_ == 0) u[0] = amplitude_ * std::sin(2 * PETSC_PI * (x - x0_) / length_) + offset_;
-    else u[0] = std::fabs(x - center_) * 2 < width_ ? amplitude_ + offset_ : offset_;
+    else if (ic_ == 1) u[0] = std::fabs(x - center_) * 2 < width_ ? amplitude_ + offset_ : offset_;
+    else u[0] = random_(x);
   }
 
   PetscErrorCode check_parameters(const ParameterBounds &b, MPI_Comm comm) const {
@@ -84,7 +92,8 @@ private:
     return 0.5 * sqr(max(a, T(0.0))) + 0.5 * sqr(min(b, T(0.0)));
   }
 
-  PetscInt ic_ = 0;
+  PetscInt ic_ = 0, seed_ = 1, modes_ = 3;
+  RandomStart random_;
   PetscReal amplitude_ = 1.0, offset_ = 0.0, center_ = 0.3, width_ = 0.3;
   PetscReal x0_ = 0, length_ = 1;
 };
