@@ -49,13 +49,8 @@ public:
     }
   }
   PetscErrorCode set(const std::string &name, const std::string &value) {
-    Saved s;
-    char old[PETSC_MAX_PATH_LEN] = "";
-    PetscBool had;
     PetscFunctionBeginUser;
-    PetscCall(PetscOptionsGetString(nullptr, nullptr, name.c_str(), old, sizeof(old), &had));
-    s.name = name, s.old = old, s.had = had;
-    saved_.push_back(s);
+    PetscCall(remember(name));
     PetscCall(PetscOptionsSetValue(nullptr, name.c_str(), value.c_str()));
     PetscFunctionReturn(0);
   }
@@ -66,13 +61,8 @@ public:
   }
   // Removed until the scope ends.
   PetscErrorCode clear(const std::string &name) {
-    Saved s;
-    char old[PETSC_MAX_PATH_LEN] = "";
-    PetscBool had;
     PetscFunctionBeginUser;
-    PetscCall(PetscOptionsGetString(nullptr, nullptr, name.c_str(), old, sizeof(old), &had));
-    s.name = name, s.old = old, s.had = had;
-    saved_.push_back(s);
+    PetscCall(remember(name));
     PetscCall(PetscOptionsClearValue(nullptr, name.c_str()));
     PetscFunctionReturn(0);
   }
@@ -90,6 +80,17 @@ private:
     std::string name, old;
     bool had;
   };
+  // The option's value before the scope touches it, restored at its end.
+  PetscErrorCode remember(const std::string &name) {
+    Saved s;
+    char old[PETSC_MAX_PATH_LEN] = "";
+    PetscBool had;
+    PetscFunctionBeginUser;
+    PetscCall(PetscOptionsGetString(nullptr, nullptr, name.c_str(), old, sizeof(old), &had));
+    s.name = name, s.old = old, s.had = had;
+    saved_.push_back(s);
+    PetscFunctionReturn(0);
+  }
   std::vector<Saved> saved_;
 };
 
