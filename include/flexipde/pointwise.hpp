@@ -175,31 +175,11 @@ public:
     else return dx == SX && dy == SY ? Number::seeded(v, c) : Number(v);
   }
   // Parameter k (a field's value at the offset; a scalar's value anywhere).
-  Number param(int k, int dx = 0, int dy = 0) const {
-    const PetscInt a = (at_ + dx + dy * f_.sy) * f_.np + k;
-    const double v = PetscRealPart(f_.P[a]); // 0 beyond a wall
-    if constexpr (M == Mode::Tangent) {
-      Number r(v);
-      r.d[0] = f_.dP ? PetscRealPart(f_.dP[a]) : 0.0;
-      return r;
-    } else if constexpr (M == Mode::Gather) {
-      const bool seed = k < NP && (CK ? i_ + dx == ti_ && j_ + dy == tj_ : dx == SX && dy == SY);
-      return seed ? Number::seeded(v, C + K + k) : Number(v);
-    } else return v;
-  }
+  Number param(int k, int dx = 0, int dy = 0) const { return field(f_.P, f_.dP, f_.np, k, k < NP ? C + K + k : -1, dx, dy); }
   // Auxiliary field k (Eq::auxiliaries: a = L U from the model's non-local linear maps) at the offset.
   Number aux(int k, int dx = 0, int dy = 0) const {
     static_assert(M != Mode::Rows, "a model with auxiliary fields has no assembled Jacobian");
-    const PetscInt a = (at_ + dx + dy * f_.sy) * K + k;
-    const double v = PetscRealPart(f_.A[a]); // 0 beyond a wall
-    if constexpr (M == Mode::Tangent) {
-      Number r(v);
-      r.d[0] = f_.dA ? PetscRealPart(f_.dA[a]) : 0.0;
-      return r;
-    } else if constexpr (M == Mode::Gather) {
-      const bool seed = CK ? i_ + dx == ti_ && j_ + dy == tj_ : dx == SX && dy == SY;
-      return seed ? Number::seeded(v, C + k) : Number(v);
-    } else return v;
+    return field(f_.A, f_.dA, K, k, C + k, dx, dy);
   }
   // Entry e of the parameter vectors (Declarations::vector). In Rows and Gather modes a constant: their
   // transposes come from the reverse sweep (ReversePoint).
@@ -226,6 +206,20 @@ public:
   bool on_wall() const { return wall(0, 0) || wall(0, 1) || (f_.dim > 1 && (wall(1, 0) || wall(1, 1))); }
 
 private:
+  // Entry k of a ghosted array with `stride` entries per point (a; its direction da in Tangent mode) at
+  // the offset, 0 beyond a wall; in Gather mode seeded at `lane` (>= 0) when the offset is the seed's.
+  Number field(const PetscScalar *a, const PetscScalar *da, PetscInt stride, int k, int lane, int dx, int dy) const {
+    const PetscInt at = (at_ + dx + dy * f_.sy) * stride + k;
+    const double v = PetscRealPart(a[at]);
+    if constexpr (M == Mode::Tangent) {
+      Number r(v);
+      r.d[0] = da ? PetscRealPart(da[at]) : 0.0;
+      return r;
+    } else if constexpr (M == Mode::Gather) {
+      const bool seed = lane >= 0 && (CK ? i_ + dx == ti_ && j_ + dy == tj_ : dx == SX && dy == SY);
+      return seed ? Number::seeded(v, lane) : Number(v);
+    } else return v;
+  }
   // Position g in direction d, kept when inside (or periodic), reflected beyond a wall (sign flipped),
   // or false: the state is 0 there.
   bool fold(int d, PetscInt &g, double &sign) const {
