@@ -267,6 +267,7 @@ public:
     Declarations decl(params, NP);
     PetscCall(eq_.setup(grid, decl));
     for (int k = 0; k < NP; ++k) index_[k] = decl.index(k), fixed_[k] = decl.fixed_value(k);
+    bounds_.min.assign(NP, 0.0), bounds_.max.assign(NP, 0.0); // until parameters are set (a spectrum may be asked first)
     PetscCall(grid.create_dm(NP, param_dm_.out()));
     PetscCall(DMCreateLocalVector(param_dm_, P_.out()));
     PetscCall(VecSet(P_, 0.0)); // beyond a wall: never written, reads 0

@@ -180,7 +180,10 @@ private:
     if (R == 1) return k == 0 ? -2.0 : 1.0;
     return k == 0 ? -30.0 / 12 : (k == 1 ? 16.0 / 12 : -1.0 / 12);
   }
-  template <class P> static typename P::Number u_along(const P &pt, int d, int k) {
+  // u k points along direction d; on a wall it is 0 whatever the state holds there (the wall has no
+  // equation, so dG/dU has no wall columns).
+  template <class P> typename P::Number u_along(const P &pt, int d, int k) const {
+    if (boundary_ == Walls && on_wall(d, pt.index(d) + k)) return typename P::Number(0.0);
     return d == 0 ? pt.u(0, k) : pt.u(0, 0, k);
   }
   bool on_wall(int d, PetscInt i) const { return !periodic_[d] && (i == 0 || i == n_[d] - 1); }
