@@ -266,6 +266,18 @@ template <class Eq>
 struct RhsParametersOf<Eq, std::void_t<decltype(Eq::rhs_parameters)>> : std::integral_constant<int, Eq::rhs_parameters> {};
 template <class Eq, class = void> struct OutputsOf : std::integral_constant<int, 0> {};
 template <class Eq> struct OutputsOf<Eq, std::void_t<decltype(Eq::outputs)>> : std::integral_constant<int, Eq::outputs> {};
+// Optional model statements for the initial condition and the forcing: the integrator's step
+// (set_time_step(dt)), a check before U0 is made (check_initial(comm)), and the points a point source
+// forces (forced(i, j), global indices; by default every point).
+template <class Eq, class = void> struct HasTimeStep : std::false_type {};
+template <class Eq>
+struct HasTimeStep<Eq, std::void_t<decltype(std::declval<Eq &>().set_time_step(PetscReal()))>> : std::true_type {};
+template <class Eq, class = void> struct HasCheckInitial : std::false_type {};
+template <class Eq>
+struct HasCheckInitial<Eq, std::void_t<decltype(std::declval<const Eq &>().check_initial(MPI_Comm()))>> : std::true_type {};
+template <class Eq, class = void> struct HasForcedPoints : std::false_type {};
+template <class Eq>
+struct HasForcedPoints<Eq, std::void_t<decltype(std::declval<const Eq &>().forced(PetscInt(), PetscInt()))>> : std::true_type {};
 
 } // namespace pointwise
 
@@ -323,6 +335,7 @@ public:
     Declarations decl(params, NP);
     PetscCall(eq_.setup(grid, decl));
     for (int k = 0; k < NP; ++k) index_[k] = decl.index(k), fixed_[k] = decl.fixed_value(k);
+    bounds_.min.assign(NP, 0.0), bounds_.max.assign(NP, 0.0); // until parameters are set (a spectrum may be asked first)
     PetscCall(grid.create_dm(NP, param_dm_.out()));
     PetscCall(DMCreateLocalVector(param_dm_, P_.out()));
     PetscCall(VecSet(P_, 0.0)); // beyond a wall: never written, reads 0
@@ -425,8 +438,10 @@ public:
       if constexpr (H > 0) PetscCall(VecRestoreArray(Hg_, &hout));
       if constexpr (pointwise::HasForcing<Eq>::value)
         if (source_)
-          for (PetscInt k = 0; k < source_->stencil.n; ++k)
+          for (PetscInt k = 0; k < source_->stencil.n; ++k) {
+            if (!forced_point(source_->stencil.local[k])) continue;
             out[source_->stencil.local[k] * C + Eq::forced_component] += source_->density(k, t);
+          }
     }
     PetscCall(add_outputs(G));
     PetscFunctionReturn(0);
@@ -693,9 +708,15 @@ public:
     PetscFunctionReturn(0);
   }
 
+  // The integrator's fixed step, for a model whose U0 is defined through the scheme (Eq::set_time_step).
+  void set_time_step(PetscReal dt) override {
+    if constexpr (pointwise::HasTimeStep<Eq>::value) eq_.set_time_step(dt);
+  }
+
   // U0 = U0(p) pointwise, and grad += (dU0/dp)^T lambda0 from Dual numbers in the parameters.
   FLEXIPDE_SWEEP PetscErrorCode initial_condition(Vec p, Vec U0) override {
     PetscFunctionBeginUser;
+    if constexpr (pointwise::HasCheckInitial<Eq>::value) PetscCall(eq_.check_initial(grid_->comm()));
     {
       ConstArray pa(P_);
       Array u(U0);
@@ -750,6 +771,13 @@ private:
   template <class E>
   struct HasCheck<E, std::void_t<decltype(std::declval<const E &>().check_parameters(std::declval<const ParameterBounds &>(),
                                                                                       MPI_Comm()))>> : std::true_type {};
+
+  // Whether the point source forces owned point `own` (its index in the owned block).
+  bool forced_point(PetscInt own) const {
+    if constexpr (pointwise::HasForcedPoints<Eq>::value)
+      return eq_.forced(grid_->xs() + own % grid_->xm(), grid_->ys() + own / grid_->xm());
+    return true;
+  }
 
   PetscInt ghost_xm() const {
     PetscInt gxm;
