@@ -115,6 +115,8 @@ struct Frame {
   // Beyond a wall the state is the odd reflection of the inside (u = 0 on the wall, fourth-order
   // stencils stay consistent next to it), else 0.
   bool odd[2] = {false, false};
+  // Wall points are held (no equation, value 0): the stencils read them as 0 whatever the state holds.
+  bool held = false;
   int dim = 1;
 };
 
@@ -193,6 +195,7 @@ public:
     return side == 0 ? i == 0 : i == f_.n[d] - 1;
   }
   bool on_wall() const { return wall(0, 0) || wall(0, 1) || (f_.dim > 1 && (wall(1, 0) || wall(1, 1))); }
+  bool on_wall_at(int d, PetscInt g) const { return !f_.periodic[d] && (g == 0 || g == f_.n[d] - 1); }
 
 private:
   // Position g in direction d, kept when inside (or periodic), reflected beyond a wall (sign flipped),
@@ -209,6 +212,7 @@ private:
     PetscInt gi = i_ + dx, gj = j_ + dy;
     double sign = 1;
     if (!fold(0, gi, sign) || !fold(1, gj, sign)) return Number(0.0);
+    if (f_.held && (on_wall_at(0, gi) || (f_.dim > 1 && on_wall_at(1, gj)))) return Number(0.0);
     const bool owned = gi >= f_.xs && gi < f_.xs + f_.xm && gj >= f_.ys && gj < f_.ys + f_.ym;
     const PetscInt k = owned ? ((gj - f_.ys) * f_.syo + gi - f_.xs) * CS + c : (at_ + (gi - i_) + (gj - j_) * f_.sy) * CS + c;
     const double v = sign * PetscRealPart((owned ? f_.U : f_.Ug)[k]);
@@ -253,6 +257,8 @@ template <class Eq>
 struct HasSecondOrderActive<Eq, std::void_t<decltype(std::declval<const Eq &>().second_order_active())>> : std::true_type {};
 template <class Eq, class = void> struct HasOddWalls : std::false_type {};
 template <class Eq> struct HasOddWalls<Eq, std::void_t<decltype(std::declval<const Eq &>().odd_walls())>> : std::true_type {};
+template <class Eq, class = void> struct HasHeldWalls : std::false_type {};
+template <class Eq> struct HasHeldWalls<Eq, std::void_t<decltype(std::declval<const Eq &>().held_walls())>> : std::true_type {};
 template <class Eq, class = void> struct HasForcing : std::false_type {};
 template <class Eq> struct HasForcing<Eq, std::void_t<decltype(Eq::forced_component)>> : std::true_type {};
 template <class Eq>
@@ -378,6 +384,7 @@ public:
     frame_.n[0] = grid.n(), frame_.n[1] = grid.ny();
     frame_.periodic[0] = grid.periodic(), frame_.periodic[1] = grid.periodic_y();
     if constexpr (pointwise::HasOddWalls<Eq>::value) frame_.odd[0] = frame_.odd[1] = eq_.odd_walls();
+    if constexpr (pointwise::HasHeldWalls<Eq>::value) frame_.held = eq_.held_walls();
     frame_.np = NP;
     frame_.na = K;
     frame_.syo = grid.xm();
@@ -807,10 +814,15 @@ private:
     const PetscInt xs = grid_->xs(), xm = grid_->xm(), ys = grid_->ys(), ym = grid_->ym();
     if (D == 1) gys = 0;
     margin = std::max<PetscInt>(margin, 1); // wall points are always checked
-    const PetscInt lo = std::min(xs + margin, xs + xm), hi = std::max(lo, xs + xm - margin);
+    // with held walls an unchecked point's stencil stops short of them: one more checked point there
+    const bool held = frame_.held;
+    const PetscInt wx0 = held && !grid_->periodic() && xs == 0, wx1 = held && !grid_->periodic() && xs + xm == grid_->n();
+    const PetscInt wy0 = held && D > 1 && !grid_->periodic_y() && ys == 0,
+                   wy1 = held && D > 1 && !grid_->periodic_y() && ys + ym == grid_->ny();
+    const PetscInt lo = std::min(xs + margin + wx0, xs + xm), hi = std::max(lo, xs + xm - margin - wx1);
     for (PetscInt j = ys; j < ys + ym; ++j) {
       const PetscInt row = (j - gys) * gxm - gxs, own_row = (j - ys) * xm - xs;
-      const bool inside = D == 1 || (j >= ys + margin && j < ys + ym - margin);
+      const bool inside = D == 1 || (j >= ys + margin + wy0 && j < ys + ym - margin - wy1);
       if (!inside) {
         for (PetscInt i = xs; i < xs + xm; ++i) body(row + i, own_row + i, i, j, Check<true>());
         continue;

@@ -43,8 +43,8 @@
 
 namespace flexipde {
 
-// D dimensions, stencil radius R (order 2R).
-template <int D, int R>
+// D dimensions, stencil radius R (order 2R), with or without the sponge (Damped).
+template <int D, int R, bool Damped>
 class AcousticWave {
 public:
   static constexpr int dim = D, components = 2, radius = R, parameters = 1;
@@ -57,8 +57,10 @@ public:
   void grid_defaults(GridOptions &o) const {
     if (D == 2) o.n = o.ny = 101;
   }
-  bool second_order_active() const { return sponge_width_ <= 0; }
+  bool second_order_active() const { return !Damped; }
   bool odd_walls() const { return boundary_ == Walls; }
+  // The walls have no equation: the stencils read them as 0 whatever the state holds (no wall columns in dG/dU).
+  bool held_walls() const { return boundary_ == Walls; }
   void set_time_step(PetscReal dt) { dt_ = dt; }
 
   PetscErrorCode setup(const Grid &grid, Declarations &decl) {
@@ -124,12 +126,12 @@ public:
     T lap = T(0.0);
     for (int d = 0; d < D; ++d) {
       T s = weight(0) * pt.u(0, 0);
-      for (int k = 1; k <= R; ++k) s += weight(k) * (u_along(pt, d, -k) + u_along(pt, d, k));
+      for (int k = 1; k <= R; ++k) s += weight(k) * (d == 0 ? pt.u(0, -k) + pt.u(0, k) : pt.u(0, 0, -k) + pt.u(0, 0, k));
       lap += s * sqr(pt.inv_h(d));
     }
     g[0] = pt.u(1, 0);
     g[1] = sqr(pt.param(c)) * lap;
-    if (sponge_width_ > 0) g[1] -= sponge(pt) * pt.u(1, 0);
+    if constexpr (Damped) g[1] -= sponge(pt) * pt.u(1, 0);
   }
 
   template <class P> void initial(const P &pt, typename P::Number *u) const {
@@ -158,7 +160,7 @@ public:
   // Eigenvalues of dG/dU: +-i c sqrt(eig(-Lap_h)) in the interior, damped by at most sigma_max.
   PetscErrorCode spectrum(const ParameterBounds &b, Spectrum *s) const {
     s->imag_radius = b.max[c] * std::sqrt(spectral_radius_);
-    s->real_radius = sponge_width_ > 0 ? sigma_max_ : 0;
+    s->real_radius = Damped ? sigma_max_ : 0;
     return 0;
   }
   PetscErrorCode check_parameters(const ParameterBounds &b, MPI_Comm comm) const {
@@ -179,12 +181,6 @@ private:
   static constexpr double weight(int k) {
     if (R == 1) return k == 0 ? -2.0 : 1.0;
     return k == 0 ? -30.0 / 12 : (k == 1 ? 16.0 / 12 : -1.0 / 12);
-  }
-  // u k points along direction d; on a wall it is 0 whatever the state holds there (the wall has no
-  // equation, so dG/dU has no wall columns).
-  template <class P> typename P::Number u_along(const P &pt, int d, int k) const {
-    if (boundary_ == Walls && on_wall(d, pt.index(d) + k)) return typename P::Number(0.0);
-    return d == 0 ? pt.u(0, k) : pt.u(0, 0, k);
   }
   bool on_wall(int d, PetscInt i) const { return !periodic_[d] && (i == 0 || i == n_[d] - 1); }
   template <class P> bool held(const P &pt) const { return boundary_ == Walls && pt.on_wall(); }
@@ -240,12 +236,19 @@ public:
   }
 };
 
-// The stencil radius is a compile-time constant of the sweeps: -fd_order picks the instance.
+// The stencil radius and the sponge are compile-time constants of the sweeps (no branch in their
+// loops): -fd_order and -<m>_sponge_width pick the instance.
+template <int D, int R> std::unique_ptr<Model> make_wave_damped(PetscReal width) {
+  if (width > 0) return std::make_unique<PointwiseModel<AcousticWave<D, R, true>>>();
+  return std::make_unique<PointwiseModel<AcousticWave<D, R, false>>>(); // (a negative width is refused at setup)
+}
 template <int D> std::unique_ptr<Model> make_wave() {
   PetscInt order = 2;
+  PetscReal width = D == 1 ? 0.0 : 0.15;
   (void)PetscOptionsGetInt(nullptr, nullptr, "-fd_order", &order, nullptr);
-  if (order == 4) return std::make_unique<PointwiseModel<AcousticWave<D, 2>>>();
-  return std::make_unique<PointwiseModel<AcousticWave<D, 1>>>(); // other orders are refused at setup
+  (void)PetscOptionsGetReal(nullptr, nullptr, D == 1 ? "-wave_sponge_width" : "-wave2d_sponge_width", &width, nullptr);
+  if (order == 4) return make_wave_damped<D, 2>(width);
+  return make_wave_damped<D, 1>(width); // other orders are refused at setup
 }
 
 static const ModelRegistration wave_1d("wave", make_wave<1>), wave_2d("wave2d", make_wave<2>);
