@@ -117,6 +117,11 @@ struct Frame {
   bool odd[2] = {false, false};
   // Wall points are held (no equation, value 0): the stencils read them as 0 whatever the state holds.
   bool held = false;
+  // For each position of the ghosted box: the ghosted index of the point whose value it holds (itself,
+  // or its mirror image beyond an odd wall; -1: 0 there) and the sign it is read with. Checked points
+  // read through it from ghosted arrays whose ghosts and edge strips are filled.
+  const PetscInt *src = nullptr;
+  const double *sgn = nullptr;
   int dim = 1;
 };
 
@@ -209,6 +214,18 @@ private:
     return true;
   }
   Number u_checked(int c, int dx, int dy) const {
+    if constexpr (M != Mode::Rows) {
+      const PetscInt p = at_ + dx + dy * f_.sy, s = f_.src[p];
+      if (s < 0) return Number(0.0);
+      const double sign = f_.sgn[p], v = sign * PetscRealPart(f_.Ug[s * CS + c]);
+      if constexpr (M == Mode::Value) return v;
+      else {
+        Number r(v);
+        if constexpr (M == Mode::Tangent) r.d[0] = f_.Xg ? sign * PetscRealPart(f_.Xg[s * CS + c]) : 0.0;
+        else if (s == at_ + (ti_ - i_) + (tj_ - j_) * f_.sy) r.d[c] = sign;
+        return r;
+      }
+    }
     PetscInt gi = i_ + dx, gj = j_ + dy;
     double sign = 1;
     if (!fold(0, gi, sign) || !fold(1, gj, sign)) return Number(0.0);
@@ -237,7 +254,8 @@ private:
 // ghosted index is `at` and owned index `own`; `checked`: the point may lie outside the owned block.
 inline const PetscScalar &read_split(const Frame &f, const PetscScalar *x, const PetscScalar *xg, PetscInt at,
                                      PetscInt own, PetscInt i, PetscInt j, PetscInt ncomp, int c, bool checked) {
-  if (checked && !(i >= f.xs && i < f.xs + f.xm && j >= f.ys && j < f.ys + f.ym)) return xg[at * ncomp + c];
+  (void)f, (void)i, (void)j;
+  if (checked) return xg[at * ncomp + c]; // a checked point's neighbourhood is in the ghosted array
   return x[own * ncomp + c];
 }
 
@@ -385,6 +403,8 @@ public:
     frame_.periodic[0] = grid.periodic(), frame_.periodic[1] = grid.periodic_y();
     if constexpr (pointwise::HasOddWalls<Eq>::value) frame_.odd[0] = frame_.odd[1] = eq_.odd_walls();
     if constexpr (pointwise::HasHeldWalls<Eq>::value) frame_.held = eq_.held_walls();
+    strip_ = 4 * R + 2;
+    make_fold_table();
     frame_.np = NP;
     frame_.na = K;
     frame_.syo = grid.xm();
@@ -671,7 +691,7 @@ public:
       const bool positions = n == grid_->local_points() * m;
       if (positions) {
         pos_.ref = U;
-        PetscCall(fill_ghosts(U, pos_.g, pos_scatter_));
+        PetscCall(fill_ghosts(U, pos_.g, pos_scatter_, pointwise::PairsOf<Eq>::value));
       } else PetscCall(load(U, st_));
       if (drift != 0) {
         Array l(lambda);
@@ -847,15 +867,56 @@ private:
     PetscFunctionReturn(0);
   }
   // The ghost entries of the ghosted `local` from the global x (its owned entries are not written).
-  PetscErrorCode fill_ghosts(Vec x, Vec local, VecScatter sc) const {
+  // ... and the owned points within `strip_` of the block's edge (all a checked point reads), ncomp per point.
+  PetscErrorCode fill_ghosts(Vec x, Vec local, VecScatter sc, PetscInt ncomp = C) const {
     PetscFunctionBeginUser;
-    if (sc) {
-      PetscCall(VecScatterBegin(sc, x, local, INSERT_VALUES, SCATTER_FORWARD));
-      PetscCall(VecScatterEnd(sc, x, local, INSERT_VALUES, SCATTER_FORWARD));
+    if (sc) PetscCall(VecScatterBegin(sc, x, local, INSERT_VALUES, SCATTER_FORWARD));
+    {
+      ConstArray o(x);
+      Array g(local);
+      PetscCall(o.error());
+      PetscCall(g.error());
+      PetscInt gxs, gys, gxm;
+      DMDAGetGhostCorners(dm_, &gxs, &gys, nullptr, &gxm, nullptr, nullptr);
+      if (D == 1) gys = 0;
+      const PetscInt xs = grid_->xs(), xm = grid_->xm(), ys = grid_->ys(), ym = grid_->ym(), w = strip_;
+      auto copy = [&](PetscInt j, PetscInt i0, PetscInt i1) {
+        std::copy(o.data() + ((j - ys) * xm + i0 - xs) * ncomp, o.data() + ((j - ys) * xm + i1 - xs) * ncomp,
+                  g.data() + ((j - gys) * gxm + i0 - gxs) * ncomp);
+      };
+      for (PetscInt j = ys; j < ys + ym; ++j) {
+        if (D == 1 || j < ys + w || j >= ys + ym - w || xm <= 2 * w) copy(j, xs, xs + xm);
+        else copy(j, xs, xs + w), copy(j, xs + xm - w, xs + xm);
+      }
     }
+    if (sc) PetscCall(VecScatterEnd(sc, x, local, INSERT_VALUES, SCATTER_FORWARD));
     PetscFunctionReturn(0);
   }
   PetscErrorCode fill_ghosts(Vec x, Vec local) const { return fill_ghosts(x, local, ghost_scatter_); }
+  // The ghosted box's sources and signs (Frame::src, Frame::sgn).
+  void make_fold_table() {
+    PetscInt gxs, gys, gxm, gym;
+    DMDAGetGhostCorners(dm_, &gxs, &gys, nullptr, &gxm, &gym, nullptr);
+    if (D == 1) gys = 0, gym = 1;
+    src_.assign(gxm * gym, -1), sgn_.assign(gxm * gym, 1.0);
+    const bool odd = frame_.odd[0], held = frame_.held;
+    auto fold = [&](int d, PetscInt &g, double &sign) {
+      const PetscInt n = d == 0 ? grid_->n() : grid_->ny();
+      const bool periodic = d == 0 ? grid_->periodic() : grid_->periodic_y();
+      if (periodic || (g >= 0 && g < n)) return !(held && !periodic && (g == 0 || g == n - 1));
+      if (!odd) return false;
+      g = g < 0 ? -g : 2 * (n - 1) - g, sign = -sign;
+      return !(held && (g == 0 || g == n - 1));
+    };
+    for (PetscInt b = 0; b < gym; ++b)
+      for (PetscInt a = 0; a < gxm; ++a) {
+        PetscInt gi = gxs + a, gj = gys + b;
+        double sign = 1;
+        if (!fold(0, gi, sign) || (D > 1 && !fold(1, gj, sign))) continue;
+        src_[b * gxm + a] = (gj - gys) * gxm + (gi - gxs), sgn_[b * gxm + a] = sign;
+      }
+    frame_.src = src_.data(), frame_.sgn = sgn_.data();
+  }
   // The state U for the sweeps: read in place (the caller keeps U unchanged while s is used) or, if
   // `keep`, from a copy (for products applied later); its ghosts and auxiliary fields.
   PetscErrorCode load(Vec U, LocalState &s, bool keep = false) {
@@ -1111,6 +1172,9 @@ private:
   OwnedVec P_, dP_, Pg_, Xl_;
   LocalState st_, jac_, jp_; // the state of rhs and the adjoint sweeps, of the Jacobian, of dG/dp
   OwnedScatter ghost_scatter_; // global -> the ghost entries of a ghosted Vec (null: no rank has any)
+  std::vector<PetscInt> src_;  // Frame::src, Frame::sgn
+  std::vector<double> sgn_;
+  PetscInt strip_ = 1;         // the owned edge strips fill_ghosts copies into a ghosted array
   OwnedDM pos_dm_;             // second-order models: the positions alone,
   LocalState pos_;             // as the leapfrog's trajectory stores them
   OwnedScatter pos_scatter_;
