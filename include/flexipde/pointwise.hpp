@@ -137,6 +137,13 @@ struct Frame {
   // Beyond a wall the state is the odd reflection of the inside (u = 0 on the wall, fourth-order
   // stencils stay consistent next to it), else 0.
   bool odd[2] = {false, false};
+  // Wall points are held (no equation, value 0): the stencils read them as 0 whatever the state holds.
+  bool held = false;
+  // For each position of the ghosted box: the ghosted index of the point whose value it holds (itself,
+  // or its mirror image beyond an odd wall; -1: 0 there) and the sign it is read with. Checked points
+  // read through it from ghosted arrays whose ghosts and edge strips are filled.
+  const PetscInt *src = nullptr;
+  const double *sgn = nullptr;
   int dim = 1;
 };
 
@@ -204,6 +211,7 @@ public:
     return side == 0 ? i == 0 : i == f_.n[d] - 1;
   }
   bool on_wall() const { return wall(0, 0) || wall(0, 1) || (f_.dim > 1 && (wall(1, 0) || wall(1, 1))); }
+  bool on_wall_at(int d, PetscInt g) const { return !f_.periodic[d] && (g == 0 || g == f_.n[d] - 1); }
 
 private:
   // Entry k of a ghosted array with `stride` entries per point (a; its direction da in Tangent mode) at
@@ -231,9 +239,22 @@ private:
     return true;
   }
   Number u_checked(int c, int dx, int dy) const {
+    if constexpr (M != Mode::Rows) {
+      const PetscInt p = at_ + dx + dy * f_.sy, s = f_.src[p];
+      if (s < 0) return Number(0.0);
+      const double sign = f_.sgn[p], v = sign * PetscRealPart(f_.Ug[s * CS + c]);
+      if constexpr (M == Mode::Value) return v;
+      else {
+        Number r(v);
+        if constexpr (M == Mode::Tangent) r.d[0] = f_.Xg ? sign * PetscRealPart(f_.Xg[s * CS + c]) : 0.0;
+        else if (s == at_ + (ti_ - i_) + (tj_ - j_) * f_.sy) r.d[c] = sign;
+        return r;
+      }
+    }
     PetscInt gi = i_ + dx, gj = j_ + dy;
     double sign = 1;
     if (!fold(0, gi, sign) || !fold(1, gj, sign)) return Number(0.0);
+    if (f_.held && (on_wall_at(0, gi) || (f_.dim > 1 && on_wall_at(1, gj)))) return Number(0.0);
     const bool owned = gi >= f_.xs && gi < f_.xs + f_.xm && gj >= f_.ys && gj < f_.ys + f_.ym;
     const PetscInt k = owned ? ((gj - f_.ys) * f_.syo + gi - f_.xs) * CS + c : (at_ + (gi - i_) + (gj - j_) * f_.sy) * CS + c;
     const double v = sign * PetscRealPart((owned ? f_.U : f_.Ug)[k]);
@@ -258,7 +279,8 @@ private:
 // ghosted index is `at` and owned index `own`; `checked`: the point may lie outside the owned block.
 inline const PetscScalar &read_split(const Frame &f, const PetscScalar *x, const PetscScalar *xg, PetscInt at,
                                      PetscInt own, PetscInt i, PetscInt j, PetscInt ncomp, int c, bool checked) {
-  if (checked && !(i >= f.xs && i < f.xs + f.xm && j >= f.ys && j < f.ys + f.ym)) return xg[at * ncomp + c];
+  (void)f, (void)i, (void)j;
+  if (checked) return xg[at * ncomp + c]; // a checked point's neighbourhood is in the ghosted array
   return x[own * ncomp + c];
 }
 
@@ -293,6 +315,8 @@ template <class Eq>
 struct HasSecondOrderActive<Eq, std::void_t<decltype(std::declval<const Eq &>().second_order_active())>> : std::true_type {};
 template <class Eq, class = void> struct HasOddWalls : std::false_type {};
 template <class Eq> struct HasOddWalls<Eq, std::void_t<decltype(std::declval<const Eq &>().odd_walls())>> : std::true_type {};
+template <class Eq, class = void> struct HasHeldWalls : std::false_type {};
+template <class Eq> struct HasHeldWalls<Eq, std::void_t<decltype(std::declval<const Eq &>().held_walls())>> : std::true_type {};
 template <class Eq, class = void> struct HasForcing : std::false_type {};
 template <class Eq> struct HasForcing<Eq, std::void_t<decltype(Eq::forced_component)>> : std::true_type {};
 template <class Eq>
@@ -306,6 +330,18 @@ template <class Eq>
 struct RhsParametersOf<Eq, std::void_t<decltype(Eq::rhs_parameters)>> : std::integral_constant<int, Eq::rhs_parameters> {};
 template <class Eq, class = void> struct OutputsOf : std::integral_constant<int, 0> {};
 template <class Eq> struct OutputsOf<Eq, std::void_t<decltype(Eq::outputs)>> : std::integral_constant<int, Eq::outputs> {};
+// Optional model statements for the initial condition and the forcing: the integrator's step
+// (set_time_step(dt)), a check before U0 is made (check_initial(comm)), and the points a point source
+// forces (forced(i, j), global indices; by default every point).
+template <class Eq, class = void> struct HasTimeStep : std::false_type {};
+template <class Eq>
+struct HasTimeStep<Eq, std::void_t<decltype(std::declval<Eq &>().set_time_step(PetscReal()))>> : std::true_type {};
+template <class Eq, class = void> struct HasCheckInitial : std::false_type {};
+template <class Eq>
+struct HasCheckInitial<Eq, std::void_t<decltype(std::declval<const Eq &>().check_initial(MPI_Comm()))>> : std::true_type {};
+template <class Eq, class = void> struct HasForcedPoints : std::false_type {};
+template <class Eq>
+struct HasForcedPoints<Eq, std::void_t<decltype(std::declval<const Eq &>().forced(PetscInt(), PetscInt()))>> : std::true_type {};
 
 } // namespace pointwise
 
@@ -365,6 +401,7 @@ public:
     for (int k = 0; k < NP; ++k) index_[k] = decl.index(k), fixed_[k] = decl.fixed_value(k);
     vector_slots_ = decl.vectors();
     theta_.assign(decl.theta_count(), 0.0), dtheta_ = theta_acc_ = theta_;
+    bounds_.min.assign(NP, 0.0), bounds_.max.assign(NP, 0.0); // until parameters are set (a spectrum may be asked first)
     PetscCall(grid.create_dm(NP, param_dm_.out()));
     PetscCall(DMCreateLocalVector(param_dm_, P_.out()));
     PetscCall(VecSet(P_, 0.0)); // beyond a wall: never written, reads 0
@@ -407,6 +444,9 @@ public:
     frame_.n[0] = grid.n(), frame_.n[1] = grid.ny();
     frame_.periodic[0] = grid.periodic(), frame_.periodic[1] = grid.periodic_y();
     if constexpr (pointwise::HasOddWalls<Eq>::value) frame_.odd[0] = frame_.odd[1] = eq_.odd_walls();
+    if constexpr (pointwise::HasHeldWalls<Eq>::value) frame_.held = eq_.held_walls();
+    strip_ = 4 * R + 2;
+    make_fold_table();
     frame_.np = NP;
     frame_.na = K;
     frame_.syo = grid.xm();
@@ -469,8 +509,10 @@ public:
       if constexpr (H > 0) PetscCall(VecRestoreArray(Hg_, &hout));
       if constexpr (pointwise::HasForcing<Eq>::value)
         if (source_)
-          for (PetscInt k = 0; k < source_->stencil.n; ++k)
+          for (PetscInt k = 0; k < source_->stencil.n; ++k) {
+            if (!forced_point(source_->stencil.local[k])) continue;
             out[source_->stencil.local[k] * C + Eq::forced_component] += source_->density(k, t);
+          }
     }
     PetscCall(add_outputs(G));
     PetscFunctionReturn(0);
@@ -700,7 +742,7 @@ public:
       const bool positions = n == grid_->local_points() * m;
       if (positions) {
         pos_.ref = U;
-        PetscCall(fill_ghosts(U, pos_.g, pos_scatter_));
+        PetscCall(fill_ghosts(U, pos_.g, pos_scatter_, pointwise::PairsOf<Eq>::value));
       } else PetscCall(load(U, st_));
       if (drift != 0) {
         Array l(lambda);
@@ -746,9 +788,15 @@ public:
     PetscFunctionReturn(0);
   }
 
+  // The integrator's fixed step, for a model whose U0 is defined through the scheme (Eq::set_time_step).
+  void set_time_step(PetscReal dt) override {
+    if constexpr (pointwise::HasTimeStep<Eq>::value) eq_.set_time_step(dt);
+  }
+
   // U0 = U0(p) pointwise, and grad += (dU0/dp)^T lambda0 from Dual numbers in the parameters.
   FLEXIPDE_SWEEP PetscErrorCode initial_condition(Vec p, Vec U0) override {
     PetscFunctionBeginUser;
+    if constexpr (pointwise::HasCheckInitial<Eq>::value) PetscCall(eq_.check_initial(grid_->comm()));
     {
       ConstArray pa(P_);
       Array u(U0);
@@ -868,6 +916,11 @@ private:
     }
     PetscCall(add_vector_sums(grad, dtheta_));
     PetscFunctionReturn(0);
+  // Whether the point source forces owned point `own` (its index in the owned block).
+  bool forced_point(PetscInt own) const {
+    if constexpr (pointwise::HasForcedPoints<Eq>::value)
+      return eq_.forced(grid_->xs() + own % grid_->xm(), grid_->ys() + own / grid_->xm());
+    return true;
   }
 
   PetscInt ghost_xm() const {
@@ -898,10 +951,15 @@ private:
     const PetscInt xs = grid_->xs(), xm = grid_->xm(), ys = grid_->ys(), ym = grid_->ym();
     if (D == 1) gys = 0;
     margin = std::max<PetscInt>(margin, 1); // wall points are always checked
-    const PetscInt lo = std::min(xs + margin, xs + xm), hi = std::max(lo, xs + xm - margin);
+    // with held walls an unchecked point's stencil stops short of them: one more checked point there
+    const bool held = frame_.held;
+    const PetscInt wx0 = held && !grid_->periodic() && xs == 0, wx1 = held && !grid_->periodic() && xs + xm == grid_->n();
+    const PetscInt wy0 = held && D > 1 && !grid_->periodic_y() && ys == 0,
+                   wy1 = held && D > 1 && !grid_->periodic_y() && ys + ym == grid_->ny();
+    const PetscInt lo = std::min(xs + margin + wx0, xs + xm), hi = std::max(lo, xs + xm - margin - wx1);
     for (PetscInt j = ys; j < ys + ym; ++j) {
       const PetscInt row = (j - gys) * gxm - gxs, own_row = (j - ys) * xm - xs;
-      const bool inside = D == 1 || (j >= ys + margin && j < ys + ym - margin);
+      const bool inside = D == 1 || (j >= ys + margin + wy0 && j < ys + ym - margin - wy1);
       if (!inside) {
         for (PetscInt i = xs; i < xs + xm; ++i) body(row + i, own_row + i, i, j, Check<true>());
         continue;
@@ -926,15 +984,56 @@ private:
     PetscFunctionReturn(0);
   }
   // The ghost entries of the ghosted `local` from the global x (its owned entries are not written).
-  PetscErrorCode fill_ghosts(Vec x, Vec local, VecScatter sc) const {
+  // ... and the owned points within `strip_` of the block's edge (all a checked point reads), ncomp per point.
+  PetscErrorCode fill_ghosts(Vec x, Vec local, VecScatter sc, PetscInt ncomp = C) const {
     PetscFunctionBeginUser;
-    if (sc) {
-      PetscCall(VecScatterBegin(sc, x, local, INSERT_VALUES, SCATTER_FORWARD));
-      PetscCall(VecScatterEnd(sc, x, local, INSERT_VALUES, SCATTER_FORWARD));
+    if (sc) PetscCall(VecScatterBegin(sc, x, local, INSERT_VALUES, SCATTER_FORWARD));
+    {
+      ConstArray o(x);
+      Array g(local);
+      PetscCall(o.error());
+      PetscCall(g.error());
+      PetscInt gxs, gys, gxm;
+      DMDAGetGhostCorners(dm_, &gxs, &gys, nullptr, &gxm, nullptr, nullptr);
+      if (D == 1) gys = 0;
+      const PetscInt xs = grid_->xs(), xm = grid_->xm(), ys = grid_->ys(), ym = grid_->ym(), w = strip_;
+      auto copy = [&](PetscInt j, PetscInt i0, PetscInt i1) {
+        std::copy(o.data() + ((j - ys) * xm + i0 - xs) * ncomp, o.data() + ((j - ys) * xm + i1 - xs) * ncomp,
+                  g.data() + ((j - gys) * gxm + i0 - gxs) * ncomp);
+      };
+      for (PetscInt j = ys; j < ys + ym; ++j) {
+        if (D == 1 || j < ys + w || j >= ys + ym - w || xm <= 2 * w) copy(j, xs, xs + xm);
+        else copy(j, xs, xs + w), copy(j, xs + xm - w, xs + xm);
+      }
     }
+    if (sc) PetscCall(VecScatterEnd(sc, x, local, INSERT_VALUES, SCATTER_FORWARD));
     PetscFunctionReturn(0);
   }
   PetscErrorCode fill_ghosts(Vec x, Vec local) const { return fill_ghosts(x, local, ghost_scatter_); }
+  // The ghosted box's sources and signs (Frame::src, Frame::sgn).
+  void make_fold_table() {
+    PetscInt gxs, gys, gxm, gym;
+    DMDAGetGhostCorners(dm_, &gxs, &gys, nullptr, &gxm, &gym, nullptr);
+    if (D == 1) gys = 0, gym = 1;
+    src_.assign(gxm * gym, -1), sgn_.assign(gxm * gym, 1.0);
+    const bool odd = frame_.odd[0], held = frame_.held;
+    auto fold = [&](int d, PetscInt &g, double &sign) {
+      const PetscInt n = d == 0 ? grid_->n() : grid_->ny();
+      const bool periodic = d == 0 ? grid_->periodic() : grid_->periodic_y();
+      if (periodic || (g >= 0 && g < n)) return !(held && !periodic && (g == 0 || g == n - 1));
+      if (!odd) return false;
+      g = g < 0 ? -g : 2 * (n - 1) - g, sign = -sign;
+      return !(held && (g == 0 || g == n - 1));
+    };
+    for (PetscInt b = 0; b < gym; ++b)
+      for (PetscInt a = 0; a < gxm; ++a) {
+        PetscInt gi = gxs + a, gj = gys + b;
+        double sign = 1;
+        if (!fold(0, gi, sign) || (D > 1 && !fold(1, gj, sign))) continue;
+        src_[b * gxm + a] = (gj - gys) * gxm + (gi - gxs), sgn_[b * gxm + a] = sign;
+      }
+    frame_.src = src_.data(), frame_.sgn = sgn_.data();
+  }
   // The state U for the sweeps: read in place (the caller keeps U unchanged while s is used) or, if
   // `keep`, from a copy (for products applied later); its ghosts and auxiliary fields.
   PetscErrorCode load(Vec U, LocalState &s, bool keep = false) {
@@ -1198,6 +1297,9 @@ private:
   OwnedVec P_, dP_, Pg_, Xl_;
   LocalState st_, jac_, jp_; // the state of rhs and the adjoint sweeps, of the Jacobian, of dG/dp
   OwnedScatter ghost_scatter_; // global -> the ghost entries of a ghosted Vec (null: no rank has any)
+  std::vector<PetscInt> src_;  // Frame::src, Frame::sgn
+  std::vector<double> sgn_;
+  PetscInt strip_ = 1;         // the owned edge strips fill_ghosts copies into a ghosted array
   OwnedDM pos_dm_;             // second-order models: the positions alone,
   LocalState pos_;             // as the leapfrog's trajectory stores them
   OwnedScatter pos_scatter_;
