@@ -362,6 +362,13 @@ class PointwiseModel final : public Model {
   using Pt = pointwise::Point<C, K, NG, Sten, M, SX, SY, CK, CS>;
   template <bool CK> using PtInitial = pointwise::Point<C, 0, NP, Sten, Mode::Gather, 0, 0, CK>;
   template <bool CK> using Check = std::integral_constant<bool, CK>;
+  // How a point of a sweep reads (for_points<true>): in place from the owned block (0, Check<false>),
+  // through the fold table (1, Check<true>: the points on a wall), or (2, Edge) from the ghosted arrays,
+  // whose ghosts and owned edge strips hold every value it reads, mirror images and held walls
+  // included, so that it needs no check either.
+  using Edge = std::integral_constant<int, 2>;
+  // ... an Edge point within R of a wall: (gather) its neighbours beyond the wall have no equation.
+  using EdgeNearWall = std::integral_constant<int, 3>;
   static_assert(D == 1 || D == 2, "the grid is 1D or 2D");
   static_assert(Local || pointwise::PairsOf<Eq>::value == 0, "the leapfrog kick handles local models only");
   // A state as the sweeps read it: ghosted, with its auxiliary fields (K per point, ghosted) if any.
@@ -494,14 +501,15 @@ public:
       PetscCall(sv.error());
       PetscCall(p.error());
       PetscCall(g.error());
-      pointwise::Frame f = frame(t, sv, p.data());
+      const pointwise::Frame f = frame(t, sv, p.data()), fe = edge_frame(f);
       PetscScalar *out = g.data();
       PetscScalar *hout = nullptr;
       if constexpr (H > 0) PetscCall(VecGetArray(Hg_, &hout));
       with_model([&](const Eq &eq) {
-        for_points(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+        for_points<true>(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+          constexpr int where = decltype(ck)::value;
           double gv[C + H];
-          eq.rhs(Pt<Mode::Value, 0, 0, decltype(ck)::value>(f, at, own, i, j), gv);
+          eq.rhs(Pt<Mode::Value, 0, 0, where == 1>(where >= 2 ? fe : f, at, where >= 2 ? at : own, i, j), gv);
           for (int c = 0; c < C; ++c) out[own * C + c] = gv[c];
           for (int m = 0; m < H; ++m) hout[own * H + m] = gv[C + m];
         });
@@ -539,13 +547,15 @@ public:
       f.dP = dpa.data();
       f.dA = da.data();
       f.dtheta = dp && !dtheta_.empty() ? dtheta_.data() : nullptr;
+      const pointwise::Frame fe = edge_frame(f);
       PetscScalar *out = ya.data();
       PetscScalar *hout = nullptr;
       if constexpr (H > 0) PetscCall(VecGetArray(Hg_, &hout));
       with_model([&](const Eq &eq) {
-        for_points(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+        for_points<true>(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+          constexpr int where = decltype(ck)::value;
           typename Pt<Mode::Tangent>::Number gv[C + H];
-          eq.rhs(Pt<Mode::Tangent, 0, 0, decltype(ck)::value>(f, at, own, i, j), gv);
+          eq.rhs(Pt<Mode::Tangent, 0, 0, where == 1>(where >= 2 ? fe : f, at, where >= 2 ? at : own, i, j), gv);
           for (int c = 0; c < C; ++c) out[own * C + c] = gv[c].d[0];
           for (int m = 0; m < H; ++m) hout[own * H + m] = gv[C + m].d[0];
         });
@@ -574,15 +584,18 @@ public:
       PetscCall(p.error());
       pointwise::Frame f = frame(t, sv, p.data());
       f.X = xo, f.Xg = xl;
+      const pointwise::Frame fe = edge_frame(f);
       const PetscInt nx = grid_->n(), ny = grid_->ny();
       const bool px = grid_->periodic(), py = grid_->periodic_y();
+      using Offsets = std::make_integer_sequence<int, Sten::size>;
       with_model([&](const Eq &eq) {
-      for_points(2 * R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+      for_points<true>(2 * R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+        constexpr int where = decltype(ck)::value;
         double yv[C] = {};
         double zv[K > 0 ? K : 1] = {};
         double gv[NG > 0 ? NG : 1] = {};
-        gather_offsets<CLO, CHI, decltype(ck)::value, CS>(eq, f, xh, at, own, i, j, nx, ny, px, py, yv, zv, gv,
-                                                          std::make_integer_sequence<int, Sten::size>());
+        gather_offsets<CLO, CHI, where, CS>(eq, where >= 2 ? fe : f, xh, at, where >= 2 ? at : own, i, j, nx, ny, px, py,
+                                            yv, zv, gv, Offsets());
         if constexpr (WY)
           for (int c = YLO; c < YHI; ++c) {
             if constexpr (ADDY) y[own * C + c] += w * yv[c];
@@ -593,6 +606,14 @@ public:
         if constexpr (WG)
           for (int k = 0; k < NG; ++k) gk[k][own] += w * gv[k];
       });
+      // An owned point's mirror images beyond odd walls are read by the stencils next to the wall:
+      // their gathers (inputs at the image, its sign) belong to the point.
+      if constexpr (WY)
+        for (const auto &v : images_) {
+          double yv[C] = {}, zv[K > 0 ? K : 1] = {}, gv[NG > 0 ? NG : 1] = {};
+          gather_offsets<CLO, CHI, 3, CS>(eq, fe, xh, v.at, v.at, v.i, v.j, nx, ny, px, py, yv, zv, gv, Offsets());
+          for (int c = YLO; c < YHI; ++c) y[v.own * C + c] += (ADDY ? w : 1.0) * v.sign * yv[c];
+        }
       });
     }
     PetscFunctionReturn(0);
@@ -606,7 +627,7 @@ public:
   template <int CLO = 0, int CHI = C, int YLO = 0, int YHI = C, int CS = C>
   PetscErrorCode transpose(PetscReal t, const LocalState &s, Vec x, Vec y, bool add_y, PetscReal w, Vec mu, bool defer) {
     PetscFunctionBeginUser;
-    PetscCall(fill_ghosts(x, Xl_));
+    PetscCall(fill_ghosts(x, Xl_, true));
     if constexpr (H > 0) {
       for (int m = 0; m < H; ++m) {
         PetscCall(eq_.output_transpose(m, x, field_));
@@ -916,6 +937,7 @@ private:
     }
     PetscCall(add_vector_sums(grad, dtheta_));
     PetscFunctionReturn(0);
+  }
   // Whether the point source forces owned point `own` (its index in the owned block).
   bool forced_point(PetscInt own) const {
     if constexpr (pointwise::HasForcedPoints<Eq>::value)
@@ -942,33 +964,69 @@ private:
     f.t = t, f.U = s.u.data(), f.Ug = s.g.data(), f.A = s.a.data(), f.P = P;
     return f;
   }
+  // The frame of the Edge points: the state and its direction read from their ghosted arrays.
+  static pointwise::Frame edge_frame(const pointwise::Frame &f) {
+    pointwise::Frame e = f;
+    e.U = f.Ug, e.X = f.Xg, e.syo = f.sy;
+    return e;
+  }
   // Every owned point: its index in the ghosted arrays, in the owned block, its grid indices, and
   // Check<true> when it lies within `margin` of the owned block's edge (its reads are checked: they
   // may reach ghosts or beyond a wall), else Check<false>.
-  template <class F> void for_points(PetscInt margin, F &&body) const {
+  // With Edges, only the points on a wall are checked; the others within `margin` of the block's edge
+  // are Edge points.
+  template <bool Edges = false, class F> void for_points(PetscInt margin, F &&body) const {
     PetscInt gxs, gys, gxm, gym;
     DMDAGetGhostCorners(dm_, &gxs, &gys, nullptr, &gxm, &gym, nullptr);
-    const PetscInt xs = grid_->xs(), xm = grid_->xm(), ys = grid_->ys(), ym = grid_->ym();
+    const PetscInt xs = grid_->xs(), xm = grid_->xm(), ys = grid_->ys(), ym = grid_->ym(), xe = xs + xm;
     if (D == 1) gys = 0;
     margin = std::max<PetscInt>(margin, 1); // wall points are always checked
     // with held walls an unchecked point's stencil stops short of them: one more checked point there
     const bool held = frame_.held;
-    const PetscInt wx0 = held && !grid_->periodic() && xs == 0, wx1 = held && !grid_->periodic() && xs + xm == grid_->n();
+    const PetscInt wx0 = held && !grid_->periodic() && xs == 0, wx1 = held && !grid_->periodic() && xe == grid_->n();
     const PetscInt wy0 = held && D > 1 && !grid_->periodic_y() && ys == 0,
                    wy1 = held && D > 1 && !grid_->periodic_y() && ys + ym == grid_->ny();
-    const PetscInt lo = std::min(xs + margin + wx0, xs + xm), hi = std::max(lo, xs + xm - margin - wx1);
-    for (PetscInt j = ys; j < ys + ym; ++j) {
+    const PetscInt lo = std::min(xs + margin + wx0, xe), hi = std::max(lo, xe - margin - wx1);
+    const PetscInt nx = grid_->n(), ny = grid_->ny();
+    const bool wx = !grid_->periodic(), wy = D > 1 && !grid_->periodic_y();
+    // Points [i0, i1) of row j read one way; the unchecked runs are loops the compiler may vectorise. (A
+    // sweep writes the point's own entries alone and reads none that it writes (the leapfrog kick writes
+    // lambda_q and reads lambda_p of one array): no iteration depends on another.)
+    auto run = [&](PetscInt j, PetscInt i0, PetscInt i1, auto ck) {
       const PetscInt row = (j - gys) * gxm - gxs, own_row = (j - ys) * xm - xs;
+#pragma GCC ivdep
+      for (PetscInt i = i0; i < i1; ++i) body(row + i, own_row + i, i, j, ck);
+    };
+    // The points of row j in [i0, i1) outside the unchecked interior: checked on a wall, else Edge, or
+    // EdgeNearWall within R of a wall (the gather's neighbours there may lie beyond it).
+    auto edges = [&](PetscInt j, PetscInt i0, PetscInt i1) {
+      if constexpr (!Edges) run(j, i0, i1, Check<true>());
+      else {
+        const bool wall_row = wy && (j == 0 || j == ny - 1), near_row = wy && (j <= R || j >= ny - 1 - R);
+        if (wall_row) return run(j, i0, i1, Check<true>());
+        // columns: [0] the wall, [1, R] near it, then the free run, [nx - 1 - R, nx - 2] near, [nx - 1] the wall
+        const PetscInt a0 = wx ? std::clamp<PetscInt>(1, i0, i1) : i0, a1 = wx ? std::clamp<PetscInt>(R + 1, i0, i1) : i0;
+        const PetscInt b1 = wx ? std::clamp<PetscInt>(nx - 1, a1, i1) : i1, b0 = wx ? std::clamp<PetscInt>(nx - 1 - R, a1, b1) : i1;
+        run(j, i0, a0, Check<true>());
+        run(j, a0, a1, EdgeNearWall());
+        if (near_row) run(j, a1, b0, EdgeNearWall());
+        else run(j, a1, b0, Edge());
+        run(j, b0, b1, EdgeNearWall());
+        run(j, b1, i1, Check<true>());
+      }
+    };
+    for (PetscInt j = ys; j < ys + ym; ++j) {
       const bool inside = D == 1 || (j >= ys + margin + wy0 && j < ys + ym - margin - wy1);
       if (!inside) {
-        for (PetscInt i = xs; i < xs + xm; ++i) body(row + i, own_row + i, i, j, Check<true>());
+        edges(j, xs, xe);
         continue;
       }
-      for (PetscInt i = xs; i < lo; ++i) body(row + i, own_row + i, i, j, Check<true>());
-      for (PetscInt i = lo; i < hi; ++i) body(row + i, own_row + i, i, j, Check<false>());
-      for (PetscInt i = hi; i < xs + xm; ++i) body(row + i, own_row + i, i, j, Check<true>());
+      edges(j, xs, lo);
+      run(j, lo, hi, Check<false>());
+      edges(j, hi, xe);
     }
   }
+
   PetscErrorCode to_local(Vec g, Vec l) const {
     PetscFunctionBeginUser;
     PetscCall(DMGlobalToLocal(dm_, g, INSERT_VALUES, l));
@@ -983,9 +1041,12 @@ private:
     s.ref = s.copy;
     PetscFunctionReturn(0);
   }
-  // The ghost entries of the ghosted `local` from the global x (its owned entries are not written).
-  // ... and the owned points within `strip_` of the block's edge (all a checked point reads), ncomp per point.
-  PetscErrorCode fill_ghosts(Vec x, Vec local, VecScatter sc, PetscInt ncomp = C) const {
+  // The ghosted `local` from the global x, ncomp per point: its ghosts and the owned points within
+  // `strip_` of the block's edge (all a checked or Edge point reads), then the positions the fold table
+  // maps elsewhere: mirror images beyond odd walls (their sign times the point's value) and 0 on held
+  // walls and beyond other walls, or, for a cotangent (the x of a transpose, whose entries are per
+  // equation), 0 at all of them: beyond a wall and on a held wall there is no equation.
+  PetscErrorCode fill_ghosts(Vec x, Vec local, VecScatter sc, PetscInt ncomp = C, bool cotangent = false) const {
     PetscFunctionBeginUser;
     if (sc) PetscCall(VecScatterBegin(sc, x, local, INSERT_VALUES, SCATTER_FORWARD));
     {
@@ -1002,14 +1063,23 @@ private:
                   g.data() + ((j - gys) * gxm + i0 - gxs) * ncomp);
       };
       for (PetscInt j = ys; j < ys + ym; ++j) {
-        if (D == 1 || j < ys + w || j >= ys + ym - w || xm <= 2 * w) copy(j, xs, xs + xm);
+        if ((D > 1 && (j < ys + w || j >= ys + ym - w)) || xm <= 2 * w) copy(j, xs, xs + xm);
         else copy(j, xs, xs + w), copy(j, xs + xm - w, xs + xm);
       }
     }
     if (sc) PetscCall(VecScatterEnd(sc, x, local, INSERT_VALUES, SCATTER_FORWARD));
+    if (!folded_.empty()) {
+      Array g(local);
+      PetscCall(g.error());
+      PetscScalar *a = g.data();
+      for (const auto &e : folded_)
+        for (PetscInt c = 0; c < ncomp; ++c) a[e.at * ncomp + c] = cotangent || e.src < 0 ? 0.0 : e.sign * a[e.src * ncomp + c];
+    }
     PetscFunctionReturn(0);
   }
-  PetscErrorCode fill_ghosts(Vec x, Vec local) const { return fill_ghosts(x, local, ghost_scatter_); }
+  PetscErrorCode fill_ghosts(Vec x, Vec local, bool cotangent = false) const {
+    return fill_ghosts(x, local, ghost_scatter_, C, cotangent);
+  }
   // The ghosted box's sources and signs (Frame::src, Frame::sgn).
   void make_fold_table() {
     PetscInt gxs, gys, gxm, gym;
@@ -1033,6 +1103,25 @@ private:
         src_[b * gxm + a] = (gj - gys) * gxm + (gi - gxs), sgn_[b * gxm + a] = sign;
       }
     frame_.src = src_.data(), frame_.sgn = sgn_.data();
+    // The positions that hold another point's image or 0, and the images of owned points that a real
+    // point's stencil reaches (within R beyond the walls) whose point is not on a wall itself (a wall
+    // point is checked: its gather finds its images through the table).
+    folded_.clear(), images_.clear();
+    const PetscInt xs = grid_->xs(), xm = grid_->xm(), ys = grid_->ys(), ym = grid_->ym(), nx = grid_->n(), ny = grid_->ny();
+    const bool wx = !grid_->periodic(), wy = D > 1 && !grid_->periodic_y();
+    for (PetscInt b = 0; b < gym; ++b)
+      for (PetscInt a = 0; a < gxm; ++a) {
+        const PetscInt p = b * gxm + a, gi = gxs + a, gj = gys + b, s = src_[p];
+        if (s == p) continue;
+        folded_.push_back({p, s, sgn_[p]});
+        if (s < 0) continue;
+        const PetscInt si = gxs + s % gxm, sj = gys + s / gxm;
+        const bool reach = (gi >= -R && gi < nx + R) && (D == 1 || (gj >= -R && gj < ny + R));
+        const bool owned = si >= xs && si < xs + xm && sj >= ys && sj < ys + ym;
+        const bool on_wall = (wx && (si == 0 || si == nx - 1)) || (wy && (sj == 0 || sj == ny - 1));
+        const bool beyond = (wx && (gi < 0 || gi >= nx)) || (wy && (gj < 0 || gj >= ny));
+        if (beyond && reach && owned && !on_wall) images_.push_back({p, (sj - ys) * xm + (si - xs), gi, gj, sgn_[p]});
+      }
   }
   // The state U for the sweeps: read in place (the caller keeps U unchanged while s is used) or, if
   // `keep`, from a copy (for products applied later); its ghosts and auxiliary fields.
@@ -1121,18 +1210,22 @@ private:
 
   // The gather at owned point (i, j): for each stencil offset o, G at the point j - o (when it exists)
   // differentiated with respect to the inputs at j, contracted with x there.
-  template <int CLO, int CHI, bool CK, int CS, int... E>
+  template <int CLO, int CHI, int W, int CS, int... E>
   static void gather_offsets(const Eq &eq, const pointwise::Frame &f, const PetscScalar *xh, PetscInt at, PetscInt own, PetscInt i, PetscInt j,
                       PetscInt nx, PetscInt ny, bool px, bool py, double *yv, double *zv, double *gv,
                       std::integer_sequence<int, E...>) {
-    (gather_one<Sten::offset(E)[0], Sten::offset(E)[1], CLO, CHI, CK, CS>(eq, f, xh, at, own, i, j, nx, ny, px, py, yv, zv, gv), ...);
+    (gather_one<Sten::offset(E)[0], Sten::offset(E)[1], CLO, CHI, W, CS>(eq, f, xh, at, own, i, j, nx, ny, px, py, yv, zv, gv), ...);
   }
-  template <int OX, int OY, int CLO, int CHI, bool CK, int CS>
+  // W: how the point reads (for_points<true>); G exists at real points alone: near a wall (W = 1, 3) the
+  // gather skips the others. (Beyond it the transpose's x reads 0, so that an Edge point's neighbours
+  // there would add nothing; but their stencils would reach beyond the ghosted box.)
+  template <int OX, int OY, int CLO, int CHI, int W, int CS>
   static void gather_one(const Eq &eq, const pointwise::Frame &f, const PetscScalar *xh, PetscInt at, PetscInt own,
                          PetscInt i, PetscInt j, PetscInt nx, PetscInt ny, bool px, bool py, double *yv, double *zv,
                          double *gv) {
+    constexpr bool CK = W == 1;
     const PetscInt si = i - OX, sj = j - OY;
-    if constexpr (CK) {
+    if constexpr (W == 1 || W == 3) {
       if (!px && (si < 0 || si >= nx)) return;
       if (D == 2 && !py && (sj < 0 || sj >= ny)) return;
     }
@@ -1298,6 +1391,16 @@ private:
   LocalState st_, jac_, jp_; // the state of rhs and the adjoint sweeps, of the Jacobian, of dG/dp
   OwnedScatter ghost_scatter_; // global -> the ghost entries of a ghosted Vec (null: no rank has any)
   std::vector<PetscInt> src_;  // Frame::src, Frame::sgn
+  struct Folded {
+    PetscInt at, src; // a position of the ghosted box and the one whose value it holds (-1: 0)
+    double sign;
+  };
+  std::vector<Folded> folded_;
+  struct Image {
+    PetscInt at, own, i, j; // a mirror image beyond a wall (ghosted index, grid indices) of owned point `own`
+    double sign;
+  };
+  std::vector<Image> images_;
   std::vector<double> sgn_;
   PetscInt strip_ = 1;         // the owned edge strips fill_ghosts copies into a ghosted array
   OwnedDM pos_dm_;             // second-order models: the positions alone,
