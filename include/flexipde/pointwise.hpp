@@ -145,6 +145,7 @@ struct Frame {
   const PetscInt *src = nullptr;
   const double *sgn = nullptr;
   int dim = 1;
+  int coef0 = 0; // where the coefficient fields start among the `np` entries of P (after the parameters)
 };
 
 // The point view handed to a model's rhs() and initial(). Mode and seeds decide what a Number is:
@@ -169,7 +170,7 @@ public:
   // State component c at offset (dx, dy) from the point.
   Number u(int c, int dx, int dy = 0) const {
     if constexpr (CS < C)
-      if (c >= CS) return Number(0.0);
+      if (c >= CS) return unstored(c, dx, dy);
     if constexpr (CK) return u_checked(c, dx, dy);
     const PetscInt k = (own_ + dx + dy * f_.syo) * CS + c;
     const double v = PetscRealPart(f_.U[k]);
@@ -183,6 +184,10 @@ public:
   }
   // Parameter k (a field's value at the offset; a scalar's value anywhere).
   Number param(int k, int dx = 0, int dy = 0) const { return field(f_.P, f_.dP, f_.np, k, k < NP ? C + K + k : -1, dx, dy); }
+  // Coefficient field k (Eq::coefficients: fixed by the geometry, computed once) at the offset: a constant.
+  Number coefficient(int k, int dx = 0, int dy = 0) const {
+    return Number(PetscRealPart(f_.P[(at_ + dx + dy * f_.sy) * f_.np + f_.coef0 + k]));
+  }
   // Auxiliary field k (Eq::auxiliaries: a = L U from the model's non-local linear maps) at the offset.
   Number aux(int k, int dx = 0, int dy = 0) const {
     static_assert(M != Mode::Rows, "a model with auxiliary fields has no assembled Jacobian");
@@ -237,6 +242,19 @@ private:
     g = g < 0 ? -g : 2 * (n - 1) - g;
     sign = -sign;
     return true;
+  }
+  // A component the state arrays do not hold (G is linear in it, and its derivatives read nothing of
+  // it): 0, with its derivative lane in Gather mode.
+  Number unstored(int c, int dx, int dy) const {
+    if constexpr (M == Mode::Gather) {
+      if constexpr (CK) {
+        const PetscInt p = at_ + dx + dy * f_.sy, s = f_.src[p];
+        Number r(0.0);
+        if (s >= 0 && s == at_ + (ti_ - i_) + (tj_ - j_) * f_.sy) r.d[c] = f_.sgn[p];
+        return r;
+      } else return dx == SX && dy == SY ? Number::seeded(0.0, c) : Number(0.0);
+    }
+    return Number(0.0);
   }
   Number u_checked(int c, int dx, int dy) const {
     if constexpr (M != Mode::Rows) {
@@ -296,6 +314,7 @@ public:
   Number u(int c, int dx, int dy = 0) const { return Base::u(c, dx, dy); }
   Number param(int k, int dx = 0, int dy = 0) const { return Base::param(k, dx, dy); }
   Number aux(int k, int dx = 0, int dy = 0) const { return Base::aux(k, dx, dy); }
+  Number coefficient(int k, int dx = 0, int dy = 0) const { return Base::coefficient(k, dx, dy); }
   Number theta(int e) const { return Rev::input(Base::theta(e), e); }
 };
 
@@ -328,6 +347,11 @@ template <class Eq> struct AuxOf<Eq, std::void_t<decltype(Eq::auxiliaries)>> : s
 template <class Eq, class = void> struct RhsParametersOf : std::integral_constant<int, Eq::parameters> {};
 template <class Eq>
 struct RhsParametersOf<Eq, std::void_t<decltype(Eq::rhs_parameters)>> : std::integral_constant<int, Eq::rhs_parameters> {};
+// Coefficient fields: functions of the geometry alone that G reads at points (pt.coefficient(k)), from
+// Eq::coefficient(k, pt) evaluated once, so that a sweep reads them instead of recomputing them.
+template <class Eq, class = void> struct CoefficientsOf : std::integral_constant<int, 0> {};
+template <class Eq>
+struct CoefficientsOf<Eq, std::void_t<decltype(Eq::coefficients)>> : std::integral_constant<int, Eq::coefficients> {};
 template <class Eq, class = void> struct OutputsOf : std::integral_constant<int, 0> {};
 template <class Eq> struct OutputsOf<Eq, std::void_t<decltype(Eq::outputs)>> : std::integral_constant<int, Eq::outputs> {};
 // Optional model statements for the initial condition and the forcing: the integrator's step
@@ -355,6 +379,7 @@ class PointwiseModel final : public Model {
   static constexpr int NG = pointwise::RhsParametersOf<Eq>::value;
   static_assert(NG <= NP, "rhs_parameters: at most parameters");
   static constexpr bool Local = K == 0 && H == 0; // else dG/dU is applied, never assembled
+  static constexpr int NF = pointwise::CoefficientsOf<Eq>::value; // held after the parameters in P_
   static constexpr StencilShape Shape = pointwise::ShapeOf<Eq>::value;
   using Sten = pointwise::Stencil<D, R, Shape>;
   using Mode = pointwise::Mode;
@@ -409,7 +434,7 @@ public:
     vector_slots_ = decl.vectors();
     theta_.assign(decl.theta_count(), 0.0), dtheta_ = theta_acc_ = theta_;
     bounds_.min.assign(NP, 0.0), bounds_.max.assign(NP, 0.0); // until parameters are set (a spectrum may be asked first)
-    PetscCall(grid.create_dm(NP, param_dm_.out()));
+    PetscCall(grid.create_dm(NP + NF, param_dm_.out()));
     PetscCall(DMCreateLocalVector(param_dm_, P_.out()));
     PetscCall(VecSet(P_, 0.0)); // beyond a wall: never written, reads 0
     PetscCall(VecDuplicate(P_, dP_.out()));
@@ -454,16 +479,24 @@ public:
     if constexpr (pointwise::HasHeldWalls<Eq>::value) frame_.held = eq_.held_walls();
     strip_ = 4 * R + 2;
     make_fold_table();
-    frame_.np = NP;
+    frame_.np = NP + NF, frame_.coef0 = NP;
     frame_.na = K;
     frame_.syo = grid.xm();
     frame_.xs = grid.xs(), frame_.ys = grid.ys(), frame_.xm = grid.xm(), frame_.ym = grid.ym();
+    if constexpr (NF > 0) {
+      coefficients_.assign((size_t)grid.local_points() * NF, 0.0);
+      for_points(0, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+        for (int k = 0; k < NF; ++k)
+          coefficients_[own * NF + k] = eq_.coefficient(k, Pt<Mode::Value, 0, 0, decltype(ck)::value>(frame_, at, own, i, j));
+      });
+    }
     PetscCall(create_ghost_scatter(dm_, ghost_scatter_.out()));
     if constexpr (pointwise::PairsOf<Eq>::value > 0) {
       PetscCall(grid.create_dm(pointwise::PairsOf<Eq>::value, pos_dm_.out()));
       PetscCall(create_ghost_scatter(pos_dm_, pos_scatter_.out()));
       PetscCall(DMCreateLocalVector(pos_dm_, pos_.g.out()));
       PetscCall(VecSet(pos_.g, 0.0));
+      PetscCall(DMCreateGlobalVector(pos_dm_, pos_rec_.out()));
     }
     frame_.dim = D;
     frame_.theta = theta_.data();
@@ -479,6 +512,12 @@ public:
       if (index_[k] >= 0) PetscCall(params_->as_field(p, index_[k], f));
       else PetscCall(VecSet(f, fixed_[k]));
       PetscCall(VecStrideScatter(f, k, Pg_, INSERT_VALUES));
+    }
+    if constexpr (NF > 0) {
+      Array g(Pg_);
+      PetscCall(g.error());
+      for (size_t q = 0; q < coefficients_.size() / NF; ++q)
+        for (int k = 0; k < NF; ++k) g.data()[q * (NP + NF) + NP + k] = coefficients_[q * NF + k];
     }
     PetscCall(DMGlobalToLocal(param_dm_, Pg_, INSERT_VALUES, P_));
     PetscCall(vectors_from(p, theta_));
@@ -589,7 +628,7 @@ public:
       const bool px = grid_->periodic(), py = grid_->periodic_y();
       using Offsets = std::make_integer_sequence<int, Sten::size>;
       with_model([&](const Eq &eq) {
-      for_points<true>(2 * R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+      for_points<true, true>(2 * R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
         constexpr int where = decltype(ck)::value;
         double yv[C] = {};
         double zv[K > 0 ? K : 1] = {};
@@ -740,10 +779,40 @@ public:
 
   // Explicit RK adjoint stage: y = (dG/dU)^T x and mu += (dG/dp)^T x, one sweep.
   bool has_stage_adjoint() const override { return true; }
-  PetscErrorCode stage_adjoint(PetscReal t, Vec U, const PetscScalar *, Vec x, Vec y, Vec mu) override {
+  PetscErrorCode stage_adjoint(PetscReal t, Vec U, const PetscScalar *record, Vec x, Vec y, Vec mu) override {
+    constexpr int m = pointwise::PairsOf<Eq>::value;
     PetscFunctionBeginUser;
+    if constexpr (m > 0)
+      if (record) { // the stage's positions alone
+        PetscCall(VecPlaceArray(pos_rec_, record));
+        pos_.ref = pos_rec_;
+        PetscCall(fill_ghosts(pos_rec_, pos_.g, pos_scatter_, m));
+        PetscCall((transpose<0, C, 0, C, m>(t, pos_, x, y, false, 1.0, mu, in_adjoint_)));
+        PetscCall(VecResetArray(pos_rec_));
+        PetscFunctionReturn(0);
+      }
     PetscCall(load(U, st_));
     PetscCall(transpose(t, st_, x, y, false, 1.0, mu, in_adjoint_));
+    PetscFunctionReturn(0);
+  }
+  // An explicit RK's stored stages: the positions alone of a second-order model (m per point) when the
+  // transposes read nothing else of the state, which a probe at random inputs finds once (their
+  // products at two states that differ in the other components alone are the same).
+  PetscInt stage_record_size() const override {
+    return positions_suffice() ? grid_->local_points() * pointwise::PairsOf<Eq>::value : 0;
+  }
+  bool stage_record_replaces_state() const override { return stage_record_size() > 0; }
+  PetscErrorCode rhs_record(PetscReal t, Vec U, Vec G, PetscScalar *record) override {
+    constexpr int m = pointwise::PairsOf<Eq>::value;
+    PetscFunctionBeginUser;
+    PetscCall(rhs(t, U, G));
+    if constexpr (m > 0) {
+      ConstArray u(U);
+      PetscCall(u.error());
+      const PetscInt n = grid_->local_points();
+      for (PetscInt q = 0; q < n; ++q)
+        for (int c = 0; c < m; ++c) record[q * m + c] = u.data()[q * C + c];
+    }
     PetscFunctionReturn(0);
   }
 
@@ -772,6 +841,62 @@ public:
       }
       if (positions) PetscCall((transpose<m, 2 * m, 0, m, m>(t, pos_, lambda, lambda, true, w, mu, in_adjoint_)));
       else PetscCall((transpose<m, 2 * m, 0, m>(t, st_, lambda, lambda, true, w, mu, in_adjoint_)));
+    }
+    PetscFunctionReturn(0);
+  }
+  bool positions_suffice() const {
+    if (positions_probe_ < 0) {
+      bool ok = false;
+      if (const_cast<PointwiseModel *>(this)->probe_positions(&ok)) ok = false;
+      positions_probe_ = ok;
+    }
+    return positions_probe_ == 1;
+  }
+  PetscErrorCode probe_positions(bool *ok) {
+    constexpr int m = pointwise::PairsOf<Eq>::value;
+    PetscFunctionBeginUser;
+    *ok = false;
+    if constexpr (m > 0 && Local) {
+      LocalState a, b;
+      OwnedVec x, ya, yb, ma, mb, saved;
+      PetscRandom rnd;
+      PetscCall(create_state(a));
+      PetscCall(create_state(b));
+      PetscCall(VecDuplicate(a.copy, x.out()));
+      PetscCall(VecDuplicate(a.copy, ya.out()));
+      PetscCall(VecDuplicate(a.copy, yb.out()));
+      PetscCall(params_->create_vec(ma.out()));
+      PetscCall(VecDuplicate(ma, mb.out()));
+      PetscCall(VecDuplicate(P_, saved.out()));
+      PetscCall(VecCopy(P_, saved));
+      PetscCall(PetscRandomCreate(PETSC_COMM_SELF, &rnd));
+      PetscCall(PetscRandomSetInterval(rnd, 0.5, 1.5));
+      PetscCall(VecSetRandom(a.copy, rnd));
+      PetscCall(VecSetRandom(b.copy, rnd));
+      PetscCall(VecSetRandom(x, rnd));
+      PetscCall(VecSetRandom(P_, rnd));
+      {
+        ConstArray ua(a.copy);
+        Array ub(b.copy);
+        for (PetscInt q = 0; q < grid_->local_points(); ++q)
+          for (int c = 0; c < m; ++c) ub.data()[q * C + c] = ua.data()[q * C + c];
+      }
+      PetscCall(PetscRandomDestroy(&rnd));
+      PetscCall(load(a.copy, a));
+      PetscCall(load(b.copy, b));
+      PetscCall(VecSet(ma, 0.0));
+      PetscCall(VecSet(mb, 0.0));
+      PetscCall(transpose(0.5, a, x, ya, false, 1.0, ma, false));
+      PetscCall(transpose(0.5, b, x, yb, false, 1.0, mb, false));
+      PetscCall(VecCopy(saved, P_));
+      PetscReal dy, dm, ny, nm;
+      PetscCall(VecAXPY(yb, -1.0, ya));
+      PetscCall(VecAXPY(mb, -1.0, ma));
+      PetscCall(VecNorm(yb, NORM_INFINITY, &dy));
+      PetscCall(VecNorm(mb, NORM_INFINITY, &dm));
+      PetscCall(VecNorm(ya, NORM_INFINITY, &ny));
+      PetscCall(VecNorm(ma, NORM_INFINITY, &nm));
+      *ok = dy <= 1e-13 * ny && dm <= 1e-13 * nm;
     }
     PetscFunctionReturn(0);
   }
@@ -975,7 +1100,9 @@ private:
   // may reach ghosts or beyond a wall), else Check<false>.
   // With Edges, only the points on a wall are checked; the others within `margin` of the block's edge
   // are Edge points.
-  template <bool Edges = false, class F> void for_points(PetscInt margin, F &&body) const {
+  // NearWall: tell EdgeNearWall points from Edge ones (the gather alone needs to: other sweeps take them
+  // alike, with one copy of their code fewer).
+  template <bool Edges = false, bool NearWall = false, class F> void for_points(PetscInt margin, F &&body) const {
     PetscInt gxs, gys, gxm, gym;
     DMDAGetGhostCorners(dm_, &gxs, &gys, nullptr, &gxm, &gym, nullptr);
     const PetscInt xs = grid_->xs(), xm = grid_->xm(), ys = grid_->ys(), ym = grid_->ym(), xe = xs + xm;
@@ -1007,11 +1134,12 @@ private:
         // columns: [0] the wall, [1, R] near it, then the free run, [nx - 1 - R, nx - 2] near, [nx - 1] the wall
         const PetscInt a0 = wx ? std::clamp<PetscInt>(1, i0, i1) : i0, a1 = wx ? std::clamp<PetscInt>(R + 1, i0, i1) : i0;
         const PetscInt b1 = wx ? std::clamp<PetscInt>(nx - 1, a1, i1) : i1, b0 = wx ? std::clamp<PetscInt>(nx - 1 - R, a1, b1) : i1;
+        using Near = std::conditional_t<NearWall, EdgeNearWall, Edge>;
         run(j, i0, a0, Check<true>());
-        run(j, a0, a1, EdgeNearWall());
-        if (near_row) run(j, a1, b0, EdgeNearWall());
+        run(j, a0, a1, Near());
+        if (NearWall && near_row) run(j, a1, b0, Near());
         else run(j, a1, b0, Edge());
-        run(j, b0, b1, EdgeNearWall());
+        run(j, b0, b1, Near());
         run(j, b1, i1, Check<true>());
       }
     };
@@ -1390,6 +1518,7 @@ private:
   OwnedVec P_, dP_, Pg_, Xl_;
   LocalState st_, jac_, jp_; // the state of rhs and the adjoint sweeps, of the Jacobian, of dG/dp
   OwnedScatter ghost_scatter_; // global -> the ghost entries of a ghosted Vec (null: no rank has any)
+  std::vector<PetscReal> coefficients_; // Eq::coefficient at the owned points, NF per point
   std::vector<PetscInt> src_;  // Frame::src, Frame::sgn
   struct Folded {
     PetscInt at, src; // a position of the ghosted box and the one whose value it holds (-1: 0)
@@ -1406,6 +1535,8 @@ private:
   OwnedDM pos_dm_;             // second-order models: the positions alone,
   LocalState pos_;             // as the leapfrog's trajectory stores them
   OwnedScatter pos_scatter_;
+  OwnedVec pos_rec_;           // an explicit RK's stored positions of a stage, placed (stage_adjoint)
+  mutable int positions_probe_ = -1; // positions_suffice: unknown, no, yes
   OwnedVec Ag_, dAl_, Zg_, Hg_, XHl_, field_, Yt_; // non-local maps: their fields and scratch
   PetscReal jp_t_ = 0;
   ParameterBounds bounds_;

@@ -49,6 +49,7 @@ class AcousticWave {
 public:
   static constexpr int dim = D, components = 2, radius = R, parameters = 1;
   static constexpr int second_order_pairs = 1, forced_component = 1;
+  static constexpr int coefficients = Damped ? 1 : 0; // the sponge's sigma(x)
   static constexpr bool linear = true;
   enum Parameter { c = 0 };
 
@@ -131,8 +132,9 @@ public:
     }
     g[0] = pt.u(1, 0);
     g[1] = sqr(pt.param(c)) * lap;
-    if constexpr (Damped) g[1] -= sponge(pt) * pt.u(1, 0);
+    if constexpr (Damped) g[1] -= pt.coefficient(0) * pt.u(1, 0);
   }
+  template <class P> PetscReal coefficient(int, const P &pt) const { return sponge(pt); }
 
   template <class P> void initial(const P &pt, typename P::Number *u) const {
     using T = typename P::Number;
