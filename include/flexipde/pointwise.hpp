@@ -42,8 +42,11 @@
 #include <vector>
 
 // The sweeps inline everything they call, the model's pointwise functions above all: only then do
-// the zero lanes of seeds placed elsewhere fold away.
+// the zero lanes of seeds placed elsewhere fold away. FLEXIPDE_RUN marks the loop over one run of
+// points of one kind: a function of its own, so that each stays small enough for the compiler's
+// passes (one function per sweep holding every kind of point took minutes to compile).
 #define FLEXIPDE_SWEEP __attribute__((flatten))
+#define FLEXIPDE_RUN __attribute__((flatten, noinline))
 
 namespace flexipde {
 
@@ -497,6 +500,7 @@ public:
       PetscCall(DMCreateLocalVector(pos_dm_, pos_.g.out()));
       PetscCall(VecSet(pos_.g, 0.0));
       PetscCall(DMCreateGlobalVector(pos_dm_, pos_rec_.out()));
+      PetscCall(DMCreateGlobalVector(pos_dm_, pos_copy_.out()));
     }
     frame_.dim = D;
     frame_.theta = theta_.data();
@@ -544,8 +548,8 @@ public:
       PetscScalar *out = g.data();
       PetscScalar *hout = nullptr;
       if constexpr (H > 0) PetscCall(VecGetArray(Hg_, &hout));
-      with_model([&](const Eq &eq) {
-        for_points<true>(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+      with_model([&](const auto &eq) {
+        for_points<true>(R, [=](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
           constexpr int where = decltype(ck)::value;
           double gv[C + H];
           eq.rhs(Pt<Mode::Value, 0, 0, where == 1>(where >= 2 ? fe : f, at, where >= 2 ? at : own, i, j), gv);
@@ -590,8 +594,8 @@ public:
       PetscScalar *out = ya.data();
       PetscScalar *hout = nullptr;
       if constexpr (H > 0) PetscCall(VecGetArray(Hg_, &hout));
-      with_model([&](const Eq &eq) {
-        for_points<true>(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+      with_model([&](const auto &eq) {
+        for_points<true>(R, [=](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
           constexpr int where = decltype(ck)::value;
           typename Pt<Mode::Tangent>::Number gv[C + H];
           eq.rhs(Pt<Mode::Tangent, 0, 0, where == 1>(where >= 2 ? fe : f, at, where >= 2 ? at : own, i, j), gv);
@@ -627,8 +631,8 @@ public:
       const PetscInt nx = grid_->n(), ny = grid_->ny();
       const bool px = grid_->periodic(), py = grid_->periodic_y();
       using Offsets = std::make_integer_sequence<int, Sten::size>;
-      with_model([&](const Eq &eq) {
-      for_points<true, true>(2 * R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+      with_model([&](const auto &eq) {
+      for_points<true, true>(2 * R, [=](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
         constexpr int where = decltype(ck)::value;
         double yv[C] = {};
         double zv[K > 0 ? K : 1] = {};
@@ -663,8 +667,10 @@ public:
   // integrators' own sweeps during an adjoint solve; end_adjoint sums them), else summed now
   // (collective; the shells, whose products PETSc scales after the fact). The non-local maps enter
   // as B^T x before the sweep and L^T z after it.
-  template <int CLO = 0, int CHI = C, int YLO = 0, int YHI = C, int CS = C>
-  PetscErrorCode transpose(PetscReal t, const LocalState &s, Vec x, Vec y, bool add_y, PetscReal w, Vec mu, bool defer) {
+  // ADDY: y += w (dG/dU)^T x (the leapfrog kick), else y = (dG/dU)^T x. GRAD: y is formed and so is the
+  // gradient, a null mu's into scratch: one compiled sweep where the gradient costs little next to y.
+  template <int CLO = 0, int CHI = C, int YLO = 0, int YHI = C, int CS = C, bool ADDY = false, bool GRAD = ADDY>
+  PetscErrorCode transpose(PetscReal t, const LocalState &s, Vec x, Vec y, PetscReal w, Vec mu, bool defer) {
     PetscFunctionBeginUser;
     PetscCall(fill_ghosts(x, Xl_, true));
     if constexpr (H > 0) {
@@ -685,15 +691,18 @@ public:
       if (K > 0 && y) PetscCall(VecGetArray(Zg_, &za));
       PetscReal *gk[NP > 0 ? NP : 1] = {};
       if (mu) fill_gradient_targets(m, defer, gk, true);
-      auto run = [&](auto wy, auto addy, auto wg) {
-        return gather<CLO, CHI, YLO, YHI, CS, decltype(wy)::value, decltype(addy)::value, decltype(wg)::value>(
-            t, s, xo, xg.data(), xha.data(), ya, w, gk, za);
+      else if (GRAD) scratch_targets(gk);
+      auto run = [&](auto wy, auto wg) {
+        return gather<CLO, CHI, YLO, YHI, CS, decltype(wy)::value, ADDY, decltype(wg)::value>(t, s, xo, xg.data(),
+                                                                                             xha.data(), ya, w, gk, za);
       };
       using T = std::true_type;
       using F = std::false_type;
-      if (!y) PetscCall(mu ? run(F(), F(), T()) : 0);
-      else if (add_y) PetscCall(mu ? run(T(), T(), T()) : run(T(), T(), F()));
-      else PetscCall(mu ? run(T(), F(), T()) : run(T(), F(), F()));
+      if constexpr (ADDY || GRAD) {
+        PetscCheck(y, grid_->comm(), PETSC_ERR_PLIB, "transpose: y is formed");
+        PetscCall(run(T(), T()));
+      } else if (!y) PetscCall(mu ? run(F(), T()) : 0);
+      else PetscCall(mu ? run(T(), T()) : run(T(), F()));
       if (mu && !theta_.empty()) {
         if (!defer) std::fill(dtheta_.begin(), dtheta_.end(), 0.0);
         PetscCall((theta_gather<CLO, CHI, CS>(t, s, xo, w, defer ? theta_acc_.data() : dtheta_.data())));
@@ -710,7 +719,7 @@ public:
           PetscCall(VecStrideGather(Zg_, k, field_, INSERT_VALUES));
           PetscCall(eq_.auxiliary_transpose(k, field_, Yt_));
         }
-        PetscCall(VecAXPY(y, add_y ? w : 1.0, Yt_));
+        PetscCall(VecAXPY(y, ADDY ? w : 1.0, Yt_));
       }
     if (mu && !defer) PetscCall(flush_scratch_scalars(mu));
     if (mu && !defer) PetscCall(add_vector_sums(mu, dtheta_));
@@ -787,12 +796,12 @@ public:
         PetscCall(VecPlaceArray(pos_rec_, record));
         pos_.ref = pos_rec_;
         PetscCall(fill_ghosts(pos_rec_, pos_.g, pos_scatter_, m));
-        PetscCall((transpose<0, C, 0, C, m>(t, pos_, x, y, false, 1.0, mu, in_adjoint_)));
+        PetscCall((transpose<0, C, 0, C, m, false, true>(t, pos_, x, y, 1.0, mu, in_adjoint_)));
         PetscCall(VecResetArray(pos_rec_));
         PetscFunctionReturn(0);
       }
     PetscCall(load(U, st_));
-    PetscCall(transpose(t, st_, x, y, false, 1.0, mu, in_adjoint_));
+    PetscCall(transpose(t, st_, x, y, 1.0, mu, in_adjoint_));
     PetscFunctionReturn(0);
   }
   // An explicit RK's stored stages: the positions alone of a second-order model (m per point) when the
@@ -829,18 +838,23 @@ public:
     if constexpr (m > 0) {
       PetscInt n;
       PetscCall(VecGetLocalSize(U, &n));
-      const bool positions = n == grid_->local_points() * m;
-      if (positions) {
-        pos_.ref = U;
-        PetscCall(fill_ghosts(U, pos_.g, pos_scatter_, pointwise::PairsOf<Eq>::value));
-      } else PetscCall(load(U, st_));
+      pos_.ref = U;
+      if (n != grid_->local_points() * m) { // a whole state: its positions are all the kick reads
+        ConstArray u(U);
+        Array q(pos_copy_);
+        PetscCall(u.error());
+        PetscCall(q.error());
+        for (PetscInt i = 0; i < grid_->local_points(); ++i)
+          for (int c = 0; c < m; ++c) q.data()[i * m + c] = u.data()[i * C + c];
+        pos_.ref = pos_copy_;
+      }
+      PetscCall(fill_ghosts(pos_.ref, pos_.g, pos_scatter_, m));
       if (drift != 0) {
         Array l(lambda);
         PetscCall(l.error());
         leapfrog_drift_transpose(l.data(), 0, grid_->local_points(), m, drift);
       }
-      if (positions) PetscCall((transpose<m, 2 * m, 0, m, m>(t, pos_, lambda, lambda, true, w, mu, in_adjoint_)));
-      else PetscCall((transpose<m, 2 * m, 0, m>(t, st_, lambda, lambda, true, w, mu, in_adjoint_)));
+      PetscCall((transpose<m, 2 * m, 0, m, m, true>(t, pos_, lambda, lambda, w, mu, in_adjoint_)));
     }
     PetscFunctionReturn(0);
   }
@@ -886,8 +900,8 @@ public:
       PetscCall(load(b.copy, b));
       PetscCall(VecSet(ma, 0.0));
       PetscCall(VecSet(mb, 0.0));
-      PetscCall(transpose(0.5, a, x, ya, false, 1.0, ma, false));
-      PetscCall(transpose(0.5, b, x, yb, false, 1.0, mb, false));
+      PetscCall(transpose(0.5, a, x, ya, 1.0, ma, false));
+      PetscCall(transpose(0.5, b, x, yb, 1.0, mb, false));
       PetscCall(VecCopy(saved, P_));
       PetscReal dy, dm, ny, nm;
       PetscCall(VecAXPY(yb, -1.0, ya));
@@ -1075,15 +1089,22 @@ private:
     DMDAGetGhostCorners(dm_, nullptr, nullptr, nullptr, &gxm, nullptr, nullptr);
     return gxm;
   }
-  // The model as the sweeps read it: a copy on the stack when it can be copied, so that the compiler
-  // knows no store of a sweep changes its members: it keeps them in registers, hoists the branches
-  // on them out of the loop over points, and vectorises.
+  // The model as the sweeps read it: a copy when it can be copied (the point loops copy it again with
+  // the rest of what they capture), so that the compiler knows no store of a sweep changes its
+  // members: it keeps them in registers, hoists the branches on them out of the loop over points, and
+  // vectorises.
   template <class F> void with_model(F &&f) const {
     if constexpr (std::is_trivially_copyable_v<Eq>) {
       const Eq eq = eq_;
       f(eq);
-    } else f(eq_);
+    } else f(ModelView{&eq_});
   }
+  // ... else a view of it, which the point loops copy in place of the model.
+  struct ModelView {
+    const Eq *eq;
+    template <class P, class G> void rhs(const P &pt, G *g) const { eq->rhs(pt, g); }
+  };
+
   pointwise::Frame frame(PetscReal t, const StateView &s, const PetscScalar *P) const {
     pointwise::Frame f = frame_;
     f.t = t, f.U = s.u.data(), f.Ug = s.g.data(), f.A = s.a.data(), f.P = P;
@@ -1119,10 +1140,12 @@ private:
     // Points [i0, i1) of row j read one way; the unchecked runs are loops the compiler may vectorise. (A
     // sweep writes the point's own entries alone and reads none that it writes (the leapfrog kick writes
     // lambda_q and reads lambda_p of one array): no iteration depends on another.)
-    auto run = [&](PetscInt j, PetscInt i0, PetscInt i1, auto ck) {
+    auto run = [&](PetscInt j, PetscInt i0, PetscInt i1, auto ck) FLEXIPDE_RUN {
       const PetscInt row = (j - gys) * gxm - gxs, own_row = (j - ys) * xm - xs;
+      // The sweep's own copy: what it captures by value (the model, the frame) is then known to no store.
+      const auto point = body;
 #pragma GCC ivdep
-      for (PetscInt i = i0; i < i1; ++i) body(row + i, own_row + i, i, j, ck);
+      for (PetscInt i = i0; i < i1; ++i) point(row + i, own_row + i, i, j, ck);
     };
     // The points of row j in [i0, i1) outside the unchecked interior: checked on a wall, else Edge, or
     // EdgeNearWall within R of a wall (the gather's neighbours there may lie beyond it).
@@ -1319,6 +1342,13 @@ private:
       }
     }
   }
+  // Every parameter's pointwise gradient into scratch (a sweep that forms it when no one asked).
+  void scratch_targets(PetscReal **gk) {
+    for (int k = 0; k < NP; ++k) {
+      if (dummy_target_[k].size() != (size_t)grid_->local_points()) dummy_target_[k].assign(grid_->local_points(), 0.0);
+      gk[k] = dummy_target_[k].data();
+    }
+  }
   PetscErrorCode flush_scratch_scalars(Vec mu) {
     PetscFunctionBeginUser;
     for (int k = 0; k < NP; ++k)
@@ -1338,8 +1368,8 @@ private:
 
   // The gather at owned point (i, j): for each stencil offset o, G at the point j - o (when it exists)
   // differentiated with respect to the inputs at j, contracted with x there.
-  template <int CLO, int CHI, int W, int CS, int... E>
-  static void gather_offsets(const Eq &eq, const pointwise::Frame &f, const PetscScalar *xh, PetscInt at, PetscInt own, PetscInt i, PetscInt j,
+  template <int CLO, int CHI, int W, int CS, class M, int... E>
+  static void gather_offsets(const M &eq, const pointwise::Frame &f, const PetscScalar *xh, PetscInt at, PetscInt own, PetscInt i, PetscInt j,
                       PetscInt nx, PetscInt ny, bool px, bool py, double *yv, double *zv, double *gv,
                       std::integer_sequence<int, E...>) {
     (gather_one<Sten::offset(E)[0], Sten::offset(E)[1], CLO, CHI, W, CS>(eq, f, xh, at, own, i, j, nx, ny, px, py, yv, zv, gv), ...);
@@ -1347,8 +1377,8 @@ private:
   // W: how the point reads (for_points<true>); G exists at real points alone: near a wall (W = 1, 3) the
   // gather skips the others. (Beyond it the transpose's x reads 0, so that an Edge point's neighbours
   // there would add nothing; but their stencils would reach beyond the ghosted box.)
-  template <int OX, int OY, int CLO, int CHI, int W, int CS>
-  static void gather_one(const Eq &eq, const pointwise::Frame &f, const PetscScalar *xh, PetscInt at, PetscInt own,
+  template <int OX, int OY, int CLO, int CHI, int W, int CS, class M>
+  static void gather_one(const M &eq, const pointwise::Frame &f, const PetscScalar *xh, PetscInt at, PetscInt own,
                          PetscInt i, PetscInt j, PetscInt nx, PetscInt ny, bool px, bool py, double *yv, double *zv,
                          double *gv) {
     constexpr bool CK = W == 1;
@@ -1489,7 +1519,7 @@ private:
     PointwiseModel *m;
     PetscFunctionBeginUser;
     PetscCall(MatShellGetContext(A, &m));
-    PetscCall(m->transpose(0, m->jac_, x, y, false, 1.0, nullptr, false));
+    PetscCall(m->transpose(0, m->jac_, x, y, 1.0, nullptr, false));
     PetscFunctionReturn(0);
   }
   static PetscErrorCode jp_mult(Mat A, Vec dp, Vec y) {
@@ -1504,7 +1534,7 @@ private:
     PetscFunctionBeginUser;
     PetscCall(MatShellGetContext(A, &m));
     PetscCall(VecSet(mu, 0.0));
-    PetscCall(m->transpose(m->jp_t_, m->jp_, x, nullptr, false, 1.0, mu, false));
+    PetscCall(m->transpose(m->jp_t_, m->jp_, x, nullptr, 1.0, mu, false));
     PetscFunctionReturn(0);
   }
 
@@ -1536,6 +1566,7 @@ private:
   LocalState pos_;             // as the leapfrog's trajectory stores them
   OwnedScatter pos_scatter_;
   OwnedVec pos_rec_;           // an explicit RK's stored positions of a stage, placed (stage_adjoint)
+  OwnedVec pos_copy_;          // the positions copied out of a whole state
   mutable int positions_probe_ = -1; // positions_suffice: unknown, no, yes
   OwnedVec Ag_, dAl_, Zg_, Hg_, XHl_, field_, Yt_; // non-local maps: their fields and scratch
   PetscReal jp_t_ = 0;
