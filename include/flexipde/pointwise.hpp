@@ -36,6 +36,7 @@
 #include "flexipde/survey.hpp"
 #include <array>
 #include <cmath>
+#include <deque>
 #include <string>
 #include <type_traits>
 #include <utility>
@@ -160,7 +161,9 @@ struct Frame {
 // are reflected or zero, and (Gather) the seeded input is found by its position (ti, tj) at run time.
 // CS < C: the state arrays hold the first CS components alone (a second-order model's positions), and
 // the others read as 0. NP: the parameters with a lane (those G reads: Eq::rhs_parameters, the first ones).
-template <int C, int K, int NP, class Sten, Mode M, int SX = 0, int SY = 0, bool CK = false, int CS = C>
+// WL: the point may lie on a wall (wall() is tested; else a compile-time false): every checked point,
+// and the neighbours a gather evaluates G at from a point within R of a wall.
+template <int C, int K, int NP, class Sten, Mode M, int SX = 0, int SY = 0, bool CK = false, int CS = C, bool WL = CK>
 class Point {
 public:
   using Number = std::conditional_t<
@@ -212,9 +215,8 @@ public:
   PetscReal x(int d = 0) const { return f_.x0[d] + (d == 0 ? i_ : j_) * f_.h[d]; }
   PetscInt points(int d = 0) const { return f_.n[d]; }
   // True on a non-periodic direction's first (side 0) or last (side 1) point.
-  // (An unchecked point is never on a wall: known at compile time.)
   bool wall(int d, int side) const {
-    if (!CK || f_.periodic[d]) return false;
+    if (!WL || f_.periodic[d]) return false;
     const PetscInt i = d == 0 ? i_ : j_;
     return side == 0 ? i == 0 : i == f_.n[d] - 1;
   }
@@ -386,8 +388,8 @@ class PointwiseModel final : public Model {
   static constexpr StencilShape Shape = pointwise::ShapeOf<Eq>::value;
   using Sten = pointwise::Stencil<D, R, Shape>;
   using Mode = pointwise::Mode;
-  template <Mode M, int SX = 0, int SY = 0, bool CK = false, int CS = C>
-  using Pt = pointwise::Point<C, K, NG, Sten, M, SX, SY, CK, CS>;
+  template <Mode M, int SX = 0, int SY = 0, bool CK = false, int CS = C, bool WL = CK>
+  using Pt = pointwise::Point<C, K, NG, Sten, M, SX, SY, CK, CS, WL>;
   template <bool CK> using PtInitial = pointwise::Point<C, 0, NP, Sten, Mode::Gather, 0, 0, CK>;
   template <bool CK> using Check = std::integral_constant<bool, CK>;
   // How a point of a sweep reads (for_points<true>): in place from the owned block (0, Check<false>),
@@ -395,7 +397,8 @@ class PointwiseModel final : public Model {
   // whose ghosts and owned edge strips hold every value it reads, mirror images and held walls
   // included, so that it needs no check either.
   using Edge = std::integral_constant<int, 2>;
-  // ... an Edge point within R of a wall: (gather) its neighbours beyond the wall have no equation.
+  // ... an Edge point within R of a wall: (gather) its neighbours beyond the wall have no equation, and
+  // those on it their wall's.
   using EdgeNearWall = std::integral_constant<int, 3>;
   static_assert(D == 1 || D == 2, "the grid is 1D or 2D");
   static_assert(Local || pointwise::PairsOf<Eq>::value == 0, "the leapfrog kick handles local models only");
@@ -1123,7 +1126,42 @@ private:
   // are Edge points.
   // NearWall: tell EdgeNearWall points from Edge ones (the gather alone needs to: other sweeps take them
   // alike, with one copy of their code fewer).
+  // The points are visited kind by kind (run_kind), each kind's runs in row order.
   template <bool Edges = false, bool NearWall = false, class F> void for_points(PetscInt margin, F &&body) const {
+    const RunPlan &plan = runs(margin, Edges, NearWall);
+    run_kind(plan.kind[0], body, Check<false>());
+    run_kind(plan.kind[1], body, Check<true>());
+    if constexpr (Edges) run_kind(plan.kind[2], body, Edge());
+    if constexpr (NearWall) run_kind(plan.kind[3], body, EdgeNearWall());
+  }
+  // Points i0 .. i0 + n - 1 of row j, the first at ghosted index `at` and owned index `own`.
+  struct Run {
+    PetscInt at, own, i0, n, j;
+  };
+  struct RunPlan {
+    std::vector<Run> kind[4]; // Check<false>, Check<true>, Edge, EdgeNearWall
+  };
+  // All runs of one kind: one function per kind and sweep, whose loops the compiler vectorises. It
+  // works on its own copy of the sweep's point function, so that what that captures by value (the
+  // model, the frame) is known to no store. (A sweep writes the point's own entries alone and reads
+  // none that it writes (the leapfrog kick writes lambda_q and reads lambda_p of one array): no
+  // iteration depends on another.)
+  template <class F, class Kind> FLEXIPDE_RUN void run_kind(const std::vector<Run> &runs, const F &body, Kind ck) const {
+    if (runs.empty()) return;
+    const auto point = body;
+    for (const Run &r : runs) {
+      const PetscInt at = r.at, own = r.own, i0 = r.i0, j = r.j;
+#pragma GCC ivdep
+      for (PetscInt k = 0; k < r.n; ++k) point(at + k, own + k, i0 + k, j, ck);
+    }
+  }
+  // The runs of each kind of point for a sweep with this margin (made once per margin and flags).
+  const RunPlan &runs(PetscInt margin, bool with_edges, bool near_wall) const {
+    const PetscInt key = 4 * margin + 2 * with_edges + near_wall;
+    for (const auto &p : plans_)
+      if (p.first == key) return p.second;
+    plans_.emplace_back(key, RunPlan());
+    RunPlan &plan = plans_.back().second;
     PetscInt gxs, gys, gxm, gym;
     DMDAGetGhostCorners(dm_, &gxs, &gys, nullptr, &gxm, &gym, nullptr);
     const PetscInt xs = grid_->xs(), xm = grid_->xm(), ys = grid_->ys(), ym = grid_->ym(), xe = xs + xm;
@@ -1137,34 +1175,25 @@ private:
     const PetscInt lo = std::min(xs + margin + wx0, xe), hi = std::max(lo, xe - margin - wx1);
     const PetscInt nx = grid_->n(), ny = grid_->ny();
     const bool wx = !grid_->periodic(), wy = D > 1 && !grid_->periodic_y();
-    // Points [i0, i1) of row j read one way; the unchecked runs are loops the compiler may vectorise. (A
-    // sweep writes the point's own entries alone and reads none that it writes (the leapfrog kick writes
-    // lambda_q and reads lambda_p of one array): no iteration depends on another.)
-    auto run = [&](PetscInt j, PetscInt i0, PetscInt i1, auto ck) FLEXIPDE_RUN {
-      const PetscInt row = (j - gys) * gxm - gxs, own_row = (j - ys) * xm - xs;
-      // The sweep's own copy: what it captures by value (the model, the frame) is then known to no store.
-      const auto point = body;
-#pragma GCC ivdep
-      for (PetscInt i = i0; i < i1; ++i) point(row + i, own_row + i, i, j, ck);
+    enum { Inside, Checked, EdgeKind, NearKind };
+    auto run = [&](PetscInt j, PetscInt i0, PetscInt i1, int kind) {
+      if (i1 > i0) plan.kind[kind].push_back({(j - gys) * gxm - gxs + i0, (j - ys) * xm - xs + i0, i0, i1 - i0, j});
     };
     // The points of row j in [i0, i1) outside the unchecked interior: checked on a wall, else Edge, or
-    // EdgeNearWall within R of a wall (the gather's neighbours there may lie beyond it).
+    // EdgeNearWall within R of a wall (the gather's neighbours there may lie beyond it or on it).
     auto edges = [&](PetscInt j, PetscInt i0, PetscInt i1) {
-      if constexpr (!Edges) run(j, i0, i1, Check<true>());
-      else {
-        const bool wall_row = wy && (j == 0 || j == ny - 1), near_row = wy && (j <= R || j >= ny - 1 - R);
-        if (wall_row) return run(j, i0, i1, Check<true>());
-        // columns: [0] the wall, [1, R] near it, then the free run, [nx - 1 - R, nx - 2] near, [nx - 1] the wall
-        const PetscInt a0 = wx ? std::clamp<PetscInt>(1, i0, i1) : i0, a1 = wx ? std::clamp<PetscInt>(R + 1, i0, i1) : i0;
-        const PetscInt b1 = wx ? std::clamp<PetscInt>(nx - 1, a1, i1) : i1, b0 = wx ? std::clamp<PetscInt>(nx - 1 - R, a1, b1) : i1;
-        using Near = std::conditional_t<NearWall, EdgeNearWall, Edge>;
-        run(j, i0, a0, Check<true>());
-        run(j, a0, a1, Near());
-        if (NearWall && near_row) run(j, a1, b0, Near());
-        else run(j, a1, b0, Edge());
-        run(j, b0, b1, Near());
-        run(j, b1, i1, Check<true>());
-      }
+      if (!with_edges) return run(j, i0, i1, Checked);
+      const bool wall_row = wy && (j == 0 || j == ny - 1), near_row = wy && (j <= R || j >= ny - 1 - R);
+      if (wall_row) return run(j, i0, i1, Checked);
+      // columns: [0] the wall, [1, R] near it, then the free run, [nx - 1 - R, nx - 2] near, [nx - 1] the wall
+      const PetscInt a0 = wx ? std::clamp<PetscInt>(1, i0, i1) : i0, a1 = wx ? std::clamp<PetscInt>(R + 1, i0, i1) : i0;
+      const PetscInt b1 = wx ? std::clamp<PetscInt>(nx - 1, a1, i1) : i1, b0 = wx ? std::clamp<PetscInt>(nx - 1 - R, a1, b1) : i1;
+      const int near = near_wall ? NearKind : EdgeKind;
+      run(j, i0, a0, Checked);
+      run(j, a0, a1, near);
+      run(j, a1, b0, near_row ? near : EdgeKind);
+      run(j, b0, b1, near);
+      run(j, b1, i1, Checked);
     };
     for (PetscInt j = ys; j < ys + ym; ++j) {
       const bool inside = D == 1 || (j >= ys + margin + wy0 && j < ys + ym - margin - wy1);
@@ -1173,9 +1202,10 @@ private:
         continue;
       }
       edges(j, xs, lo);
-      run(j, lo, hi, Check<false>());
+      run(j, lo, hi, Inside);
       edges(j, hi, xe);
     }
+    return plan;
   }
 
   PetscErrorCode to_local(Vec g, Vec l) const {
@@ -1388,8 +1418,9 @@ private:
       if (D == 2 && !py && (sj < 0 || sj >= ny)) return;
     }
     const PetscInt sat = at - OX - OY * f.sy, sown = own - OX - OY * f.syo;
-    typename Pt<Mode::Gather, OX, OY, CK, CS>::Number gd[C + H];
-    eq.rhs(Pt<Mode::Gather, OX, OY, CK, CS>(f, sat, sown, si, sj, i, j), gd);
+    using P = Pt<Mode::Gather, OX, OY, CK, CS, W == 1 || W == 3>; // (an Edge point's neighbours are never on a wall)
+    typename P::Number gd[C + H];
+    eq.rhs(P(f, sat, sown, si, sj, i, j), gd);
     auto contract = [&](const auto &g, double xc) {
       for (int cc = 0; cc < C; ++cc) yv[cc] += g.d[cc] * xc;
       for (int k = 0; k < K; ++k) zv[k] += g.d[C + k] * xc;
@@ -1560,6 +1591,7 @@ private:
     double sign;
   };
   std::vector<Image> images_;
+  mutable std::deque<std::pair<PetscInt, RunPlan>> plans_; // for_points' runs, per margin and flags
   std::vector<double> sgn_;
   PetscInt strip_ = 1;         // the owned edge strips fill_ghosts copies into a ghosted array
   OwnedDM pos_dm_;             // second-order models: the positions alone,
