@@ -835,10 +835,11 @@ public:
   bool has_second_order_adjoint() const override { return pointwise::PairsOf<Eq>::value > 0; }
   bool second_order_adjoint_takes_positions() const override { return pointwise::PairsOf<Eq>::value > 0; }
   PetscErrorCode second_order_adjoint(PetscReal t, Vec U, const PetscScalar *, Vec lambda, PetscReal w, Vec mu,
-                                      PetscReal drift, const PetscScalar *) override {
+                                      PetscReal drift, const PetscScalar *next) override {
     constexpr int m = pointwise::PairsOf<Eq>::value;
     PetscFunctionBeginUser;
     if constexpr (m > 0) {
+      leapfrog_prefetch(next, grid_->local_points() * m); // the positions a later kick reads, on their way during this one
       PetscInt n;
       PetscCall(VecGetLocalSize(U, &n));
       pos_.ref = U;
