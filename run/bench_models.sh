@@ -6,6 +6,8 @@
 #   REPS=3 run/bench_models.sh       # fewer repetitions
 #   NP=2 run/bench_models.sh         # on 2 ranks
 #   PROCS=3 run/bench_models.sh      # each case in 3 processes: medians, and the ratios' range
+#   MODELS=wave,wave2d run/bench_models.sh                    # these models' rows only
+#   BASELINE=/other/build/flexipde PROCS=3 run/bench_models.sh # against another build, side by side
 #
 # Each line is one process, `flexipde -task gradient -timing_repeats REPS`: one gradient, then REPS
 # forward solves and REPS gradients alternately in the same process, and their medians. A gradient is
@@ -15,7 +17,10 @@
 # On a shared (virtual) machine one process can land 10-20 % away from the next one of the same case;
 # with PROCS > 1 each line is the median over PROCS processes (forward, gradient and ratio each), and
 # the last column gives the range of the per-process ratios.
-# Environment: FLEXIPDE (build/flexipde), REPS (7), NP (1), PROCS (1), MPIEXEC (mpiexec, --allow-run-as-root as root).
+# With BASELINE, each case runs PROCS processes of each build, alternating, and the table gives both
+# builds' medians and this build's time over the baseline's (forward and gradient).
+# Environment: FLEXIPDE (build/flexipde), REPS (7), NP (1), PROCS (1), MODELS (all), BASELINE (none),
+# MPIEXEC (mpiexec, --allow-run-as-root as root).
 set -euo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 FLEXIPDE=${FLEXIPDE:-$(dirname "$here")/build/flexipde}
@@ -25,17 +30,50 @@ MPIEXEC=${MPIEXEC:-mpiexec}
 [ "$(id -u)" = 0 ] && MPIEXEC="$MPIEXEC --allow-run-as-root"
 
 PROCS=${PROCS:-1}
-if [ "$PROCS" -gt 1 ]; then
+MODELS=${MODELS:-}
+BASELINE=${BASELINE:-}
+[ -z "$BASELINE" ] || [ -x "$BASELINE" ] || { echo "bench_models: BASELINE=$BASELINE is not an executable" >&2; exit 1; }
+if [ -n "$BASELINE" ]; then
+  echo "| model | integrator | case | forward (s) | gradient (s) | baseline forward (s) | baseline gradient (s) | forward / baseline | gradient / baseline |"
+  echo "|---|---|---|---:|---:|---:|---:|---:|---:|"
+elif [ "$PROCS" -gt 1 ]; then
   echo "| model | integrator | case | forward (s) | gradient (s) | gradient / forward | ratio range over $PROCS processes |"
   echo "|---|---|---|---:|---:|---:|---|"
 else
   echo "| model | integrator | case | forward (s) | gradient (s) | gradient / forward |"
   echo "|---|---|---|---:|---:|---:|"
 fi
+# forward and gradient medians of one process of build $1 (empty when it failed)
+timing() {
+  local bin=$1
+  shift
+  $MPIEXEC -n "$NP" "$bin" "$@" -task gradient -timing_repeats "$REPS" 2>&1 | grep 'gradient/forward' |
+    sed -E 's/.*forward median ([0-9.]+).*gradient median ([0-9.]+).*/\1 \2/' || true
+}
 run() {
   local model=$1 ts=$2 label=$3
   shift 3
+  if [ -n "$MODELS" ] && [[ ",$MODELS," != *",$model,"* ]]; then return; fi
   local line lines=""
+  if [ -n "$BASELINE" ]; then # this build and the baseline alternately, PROCS processes each
+    for _ in $(seq "$PROCS"); do
+      local a b
+      a=$(timing "$FLEXIPDE" "$@")
+      b=$(timing "$BASELINE" "$@")
+      if [ -z "$a" ] || [ -z "$b" ]; then
+        echo "| $model | $ts | $label | | | | | failed | |"
+        return
+      fi
+      lines+="$a $b"$'\n'
+    done
+    awk -v m="$model" -v t="$ts" -v l="$label" '
+      function med(a, n,   i, j, x) { for (i = 2; i <= n; ++i) { x = a[i]; for (j = i - 1; j >= 1 && a[j] > x; --j) a[j + 1] = a[j]; a[j + 1] = x }
+                                       return n % 2 ? a[(n + 1) / 2] : 0.5 * (a[n / 2] + a[n / 2 + 1]) }
+      NF == 4 { ++n; f[n] = $1 + 0; g[n] = $2 + 0; bf[n] = $3 + 0; bg[n] = $4 + 0 }
+      END { mf = med(f, n); mg = med(g, n); mbf = med(bf, n); mbg = med(bg, n)
+            printf "| %s | %s | %s | %.4g | %.4g | %.4g | %.4g | %.2f | %.2f |\n", m, t, l, mf, mg, mbf, mbg, mf / mbf, mg / mbg }' <<<"$lines"
+    return
+  fi
   for _ in $(seq "$PROCS"); do
     line=$($MPIEXEC -n "$NP" "$FLEXIPDE" "$@" -task gradient -timing_repeats "$REPS" 2>&1 | grep 'gradient/forward' || true)
     if [ -z "$line" ]; then

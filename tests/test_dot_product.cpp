@@ -75,7 +75,7 @@ TEST_P(WaveDerivatives, SetupMatchesOptions) {
   EXPECT_EQ(scene.model->dof(), 2);
   EXPECT_STREQ(scene.model->component_name(0), "u");
   EXPECT_STREQ(scene.model->component_name(1), "v");
-  EXPECT_EQ(scene.grid.stencil_width(), c.order / 2);
+  EXPECT_EQ(scene.grid.stencil_width(), c.order); // 2R ghosts for the radius R = order / 2 (pointwise layer)
   EXPECT_EQ(scene.grid.periodic(), c.periodic);
   EXPECT_EQ(scene.params.count(), 1);
   EXPECT_EQ(scene.params.find("wave_c"), 0);

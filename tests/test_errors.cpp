@@ -80,9 +80,12 @@ TEST(Errors, UnknownModel) {
 
 TEST(Errors, BadGridAndModelOptions) {
   ScopedOptions base(small);
-  EXPECT_NE(try_setup({{"-da_grid_x", "3"}}), 0);              // fewer than 2*1+3 points
-  EXPECT_NE(try_setup({{"-da_grid_x", "6"}, {"-fd_order", "4"}}), 0); // fewer than 2*2+3 points
-  EXPECT_EQ(try_setup({{"-da_grid_x", "7"}, {"-fd_order", "4"}}), 0);
+  // the grid's ghost width is 2R for a stencil of radius R (the pointwise layer's transposes): at least
+  // 2 * 2R + 3 points
+  EXPECT_NE(try_setup({{"-da_grid_x", "6"}}), 0);                    // fewer than 2*2+3 points
+  EXPECT_EQ(try_setup({{"-da_grid_x", "7"}}), 0);
+  EXPECT_NE(try_setup({{"-da_grid_x", "10"}, {"-fd_order", "4"}}), 0); // fewer than 2*4+3 points
+  EXPECT_EQ(try_setup({{"-da_grid_x", "11"}, {"-fd_order", "4"}}), 0);
   EXPECT_NE(try_setup({{"-grid_x0", "1"}, {"-grid_x1", "0"}}), 0);
   EXPECT_NE(try_setup({{"-fd_order", "3"}}), 0);
   EXPECT_NE(try_setup({{"-wave_ic_width", "0"}}), 0);

@@ -169,57 +169,11 @@ TEST(AdvectionRowLoop, SameGradientAsPetscStep) {
     }
 }
 
-// The wave's stages enter its adjoint through their records D2 u alone (Model::stage_record_size,
-// written by the RHS evaluations at the stages): full storage then keeps only those, half the memory
-// of whole stages (the gradient against PETSc's step: RkAdjoint's cases). Field and scalar speeds,
-// 2nd- and 4th-order stencils, walls and periodic.
-namespace {
-
-std::vector<RkCase> records_cases() {
-  const auto all = rk_cases();
-  return {all[0], all[1]}; // wave_rk4_field, wave_rk3_scalar_fd4_periodic
-}
-
-class RkRecords : public RkAdjoint {};
-
-} // namespace
-
-namespace {
-
-// Full storage keeps the stages' records alone (they replace the stages: Model::stage_record_replaces_state):
-// per step, one record of stage_record_size() entries per stage on this rank, half of a whole (u, v)
-// stage (the gradient itself is checked against PETSc's step elsewhere: RkAdjoint, RkRecordsWave2D).
-void expect_records_alone(Scene &scene, Vec p, const RkCase &c) {
-  PetscInt stages = 0;
-  for (auto &o : c.opts)
-    if (std::string(o.first) == "-ts_rk_type") stages = std::atoi(o.second);
-  ASSERT_GT(stages, 0);
-  OwnedVec p_true, g, U;
-  PetscReal J;
-  flexipde_test::data_and_gradient(scene, p, p_true, g, &J);
-  EXPECT_GT(flexipde_test::norm(g), 0.0);
-  PetscInt nstate;
-  PETSC_ASSERT_OK(scene.sim.create_state(U.out()));
-  PETSC_ASSERT_OK(VecGetLocalSize(U, &nstate));
-  const PetscInt n = scene.model->stage_record_size();
-  EXPECT_EQ(2 * n, nstate);
-  const PetscReal entries = (PetscReal)(scene.sim.stats().steps + 1) * stages * n;
-  EXPECT_NEAR(scene.sim.checkpoint_stats().stored_mb / (entries * sizeof(PetscScalar) / 1048576.0), 1.0, 1e-14);
-}
-
-} // namespace
-
-TEST_P(RkRecords, RecordsAloneHalfTheMemory) { expect_records_alone(scene, p, GetParam()); }
-
-INSTANTIATE_TEST_SUITE_P(Wave, RkRecords, ::testing::ValuesIn(records_cases()), rk_name);
-
-// The 2D wave's fused stage products (wave2d's Model::stage_adjoint: J^T and (dG/dc)^T in one sweep)
-// give the gradient of PETSc's RK adjoint through its two Jacobian transposes (-adjoint_petsc_step) to
-// round-off, for field and
-// scalar speeds (the scalar's sums deferred to one reduction), with and without the sponge, on grids
-// that 2 ranks split along x (23 x 19) and along y (19 x 23). dG/dU is constant and dG/dc reads L u
-// alone, sponge or not: the RHS evaluations at the stages record L u (Model::stage_record_size) and full
-// storage keeps only those records, half the memory of whole stages.
+// The 2D wave's RK adjoint stages (the pointwise layer's Model::stage_adjoint: (dG/dU)^T and (dG/dc)^T in
+// one gather sweep) give the gradient of PETSc's RK adjoint through its two Jacobian transposes
+// (-adjoint_petsc_step) to round-off, for field and scalar speeds (the scalar's sums deferred to one
+// reduction), with and without the sponge, on grids that 2 ranks split along x (23 x 19) and along y
+// (19 x 23).
 namespace {
 
 std::vector<RkCase> wave2d_stage_cases() {
@@ -240,18 +194,16 @@ std::vector<RkCase> wave2d_stage_cases() {
   };
 }
 
-class RkRecordsWave2D : public RkAdjoint {};
+class RkStagesWave2D : public RkAdjoint {};
 
 } // namespace
 
-TEST_P(RkRecordsWave2D, SameGradientAsJacobianTransposes) {
+TEST_P(RkStagesWave2D, SameGradientAsJacobianTransposes) {
   ASSERT_TRUE(scene.model->has_stage_adjoint());
   expect_same_gradient(scene, p, {}, {{"-adjoint_petsc_step", "1"}}, GetParam().tol);
 }
 
-TEST_P(RkRecordsWave2D, RecordsAloneHalfTheMemory) { expect_records_alone(scene, p, GetParam()); }
-
-INSTANTIATE_TEST_SUITE_P(Wave2D, RkRecordsWave2D, ::testing::ValuesIn(wave2d_stage_cases()), rk_name);
+INSTANTIATE_TEST_SUITE_P(Wave2D, RkStagesWave2D, ::testing::ValuesIn(wave2d_stage_cases()), rk_name);
 
 // Stage records (Model::stage_record_size): Vlasov's RHS evaluations at the stages leave the field E(f)
 // at the owned x, which the adjoint stage reads instead of summing the stored stage's density again

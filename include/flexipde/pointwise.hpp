@@ -36,14 +36,18 @@
 #include "flexipde/survey.hpp"
 #include <array>
 #include <cmath>
+#include <deque>
 #include <string>
 #include <type_traits>
 #include <utility>
 #include <vector>
 
 // The sweeps inline everything they call, the model's pointwise functions above all: only then do
-// the zero lanes of seeds placed elsewhere fold away.
+// the zero lanes of seeds placed elsewhere fold away. FLEXIPDE_RUN marks the loop over one run of
+// points of one kind: a function of its own, so that each stays small enough for the compiler's
+// passes (one function per sweep holding every kind of point took minutes to compile).
 #define FLEXIPDE_SWEEP __attribute__((flatten))
+#define FLEXIPDE_RUN __attribute__((flatten, noinline))
 
 namespace flexipde {
 
@@ -137,7 +141,15 @@ struct Frame {
   // Beyond a wall the state is the odd reflection of the inside (u = 0 on the wall, fourth-order
   // stencils stay consistent next to it), else 0.
   bool odd[2] = {false, false};
+  // Wall points are held (no equation, value 0): the stencils read them as 0 whatever the state holds.
+  bool held = false;
+  // For each position of the ghosted box: the ghosted index of the point whose value it holds (itself,
+  // or its mirror image beyond an odd wall; -1: 0 there) and the sign it is read with. Checked points
+  // read through it from ghosted arrays whose ghosts and edge strips are filled.
+  const PetscInt *src = nullptr;
+  const double *sgn = nullptr;
   int dim = 1;
+  int coef0 = 0; // where the coefficient fields start among the `np` entries of P (after the parameters)
 };
 
 // The point view handed to a model's rhs() and initial(). Mode and seeds decide what a Number is:
@@ -149,7 +161,9 @@ struct Frame {
 // are reflected or zero, and (Gather) the seeded input is found by its position (ti, tj) at run time.
 // CS < C: the state arrays hold the first CS components alone (a second-order model's positions), and
 // the others read as 0. NP: the parameters with a lane (those G reads: Eq::rhs_parameters, the first ones).
-template <int C, int K, int NP, class Sten, Mode M, int SX = 0, int SY = 0, bool CK = false, int CS = C>
+// WL: the point may lie on a wall (wall() is tested; else a compile-time false): every checked point,
+// and the neighbours a gather evaluates G at from a point within R of a wall.
+template <int C, int K, int NP, class Sten, Mode M, int SX = 0, int SY = 0, bool CK = false, int CS = C, bool WL = CK>
 class Point {
 public:
   using Number = std::conditional_t<
@@ -162,7 +176,7 @@ public:
   // State component c at offset (dx, dy) from the point.
   Number u(int c, int dx, int dy = 0) const {
     if constexpr (CS < C)
-      if (c >= CS) return Number(0.0);
+      if (c >= CS) return unstored(c, dx, dy);
     if constexpr (CK) return u_checked(c, dx, dy);
     const PetscInt k = (own_ + dx + dy * f_.syo) * CS + c;
     const double v = PetscRealPart(f_.U[k]);
@@ -176,6 +190,10 @@ public:
   }
   // Parameter k (a field's value at the offset; a scalar's value anywhere).
   Number param(int k, int dx = 0, int dy = 0) const { return field(f_.P, f_.dP, f_.np, k, k < NP ? C + K + k : -1, dx, dy); }
+  // Coefficient field k (Eq::coefficients: fixed by the geometry, computed once) at the offset: a constant.
+  Number coefficient(int k, int dx = 0, int dy = 0) const {
+    return Number(PetscRealPart(f_.P[(at_ + dx + dy * f_.sy) * f_.np + f_.coef0 + k]));
+  }
   // Auxiliary field k (Eq::auxiliaries: a = L U from the model's non-local linear maps) at the offset.
   Number aux(int k, int dx = 0, int dy = 0) const {
     static_assert(M != Mode::Rows, "a model with auxiliary fields has no assembled Jacobian");
@@ -197,13 +215,13 @@ public:
   PetscReal x(int d = 0) const { return f_.x0[d] + (d == 0 ? i_ : j_) * f_.h[d]; }
   PetscInt points(int d = 0) const { return f_.n[d]; }
   // True on a non-periodic direction's first (side 0) or last (side 1) point.
-  // (An unchecked point is never on a wall: known at compile time.)
   bool wall(int d, int side) const {
-    if (!CK || f_.periodic[d]) return false;
+    if (!WL || f_.periodic[d]) return false;
     const PetscInt i = d == 0 ? i_ : j_;
     return side == 0 ? i == 0 : i == f_.n[d] - 1;
   }
   bool on_wall() const { return wall(0, 0) || wall(0, 1) || (f_.dim > 1 && (wall(1, 0) || wall(1, 1))); }
+  bool on_wall_at(int d, PetscInt g) const { return !f_.periodic[d] && (g == 0 || g == f_.n[d] - 1); }
 
 private:
   // Entry k of a ghosted array with `stride` entries per point (a; its direction da in Tangent mode) at
@@ -230,10 +248,36 @@ private:
     sign = -sign;
     return true;
   }
+  // A component the state arrays do not hold (G is linear in it, and its derivatives read nothing of
+  // it): 0, with its derivative lane in Gather mode.
+  Number unstored(int c, int dx, int dy) const {
+    if constexpr (M == Mode::Gather) {
+      if constexpr (CK) {
+        const PetscInt p = at_ + dx + dy * f_.sy, s = f_.src[p];
+        Number r(0.0);
+        if (s >= 0 && s == at_ + (ti_ - i_) + (tj_ - j_) * f_.sy) r.d[c] = f_.sgn[p];
+        return r;
+      } else return dx == SX && dy == SY ? Number::seeded(0.0, c) : Number(0.0);
+    }
+    return Number(0.0);
+  }
   Number u_checked(int c, int dx, int dy) const {
+    if constexpr (M != Mode::Rows) {
+      const PetscInt p = at_ + dx + dy * f_.sy, s = f_.src[p];
+      if (s < 0) return Number(0.0);
+      const double sign = f_.sgn[p], v = sign * PetscRealPart(f_.Ug[s * CS + c]);
+      if constexpr (M == Mode::Value) return v;
+      else {
+        Number r(v);
+        if constexpr (M == Mode::Tangent) r.d[0] = f_.Xg ? sign * PetscRealPart(f_.Xg[s * CS + c]) : 0.0;
+        else if (s == at_ + (ti_ - i_) + (tj_ - j_) * f_.sy) r.d[c] = sign;
+        return r;
+      }
+    }
     PetscInt gi = i_ + dx, gj = j_ + dy;
     double sign = 1;
     if (!fold(0, gi, sign) || !fold(1, gj, sign)) return Number(0.0);
+    if (f_.held && (on_wall_at(0, gi) || (f_.dim > 1 && on_wall_at(1, gj)))) return Number(0.0);
     const bool owned = gi >= f_.xs && gi < f_.xs + f_.xm && gj >= f_.ys && gj < f_.ys + f_.ym;
     const PetscInt k = owned ? ((gj - f_.ys) * f_.syo + gi - f_.xs) * CS + c : (at_ + (gi - i_) + (gj - j_) * f_.sy) * CS + c;
     const double v = sign * PetscRealPart((owned ? f_.U : f_.Ug)[k]);
@@ -258,7 +302,8 @@ private:
 // ghosted index is `at` and owned index `own`; `checked`: the point may lie outside the owned block.
 inline const PetscScalar &read_split(const Frame &f, const PetscScalar *x, const PetscScalar *xg, PetscInt at,
                                      PetscInt own, PetscInt i, PetscInt j, PetscInt ncomp, int c, bool checked) {
-  if (checked && !(i >= f.xs && i < f.xs + f.xm && j >= f.ys && j < f.ys + f.ym)) return xg[at * ncomp + c];
+  (void)f, (void)i, (void)j;
+  if (checked) return xg[at * ncomp + c]; // a checked point's neighbourhood is in the ghosted array
   return x[own * ncomp + c];
 }
 
@@ -274,6 +319,7 @@ public:
   Number u(int c, int dx, int dy = 0) const { return Base::u(c, dx, dy); }
   Number param(int k, int dx = 0, int dy = 0) const { return Base::param(k, dx, dy); }
   Number aux(int k, int dx = 0, int dy = 0) const { return Base::aux(k, dx, dy); }
+  Number coefficient(int k, int dx = 0, int dy = 0) const { return Base::coefficient(k, dx, dy); }
   Number theta(int e) const { return Rev::input(Base::theta(e), e); }
 };
 
@@ -293,6 +339,8 @@ template <class Eq>
 struct HasSecondOrderActive<Eq, std::void_t<decltype(std::declval<const Eq &>().second_order_active())>> : std::true_type {};
 template <class Eq, class = void> struct HasOddWalls : std::false_type {};
 template <class Eq> struct HasOddWalls<Eq, std::void_t<decltype(std::declval<const Eq &>().odd_walls())>> : std::true_type {};
+template <class Eq, class = void> struct HasHeldWalls : std::false_type {};
+template <class Eq> struct HasHeldWalls<Eq, std::void_t<decltype(std::declval<const Eq &>().held_walls())>> : std::true_type {};
 template <class Eq, class = void> struct HasForcing : std::false_type {};
 template <class Eq> struct HasForcing<Eq, std::void_t<decltype(Eq::forced_component)>> : std::true_type {};
 template <class Eq>
@@ -304,8 +352,25 @@ template <class Eq> struct AuxOf<Eq, std::void_t<decltype(Eq::auxiliaries)>> : s
 template <class Eq, class = void> struct RhsParametersOf : std::integral_constant<int, Eq::parameters> {};
 template <class Eq>
 struct RhsParametersOf<Eq, std::void_t<decltype(Eq::rhs_parameters)>> : std::integral_constant<int, Eq::rhs_parameters> {};
+// Coefficient fields: functions of the geometry alone that G reads at points (pt.coefficient(k)), from
+// Eq::coefficient(k, pt) evaluated once, so that a sweep reads them instead of recomputing them.
+template <class Eq, class = void> struct CoefficientsOf : std::integral_constant<int, 0> {};
+template <class Eq>
+struct CoefficientsOf<Eq, std::void_t<decltype(Eq::coefficients)>> : std::integral_constant<int, Eq::coefficients> {};
 template <class Eq, class = void> struct OutputsOf : std::integral_constant<int, 0> {};
 template <class Eq> struct OutputsOf<Eq, std::void_t<decltype(Eq::outputs)>> : std::integral_constant<int, Eq::outputs> {};
+// Optional model statements for the initial condition and the forcing: the integrator's step
+// (set_time_step(dt)), a check before U0 is made (check_initial(comm)), and the points a point source
+// forces (forced(i, j), global indices; by default every point).
+template <class Eq, class = void> struct HasTimeStep : std::false_type {};
+template <class Eq>
+struct HasTimeStep<Eq, std::void_t<decltype(std::declval<Eq &>().set_time_step(PetscReal()))>> : std::true_type {};
+template <class Eq, class = void> struct HasCheckInitial : std::false_type {};
+template <class Eq>
+struct HasCheckInitial<Eq, std::void_t<decltype(std::declval<const Eq &>().check_initial(MPI_Comm()))>> : std::true_type {};
+template <class Eq, class = void> struct HasForcedPoints : std::false_type {};
+template <class Eq>
+struct HasForcedPoints<Eq, std::void_t<decltype(std::declval<const Eq &>().forced(PetscInt(), PetscInt()))>> : std::true_type {};
 
 } // namespace pointwise
 
@@ -319,13 +384,22 @@ class PointwiseModel final : public Model {
   static constexpr int NG = pointwise::RhsParametersOf<Eq>::value;
   static_assert(NG <= NP, "rhs_parameters: at most parameters");
   static constexpr bool Local = K == 0 && H == 0; // else dG/dU is applied, never assembled
+  static constexpr int NF = pointwise::CoefficientsOf<Eq>::value; // held after the parameters in P_
   static constexpr StencilShape Shape = pointwise::ShapeOf<Eq>::value;
   using Sten = pointwise::Stencil<D, R, Shape>;
   using Mode = pointwise::Mode;
-  template <Mode M, int SX = 0, int SY = 0, bool CK = false, int CS = C>
-  using Pt = pointwise::Point<C, K, NG, Sten, M, SX, SY, CK, CS>;
+  template <Mode M, int SX = 0, int SY = 0, bool CK = false, int CS = C, bool WL = CK>
+  using Pt = pointwise::Point<C, K, NG, Sten, M, SX, SY, CK, CS, WL>;
   template <bool CK> using PtInitial = pointwise::Point<C, 0, NP, Sten, Mode::Gather, 0, 0, CK>;
   template <bool CK> using Check = std::integral_constant<bool, CK>;
+  // How a point of a sweep reads (for_points<true>): in place from the owned block (0, Check<false>),
+  // through the fold table (1, Check<true>: the points on a wall), or (2, Edge) from the ghosted arrays,
+  // whose ghosts and owned edge strips hold every value it reads, mirror images and held walls
+  // included, so that it needs no check either.
+  using Edge = std::integral_constant<int, 2>;
+  // ... an Edge point within R of a wall: (gather) its neighbours beyond the wall have no equation, and
+  // those on it their wall's.
+  using EdgeNearWall = std::integral_constant<int, 3>;
   static_assert(D == 1 || D == 2, "the grid is 1D or 2D");
   static_assert(Local || pointwise::PairsOf<Eq>::value == 0, "the leapfrog kick handles local models only");
   // A state as the sweeps read it: ghosted, with its auxiliary fields (K per point, ghosted) if any.
@@ -365,7 +439,8 @@ public:
     for (int k = 0; k < NP; ++k) index_[k] = decl.index(k), fixed_[k] = decl.fixed_value(k);
     vector_slots_ = decl.vectors();
     theta_.assign(decl.theta_count(), 0.0), dtheta_ = theta_acc_ = theta_;
-    PetscCall(grid.create_dm(NP, param_dm_.out()));
+    bounds_.min.assign(NP, 0.0), bounds_.max.assign(NP, 0.0); // until parameters are set (a spectrum may be asked first)
+    PetscCall(grid.create_dm(NP + NF, param_dm_.out()));
     PetscCall(DMCreateLocalVector(param_dm_, P_.out()));
     PetscCall(VecSet(P_, 0.0)); // beyond a wall: never written, reads 0
     PetscCall(VecDuplicate(P_, dP_.out()));
@@ -407,16 +482,28 @@ public:
     frame_.n[0] = grid.n(), frame_.n[1] = grid.ny();
     frame_.periodic[0] = grid.periodic(), frame_.periodic[1] = grid.periodic_y();
     if constexpr (pointwise::HasOddWalls<Eq>::value) frame_.odd[0] = frame_.odd[1] = eq_.odd_walls();
-    frame_.np = NP;
+    if constexpr (pointwise::HasHeldWalls<Eq>::value) frame_.held = eq_.held_walls();
+    strip_ = 4 * R + 2;
+    make_fold_table();
+    frame_.np = NP + NF, frame_.coef0 = NP;
     frame_.na = K;
     frame_.syo = grid.xm();
     frame_.xs = grid.xs(), frame_.ys = grid.ys(), frame_.xm = grid.xm(), frame_.ym = grid.ym();
+    if constexpr (NF > 0) {
+      coefficients_.assign((size_t)grid.local_points() * NF, 0.0);
+      for_points(0, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+        for (int k = 0; k < NF; ++k)
+          coefficients_[own * NF + k] = eq_.coefficient(k, Pt<Mode::Value, 0, 0, decltype(ck)::value>(frame_, at, own, i, j));
+      });
+    }
     PetscCall(create_ghost_scatter(dm_, ghost_scatter_.out()));
     if constexpr (pointwise::PairsOf<Eq>::value > 0) {
       PetscCall(grid.create_dm(pointwise::PairsOf<Eq>::value, pos_dm_.out()));
       PetscCall(create_ghost_scatter(pos_dm_, pos_scatter_.out()));
       PetscCall(DMCreateLocalVector(pos_dm_, pos_.g.out()));
       PetscCall(VecSet(pos_.g, 0.0));
+      PetscCall(DMCreateGlobalVector(pos_dm_, pos_rec_.out()));
+      PetscCall(DMCreateGlobalVector(pos_dm_, pos_copy_.out()));
     }
     frame_.dim = D;
     frame_.theta = theta_.data();
@@ -432,6 +519,12 @@ public:
       if (index_[k] >= 0) PetscCall(params_->as_field(p, index_[k], f));
       else PetscCall(VecSet(f, fixed_[k]));
       PetscCall(VecStrideScatter(f, k, Pg_, INSERT_VALUES));
+    }
+    if constexpr (NF > 0) {
+      Array g(Pg_);
+      PetscCall(g.error());
+      for (size_t q = 0; q < coefficients_.size() / NF; ++q)
+        for (int k = 0; k < NF; ++k) g.data()[q * (NP + NF) + NP + k] = coefficients_[q * NF + k];
     }
     PetscCall(DMGlobalToLocal(param_dm_, Pg_, INSERT_VALUES, P_));
     PetscCall(vectors_from(p, theta_));
@@ -454,14 +547,15 @@ public:
       PetscCall(sv.error());
       PetscCall(p.error());
       PetscCall(g.error());
-      pointwise::Frame f = frame(t, sv, p.data());
+      const pointwise::Frame f = frame(t, sv, p.data()), fe = edge_frame(f);
       PetscScalar *out = g.data();
       PetscScalar *hout = nullptr;
       if constexpr (H > 0) PetscCall(VecGetArray(Hg_, &hout));
-      with_model([&](const Eq &eq) {
-        for_points(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+      with_model([&](const auto &eq) {
+        for_points<true>(R, [=](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+          constexpr int where = decltype(ck)::value;
           double gv[C + H];
-          eq.rhs(Pt<Mode::Value, 0, 0, decltype(ck)::value>(f, at, own, i, j), gv);
+          eq.rhs(Pt<Mode::Value, 0, 0, where == 1>(where >= 2 ? fe : f, at, where >= 2 ? at : own, i, j), gv);
           for (int c = 0; c < C; ++c) out[own * C + c] = gv[c];
           for (int m = 0; m < H; ++m) hout[own * H + m] = gv[C + m];
         });
@@ -469,8 +563,10 @@ public:
       if constexpr (H > 0) PetscCall(VecRestoreArray(Hg_, &hout));
       if constexpr (pointwise::HasForcing<Eq>::value)
         if (source_)
-          for (PetscInt k = 0; k < source_->stencil.n; ++k)
+          for (PetscInt k = 0; k < source_->stencil.n; ++k) {
+            if (!forced_point(source_->stencil.local[k])) continue;
             out[source_->stencil.local[k] * C + Eq::forced_component] += source_->density(k, t);
+          }
     }
     PetscCall(add_outputs(G));
     PetscFunctionReturn(0);
@@ -497,13 +593,15 @@ public:
       f.dP = dpa.data();
       f.dA = da.data();
       f.dtheta = dp && !dtheta_.empty() ? dtheta_.data() : nullptr;
+      const pointwise::Frame fe = edge_frame(f);
       PetscScalar *out = ya.data();
       PetscScalar *hout = nullptr;
       if constexpr (H > 0) PetscCall(VecGetArray(Hg_, &hout));
-      with_model([&](const Eq &eq) {
-        for_points(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+      with_model([&](const auto &eq) {
+        for_points<true>(R, [=](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+          constexpr int where = decltype(ck)::value;
           typename Pt<Mode::Tangent>::Number gv[C + H];
-          eq.rhs(Pt<Mode::Tangent, 0, 0, decltype(ck)::value>(f, at, own, i, j), gv);
+          eq.rhs(Pt<Mode::Tangent, 0, 0, where == 1>(where >= 2 ? fe : f, at, where >= 2 ? at : own, i, j), gv);
           for (int c = 0; c < C; ++c) out[own * C + c] = gv[c].d[0];
           for (int m = 0; m < H; ++m) hout[own * H + m] = gv[C + m].d[0];
         });
@@ -532,15 +630,18 @@ public:
       PetscCall(p.error());
       pointwise::Frame f = frame(t, sv, p.data());
       f.X = xo, f.Xg = xl;
+      const pointwise::Frame fe = edge_frame(f);
       const PetscInt nx = grid_->n(), ny = grid_->ny();
       const bool px = grid_->periodic(), py = grid_->periodic_y();
-      with_model([&](const Eq &eq) {
-      for_points(2 * R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+      using Offsets = std::make_integer_sequence<int, Sten::size>;
+      with_model([&](const auto &eq) {
+      for_points<true, true>(2 * R, [=](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+        constexpr int where = decltype(ck)::value;
         double yv[C] = {};
         double zv[K > 0 ? K : 1] = {};
         double gv[NG > 0 ? NG : 1] = {};
-        gather_offsets<CLO, CHI, decltype(ck)::value, CS>(eq, f, xh, at, own, i, j, nx, ny, px, py, yv, zv, gv,
-                                                          std::make_integer_sequence<int, Sten::size>());
+        gather_offsets<CLO, CHI, where, CS>(eq, where >= 2 ? fe : f, xh, at, where >= 2 ? at : own, i, j, nx, ny, px, py,
+                                            yv, zv, gv, Offsets());
         if constexpr (WY)
           for (int c = YLO; c < YHI; ++c) {
             if constexpr (ADDY) y[own * C + c] += w * yv[c];
@@ -551,6 +652,14 @@ public:
         if constexpr (WG)
           for (int k = 0; k < NG; ++k) gk[k][own] += w * gv[k];
       });
+      // An owned point's mirror images beyond odd walls are read by the stencils next to the wall:
+      // their gathers (inputs at the image, its sign) belong to the point.
+      if constexpr (WY)
+        for (const auto &v : images_) {
+          double yv[C] = {}, zv[K > 0 ? K : 1] = {}, gv[NG > 0 ? NG : 1] = {};
+          gather_offsets<CLO, CHI, 3, CS>(eq, fe, xh, v.at, v.at, v.i, v.j, nx, ny, px, py, yv, zv, gv, Offsets());
+          for (int c = YLO; c < YHI; ++c) y[v.own * C + c] += (ADDY ? w : 1.0) * v.sign * yv[c];
+        }
       });
     }
     PetscFunctionReturn(0);
@@ -561,10 +670,12 @@ public:
   // integrators' own sweeps during an adjoint solve; end_adjoint sums them), else summed now
   // (collective; the shells, whose products PETSc scales after the fact). The non-local maps enter
   // as B^T x before the sweep and L^T z after it.
-  template <int CLO = 0, int CHI = C, int YLO = 0, int YHI = C, int CS = C>
-  PetscErrorCode transpose(PetscReal t, const LocalState &s, Vec x, Vec y, bool add_y, PetscReal w, Vec mu, bool defer) {
+  // ADDY: y += w (dG/dU)^T x (the leapfrog kick), else y = (dG/dU)^T x. GRAD: y is formed and so is the
+  // gradient, a null mu's into scratch: one compiled sweep where the gradient costs little next to y.
+  template <int CLO = 0, int CHI = C, int YLO = 0, int YHI = C, int CS = C, bool ADDY = false, bool GRAD = ADDY>
+  PetscErrorCode transpose(PetscReal t, const LocalState &s, Vec x, Vec y, PetscReal w, Vec mu, bool defer) {
     PetscFunctionBeginUser;
-    PetscCall(fill_ghosts(x, Xl_));
+    PetscCall(fill_ghosts(x, Xl_, true));
     if constexpr (H > 0) {
       for (int m = 0; m < H; ++m) {
         PetscCall(eq_.output_transpose(m, x, field_));
@@ -583,15 +694,18 @@ public:
       if (K > 0 && y) PetscCall(VecGetArray(Zg_, &za));
       PetscReal *gk[NP > 0 ? NP : 1] = {};
       if (mu) fill_gradient_targets(m, defer, gk, true);
-      auto run = [&](auto wy, auto addy, auto wg) {
-        return gather<CLO, CHI, YLO, YHI, CS, decltype(wy)::value, decltype(addy)::value, decltype(wg)::value>(
-            t, s, xo, xg.data(), xha.data(), ya, w, gk, za);
+      else if (GRAD) scratch_targets(gk);
+      auto run = [&](auto wy, auto wg) {
+        return gather<CLO, CHI, YLO, YHI, CS, decltype(wy)::value, ADDY, decltype(wg)::value>(t, s, xo, xg.data(),
+                                                                                             xha.data(), ya, w, gk, za);
       };
       using T = std::true_type;
       using F = std::false_type;
-      if (!y) PetscCall(mu ? run(F(), F(), T()) : 0);
-      else if (add_y) PetscCall(mu ? run(T(), T(), T()) : run(T(), T(), F()));
-      else PetscCall(mu ? run(T(), F(), T()) : run(T(), F(), F()));
+      if constexpr (ADDY || GRAD) {
+        PetscCheck(y, grid_->comm(), PETSC_ERR_PLIB, "transpose: y is formed");
+        PetscCall(run(T(), T()));
+      } else if (!y) PetscCall(mu ? run(F(), T()) : 0);
+      else PetscCall(mu ? run(T(), T()) : run(T(), F()));
       if (mu && !theta_.empty()) {
         if (!defer) std::fill(dtheta_.begin(), dtheta_.end(), 0.0);
         PetscCall((theta_gather<CLO, CHI, CS>(t, s, xo, w, defer ? theta_acc_.data() : dtheta_.data())));
@@ -608,7 +722,7 @@ public:
           PetscCall(VecStrideGather(Zg_, k, field_, INSERT_VALUES));
           PetscCall(eq_.auxiliary_transpose(k, field_, Yt_));
         }
-        PetscCall(VecAXPY(y, add_y ? w : 1.0, Yt_));
+        PetscCall(VecAXPY(y, ADDY ? w : 1.0, Yt_));
       }
     if (mu && !defer) PetscCall(flush_scratch_scalars(mu));
     if (mu && !defer) PetscCall(add_vector_sums(mu, dtheta_));
@@ -677,10 +791,40 @@ public:
 
   // Explicit RK adjoint stage: y = (dG/dU)^T x and mu += (dG/dp)^T x, one sweep.
   bool has_stage_adjoint() const override { return true; }
-  PetscErrorCode stage_adjoint(PetscReal t, Vec U, const PetscScalar *, Vec x, Vec y, Vec mu) override {
+  PetscErrorCode stage_adjoint(PetscReal t, Vec U, const PetscScalar *record, Vec x, Vec y, Vec mu) override {
+    constexpr int m = pointwise::PairsOf<Eq>::value;
     PetscFunctionBeginUser;
+    if constexpr (m > 0)
+      if (record) { // the stage's positions alone
+        PetscCall(VecPlaceArray(pos_rec_, record));
+        pos_.ref = pos_rec_;
+        PetscCall(fill_ghosts(pos_rec_, pos_.g, pos_scatter_, m));
+        PetscCall((transpose<0, C, 0, C, m, false, true>(t, pos_, x, y, 1.0, mu, in_adjoint_)));
+        PetscCall(VecResetArray(pos_rec_));
+        PetscFunctionReturn(0);
+      }
     PetscCall(load(U, st_));
-    PetscCall(transpose(t, st_, x, y, false, 1.0, mu, in_adjoint_));
+    PetscCall(transpose(t, st_, x, y, 1.0, mu, in_adjoint_));
+    PetscFunctionReturn(0);
+  }
+  // An explicit RK's stored stages: the positions alone of a second-order model (m per point) when the
+  // transposes read nothing else of the state, which a probe at random inputs finds once (their
+  // products at two states that differ in the other components alone are the same).
+  PetscInt stage_record_size() const override {
+    return positions_suffice() ? grid_->local_points() * pointwise::PairsOf<Eq>::value : 0;
+  }
+  bool stage_record_replaces_state() const override { return stage_record_size() > 0; }
+  PetscErrorCode rhs_record(PetscReal t, Vec U, Vec G, PetscScalar *record) override {
+    constexpr int m = pointwise::PairsOf<Eq>::value;
+    PetscFunctionBeginUser;
+    PetscCall(rhs(t, U, G));
+    if constexpr (m > 0) {
+      ConstArray u(U);
+      PetscCall(u.error());
+      const PetscInt n = grid_->local_points();
+      for (PetscInt q = 0; q < n; ++q)
+        for (int c = 0; c < m; ++c) record[q * m + c] = u.data()[q * C + c];
+    }
     PetscFunctionReturn(0);
   }
 
@@ -691,24 +835,86 @@ public:
   bool has_second_order_adjoint() const override { return pointwise::PairsOf<Eq>::value > 0; }
   bool second_order_adjoint_takes_positions() const override { return pointwise::PairsOf<Eq>::value > 0; }
   PetscErrorCode second_order_adjoint(PetscReal t, Vec U, const PetscScalar *, Vec lambda, PetscReal w, Vec mu,
-                                      PetscReal drift, const PetscScalar *) override {
+                                      PetscReal drift, const PetscScalar *next) override {
     constexpr int m = pointwise::PairsOf<Eq>::value;
     PetscFunctionBeginUser;
     if constexpr (m > 0) {
+      leapfrog_prefetch(next, grid_->local_points() * m); // the positions a later kick reads, on their way during this one
       PetscInt n;
       PetscCall(VecGetLocalSize(U, &n));
-      const bool positions = n == grid_->local_points() * m;
-      if (positions) {
-        pos_.ref = U;
-        PetscCall(fill_ghosts(U, pos_.g, pos_scatter_));
-      } else PetscCall(load(U, st_));
+      pos_.ref = U;
+      if (n != grid_->local_points() * m) { // a whole state: its positions are all the kick reads
+        ConstArray u(U);
+        Array q(pos_copy_);
+        PetscCall(u.error());
+        PetscCall(q.error());
+        for (PetscInt i = 0; i < grid_->local_points(); ++i)
+          for (int c = 0; c < m; ++c) q.data()[i * m + c] = u.data()[i * C + c];
+        pos_.ref = pos_copy_;
+      }
+      PetscCall(fill_ghosts(pos_.ref, pos_.g, pos_scatter_, m));
       if (drift != 0) {
         Array l(lambda);
         PetscCall(l.error());
         leapfrog_drift_transpose(l.data(), 0, grid_->local_points(), m, drift);
       }
-      if (positions) PetscCall((transpose<m, 2 * m, 0, m, m>(t, pos_, lambda, lambda, true, w, mu, in_adjoint_)));
-      else PetscCall((transpose<m, 2 * m, 0, m>(t, st_, lambda, lambda, true, w, mu, in_adjoint_)));
+      PetscCall((transpose<m, 2 * m, 0, m, m, true>(t, pos_, lambda, lambda, w, mu, in_adjoint_)));
+    }
+    PetscFunctionReturn(0);
+  }
+  bool positions_suffice() const {
+    if (positions_probe_ < 0) {
+      bool ok = false;
+      if (const_cast<PointwiseModel *>(this)->probe_positions(&ok)) ok = false;
+      positions_probe_ = ok;
+    }
+    return positions_probe_ == 1;
+  }
+  PetscErrorCode probe_positions(bool *ok) {
+    constexpr int m = pointwise::PairsOf<Eq>::value;
+    PetscFunctionBeginUser;
+    *ok = false;
+    if constexpr (m > 0 && Local) {
+      LocalState a, b;
+      OwnedVec x, ya, yb, ma, mb, saved;
+      PetscRandom rnd;
+      PetscCall(create_state(a));
+      PetscCall(create_state(b));
+      PetscCall(VecDuplicate(a.copy, x.out()));
+      PetscCall(VecDuplicate(a.copy, ya.out()));
+      PetscCall(VecDuplicate(a.copy, yb.out()));
+      PetscCall(params_->create_vec(ma.out()));
+      PetscCall(VecDuplicate(ma, mb.out()));
+      PetscCall(VecDuplicate(P_, saved.out()));
+      PetscCall(VecCopy(P_, saved));
+      PetscCall(PetscRandomCreate(PETSC_COMM_SELF, &rnd));
+      PetscCall(PetscRandomSetInterval(rnd, 0.5, 1.5));
+      PetscCall(VecSetRandom(a.copy, rnd));
+      PetscCall(VecSetRandom(b.copy, rnd));
+      PetscCall(VecSetRandom(x, rnd));
+      PetscCall(VecSetRandom(P_, rnd));
+      {
+        ConstArray ua(a.copy);
+        Array ub(b.copy);
+        for (PetscInt q = 0; q < grid_->local_points(); ++q)
+          for (int c = 0; c < m; ++c) ub.data()[q * C + c] = ua.data()[q * C + c];
+      }
+      PetscCall(PetscRandomDestroy(&rnd));
+      PetscCall(load(a.copy, a));
+      PetscCall(load(b.copy, b));
+      PetscCall(VecSet(ma, 0.0));
+      PetscCall(VecSet(mb, 0.0));
+      PetscCall(transpose(0.5, a, x, ya, 1.0, ma, false));
+      PetscCall(transpose(0.5, b, x, yb, 1.0, mb, false));
+      PetscCall(VecCopy(saved, P_));
+      PetscReal dy, dm, ny, nm;
+      PetscCall(VecAXPY(yb, -1.0, ya));
+      PetscCall(VecAXPY(mb, -1.0, ma));
+      PetscCall(VecNorm(yb, NORM_INFINITY, &dy));
+      PetscCall(VecNorm(mb, NORM_INFINITY, &dm));
+      PetscCall(VecNorm(ya, NORM_INFINITY, &ny));
+      PetscCall(VecNorm(ma, NORM_INFINITY, &nm));
+      *ok = dy <= 1e-13 * ny && dm <= 1e-13 * nm;
     }
     PetscFunctionReturn(0);
   }
@@ -746,9 +952,15 @@ public:
     PetscFunctionReturn(0);
   }
 
+  // The integrator's fixed step, for a model whose U0 is defined through the scheme (Eq::set_time_step).
+  void set_time_step(PetscReal dt) override {
+    if constexpr (pointwise::HasTimeStep<Eq>::value) eq_.set_time_step(dt);
+  }
+
   // U0 = U0(p) pointwise, and grad += (dU0/dp)^T lambda0 from Dual numbers in the parameters.
   FLEXIPDE_SWEEP PetscErrorCode initial_condition(Vec p, Vec U0) override {
     PetscFunctionBeginUser;
+    if constexpr (pointwise::HasCheckInitial<Eq>::value) PetscCall(eq_.check_initial(grid_->comm()));
     {
       ConstArray pa(P_);
       Array u(U0);
@@ -869,48 +1081,134 @@ private:
     PetscCall(add_vector_sums(grad, dtheta_));
     PetscFunctionReturn(0);
   }
+  // Whether the point source forces owned point `own` (its index in the owned block).
+  bool forced_point(PetscInt own) const {
+    if constexpr (pointwise::HasForcedPoints<Eq>::value)
+      return eq_.forced(grid_->xs() + own % grid_->xm(), grid_->ys() + own / grid_->xm());
+    return true;
+  }
 
   PetscInt ghost_xm() const {
     PetscInt gxm;
     DMDAGetGhostCorners(dm_, nullptr, nullptr, nullptr, &gxm, nullptr, nullptr);
     return gxm;
   }
-  // The model as the sweeps read it: a copy on the stack when it can be copied, so that the compiler
-  // knows no store of a sweep changes its members: it keeps them in registers, hoists the branches
-  // on them out of the loop over points, and vectorises.
+  // The model as the sweeps read it: a copy when it can be copied (the point loops copy it again with
+  // the rest of what they capture), so that the compiler knows no store of a sweep changes its
+  // members: it keeps them in registers, hoists the branches on them out of the loop over points, and
+  // vectorises.
   template <class F> void with_model(F &&f) const {
     if constexpr (std::is_trivially_copyable_v<Eq>) {
       const Eq eq = eq_;
       f(eq);
-    } else f(eq_);
+    } else f(ModelView{&eq_});
   }
+  // ... else a view of it, which the point loops copy in place of the model.
+  struct ModelView {
+    const Eq *eq;
+    template <class P, class G> void rhs(const P &pt, G *g) const { eq->rhs(pt, g); }
+  };
+
   pointwise::Frame frame(PetscReal t, const StateView &s, const PetscScalar *P) const {
     pointwise::Frame f = frame_;
     f.t = t, f.U = s.u.data(), f.Ug = s.g.data(), f.A = s.a.data(), f.P = P;
     return f;
   }
+  // The frame of the Edge points: the state and its direction read from their ghosted arrays.
+  static pointwise::Frame edge_frame(const pointwise::Frame &f) {
+    pointwise::Frame e = f;
+    e.U = f.Ug, e.X = f.Xg, e.syo = f.sy;
+    return e;
+  }
   // Every owned point: its index in the ghosted arrays, in the owned block, its grid indices, and
   // Check<true> when it lies within `margin` of the owned block's edge (its reads are checked: they
   // may reach ghosts or beyond a wall), else Check<false>.
-  template <class F> void for_points(PetscInt margin, F &&body) const {
-    PetscInt gxs, gys, gxm, gym;
-    DMDAGetGhostCorners(dm_, &gxs, &gys, nullptr, &gxm, &gym, nullptr);
-    const PetscInt xs = grid_->xs(), xm = grid_->xm(), ys = grid_->ys(), ym = grid_->ym();
-    if (D == 1) gys = 0;
-    margin = std::max<PetscInt>(margin, 1); // wall points are always checked
-    const PetscInt lo = std::min(xs + margin, xs + xm), hi = std::max(lo, xs + xm - margin);
-    for (PetscInt j = ys; j < ys + ym; ++j) {
-      const PetscInt row = (j - gys) * gxm - gxs, own_row = (j - ys) * xm - xs;
-      const bool inside = D == 1 || (j >= ys + margin && j < ys + ym - margin);
-      if (!inside) {
-        for (PetscInt i = xs; i < xs + xm; ++i) body(row + i, own_row + i, i, j, Check<true>());
-        continue;
-      }
-      for (PetscInt i = xs; i < lo; ++i) body(row + i, own_row + i, i, j, Check<true>());
-      for (PetscInt i = lo; i < hi; ++i) body(row + i, own_row + i, i, j, Check<false>());
-      for (PetscInt i = hi; i < xs + xm; ++i) body(row + i, own_row + i, i, j, Check<true>());
+  // With Edges, only the points on a wall are checked; the others within `margin` of the block's edge
+  // are Edge points.
+  // NearWall: tell EdgeNearWall points from Edge ones (the gather alone needs to: other sweeps take them
+  // alike, with one copy of their code fewer).
+  // The points are visited kind by kind (run_kind), each kind's runs in row order.
+  template <bool Edges = false, bool NearWall = false, class F> void for_points(PetscInt margin, F &&body) const {
+    const RunPlan &plan = runs(margin, Edges, NearWall);
+    run_kind(plan.kind[0], body, Check<false>());
+    run_kind(plan.kind[1], body, Check<true>());
+    if constexpr (Edges) run_kind(plan.kind[2], body, Edge());
+    if constexpr (NearWall) run_kind(plan.kind[3], body, EdgeNearWall());
+  }
+  // Points i0 .. i0 + n - 1 of row j, the first at ghosted index `at` and owned index `own`.
+  struct Run {
+    PetscInt at, own, i0, n, j;
+  };
+  struct RunPlan {
+    std::vector<Run> kind[4]; // Check<false>, Check<true>, Edge, EdgeNearWall
+  };
+  // All runs of one kind: one function per kind and sweep, whose loops the compiler vectorises. It
+  // works on its own copy of the sweep's point function, so that what that captures by value (the
+  // model, the frame) is known to no store. (A sweep writes the point's own entries alone and reads
+  // none that it writes (the leapfrog kick writes lambda_q and reads lambda_p of one array): no
+  // iteration depends on another.)
+  template <class F, class Kind> FLEXIPDE_RUN void run_kind(const std::vector<Run> &runs, const F &body, Kind ck) const {
+    if (runs.empty()) return;
+    const auto point = body;
+    for (const Run &r : runs) {
+      const PetscInt at = r.at, own = r.own, i0 = r.i0, j = r.j;
+#pragma GCC ivdep
+      for (PetscInt k = 0; k < r.n; ++k) point(at + k, own + k, i0 + k, j, ck);
     }
   }
+  // The runs of each kind of point for a sweep with this margin (made once per margin and flags).
+  const RunPlan &runs(PetscInt margin, bool with_edges, bool near_wall) const {
+    const PetscInt key = 4 * margin + 2 * with_edges + near_wall;
+    for (const auto &p : plans_)
+      if (p.first == key) return p.second;
+    plans_.emplace_back(key, RunPlan());
+    RunPlan &plan = plans_.back().second;
+    PetscInt gxs, gys, gxm, gym;
+    DMDAGetGhostCorners(dm_, &gxs, &gys, nullptr, &gxm, &gym, nullptr);
+    const PetscInt xs = grid_->xs(), xm = grid_->xm(), ys = grid_->ys(), ym = grid_->ym(), xe = xs + xm;
+    if (D == 1) gys = 0;
+    margin = std::max<PetscInt>(margin, 1); // wall points are always checked
+    // with held walls an unchecked point's stencil stops short of them: one more checked point there
+    const bool held = frame_.held;
+    const PetscInt wx0 = held && !grid_->periodic() && xs == 0, wx1 = held && !grid_->periodic() && xe == grid_->n();
+    const PetscInt wy0 = held && D > 1 && !grid_->periodic_y() && ys == 0,
+                   wy1 = held && D > 1 && !grid_->periodic_y() && ys + ym == grid_->ny();
+    const PetscInt lo = std::min(xs + margin + wx0, xe), hi = std::max(lo, xe - margin - wx1);
+    const PetscInt nx = grid_->n(), ny = grid_->ny();
+    const bool wx = !grid_->periodic(), wy = D > 1 && !grid_->periodic_y();
+    enum { Inside, Checked, EdgeKind, NearKind };
+    auto run = [&](PetscInt j, PetscInt i0, PetscInt i1, int kind) {
+      if (i1 > i0) plan.kind[kind].push_back({(j - gys) * gxm - gxs + i0, (j - ys) * xm - xs + i0, i0, i1 - i0, j});
+    };
+    // The points of row j in [i0, i1) outside the unchecked interior: checked on a wall, else Edge, or
+    // EdgeNearWall within R of a wall (the gather's neighbours there may lie beyond it or on it).
+    auto edges = [&](PetscInt j, PetscInt i0, PetscInt i1) {
+      if (!with_edges) return run(j, i0, i1, Checked);
+      const bool wall_row = wy && (j == 0 || j == ny - 1), near_row = wy && (j <= R || j >= ny - 1 - R);
+      if (wall_row) return run(j, i0, i1, Checked);
+      // columns: [0] the wall, [1, R] near it, then the free run, [nx - 1 - R, nx - 2] near, [nx - 1] the wall
+      const PetscInt a0 = wx ? std::clamp<PetscInt>(1, i0, i1) : i0, a1 = wx ? std::clamp<PetscInt>(R + 1, i0, i1) : i0;
+      const PetscInt b1 = wx ? std::clamp<PetscInt>(nx - 1, a1, i1) : i1, b0 = wx ? std::clamp<PetscInt>(nx - 1 - R, a1, b1) : i1;
+      const int near = near_wall ? NearKind : EdgeKind;
+      run(j, i0, a0, Checked);
+      run(j, a0, a1, near);
+      run(j, a1, b0, near_row ? near : EdgeKind);
+      run(j, b0, b1, near);
+      run(j, b1, i1, Checked);
+    };
+    for (PetscInt j = ys; j < ys + ym; ++j) {
+      const bool inside = D == 1 || (j >= ys + margin + wy0 && j < ys + ym - margin - wy1);
+      if (!inside) {
+        edges(j, xs, xe);
+        continue;
+      }
+      edges(j, xs, lo);
+      run(j, lo, hi, Inside);
+      edges(j, hi, xe);
+    }
+    return plan;
+  }
+
   PetscErrorCode to_local(Vec g, Vec l) const {
     PetscFunctionBeginUser;
     PetscCall(DMGlobalToLocal(dm_, g, INSERT_VALUES, l));
@@ -925,16 +1223,88 @@ private:
     s.ref = s.copy;
     PetscFunctionReturn(0);
   }
-  // The ghost entries of the ghosted `local` from the global x (its owned entries are not written).
-  PetscErrorCode fill_ghosts(Vec x, Vec local, VecScatter sc) const {
+  // The ghosted `local` from the global x, ncomp per point: its ghosts and the owned points within
+  // `strip_` of the block's edge (all a checked or Edge point reads), then the positions the fold table
+  // maps elsewhere: mirror images beyond odd walls (their sign times the point's value) and 0 on held
+  // walls and beyond other walls, or, for a cotangent (the x of a transpose, whose entries are per
+  // equation), 0 at all of them: beyond a wall and on a held wall there is no equation.
+  PetscErrorCode fill_ghosts(Vec x, Vec local, VecScatter sc, PetscInt ncomp = C, bool cotangent = false) const {
     PetscFunctionBeginUser;
-    if (sc) {
-      PetscCall(VecScatterBegin(sc, x, local, INSERT_VALUES, SCATTER_FORWARD));
-      PetscCall(VecScatterEnd(sc, x, local, INSERT_VALUES, SCATTER_FORWARD));
+    if (sc) PetscCall(VecScatterBegin(sc, x, local, INSERT_VALUES, SCATTER_FORWARD));
+    {
+      ConstArray o(x);
+      Array g(local);
+      PetscCall(o.error());
+      PetscCall(g.error());
+      PetscInt gxs, gys, gxm;
+      DMDAGetGhostCorners(dm_, &gxs, &gys, nullptr, &gxm, nullptr, nullptr);
+      if (D == 1) gys = 0;
+      const PetscInt xs = grid_->xs(), xm = grid_->xm(), ys = grid_->ys(), ym = grid_->ym(), w = strip_;
+      auto copy = [&](PetscInt j, PetscInt i0, PetscInt i1) {
+        std::copy(o.data() + ((j - ys) * xm + i0 - xs) * ncomp, o.data() + ((j - ys) * xm + i1 - xs) * ncomp,
+                  g.data() + ((j - gys) * gxm + i0 - gxs) * ncomp);
+      };
+      for (PetscInt j = ys; j < ys + ym; ++j) {
+        if ((D > 1 && (j < ys + w || j >= ys + ym - w)) || xm <= 2 * w) copy(j, xs, xs + xm);
+        else copy(j, xs, xs + w), copy(j, xs + xm - w, xs + xm);
+      }
+    }
+    if (sc) PetscCall(VecScatterEnd(sc, x, local, INSERT_VALUES, SCATTER_FORWARD));
+    if (!folded_.empty()) {
+      Array g(local);
+      PetscCall(g.error());
+      PetscScalar *a = g.data();
+      for (const auto &e : folded_)
+        for (PetscInt c = 0; c < ncomp; ++c) a[e.at * ncomp + c] = cotangent || e.src < 0 ? 0.0 : e.sign * a[e.src * ncomp + c];
     }
     PetscFunctionReturn(0);
   }
-  PetscErrorCode fill_ghosts(Vec x, Vec local) const { return fill_ghosts(x, local, ghost_scatter_); }
+  PetscErrorCode fill_ghosts(Vec x, Vec local, bool cotangent = false) const {
+    return fill_ghosts(x, local, ghost_scatter_, C, cotangent);
+  }
+  // The ghosted box's sources and signs (Frame::src, Frame::sgn).
+  void make_fold_table() {
+    PetscInt gxs, gys, gxm, gym;
+    DMDAGetGhostCorners(dm_, &gxs, &gys, nullptr, &gxm, &gym, nullptr);
+    if (D == 1) gys = 0, gym = 1;
+    src_.assign(gxm * gym, -1), sgn_.assign(gxm * gym, 1.0);
+    const bool odd = frame_.odd[0], held = frame_.held;
+    auto fold = [&](int d, PetscInt &g, double &sign) {
+      const PetscInt n = d == 0 ? grid_->n() : grid_->ny();
+      const bool periodic = d == 0 ? grid_->periodic() : grid_->periodic_y();
+      if (periodic || (g >= 0 && g < n)) return !(held && !periodic && (g == 0 || g == n - 1));
+      if (!odd) return false;
+      g = g < 0 ? -g : 2 * (n - 1) - g, sign = -sign;
+      return !(held && (g == 0 || g == n - 1));
+    };
+    for (PetscInt b = 0; b < gym; ++b)
+      for (PetscInt a = 0; a < gxm; ++a) {
+        PetscInt gi = gxs + a, gj = gys + b;
+        double sign = 1;
+        if (!fold(0, gi, sign) || (D > 1 && !fold(1, gj, sign))) continue;
+        src_[b * gxm + a] = (gj - gys) * gxm + (gi - gxs), sgn_[b * gxm + a] = sign;
+      }
+    frame_.src = src_.data(), frame_.sgn = sgn_.data();
+    // The positions that hold another point's image or 0, and the images of owned points that a real
+    // point's stencil reaches (within R beyond the walls) whose point is not on a wall itself (a wall
+    // point is checked: its gather finds its images through the table).
+    folded_.clear(), images_.clear();
+    const PetscInt xs = grid_->xs(), xm = grid_->xm(), ys = grid_->ys(), ym = grid_->ym(), nx = grid_->n(), ny = grid_->ny();
+    const bool wx = !grid_->periodic(), wy = D > 1 && !grid_->periodic_y();
+    for (PetscInt b = 0; b < gym; ++b)
+      for (PetscInt a = 0; a < gxm; ++a) {
+        const PetscInt p = b * gxm + a, gi = gxs + a, gj = gys + b, s = src_[p];
+        if (s == p) continue;
+        folded_.push_back({p, s, sgn_[p]});
+        if (s < 0) continue;
+        const PetscInt si = gxs + s % gxm, sj = gys + s / gxm;
+        const bool reach = (gi >= -R && gi < nx + R) && (D == 1 || (gj >= -R && gj < ny + R));
+        const bool owned = si >= xs && si < xs + xm && sj >= ys && sj < ys + ym;
+        const bool on_wall = (wx && (si == 0 || si == nx - 1)) || (wy && (sj == 0 || sj == ny - 1));
+        const bool beyond = (wx && (gi < 0 || gi >= nx)) || (wy && (gj < 0 || gj >= ny));
+        if (beyond && reach && owned && !on_wall) images_.push_back({p, (sj - ys) * xm + (si - xs), gi, gj, sgn_[p]});
+      }
+  }
   // The state U for the sweeps: read in place (the caller keeps U unchanged while s is used) or, if
   // `keep`, from a copy (for products applied later); its ghosts and auxiliary fields.
   PetscErrorCode load(Vec U, LocalState &s, bool keep = false) {
@@ -1003,6 +1373,13 @@ private:
       }
     }
   }
+  // Every parameter's pointwise gradient into scratch (a sweep that forms it when no one asked).
+  void scratch_targets(PetscReal **gk) {
+    for (int k = 0; k < NP; ++k) {
+      if (dummy_target_[k].size() != (size_t)grid_->local_points()) dummy_target_[k].assign(grid_->local_points(), 0.0);
+      gk[k] = dummy_target_[k].data();
+    }
+  }
   PetscErrorCode flush_scratch_scalars(Vec mu) {
     PetscFunctionBeginUser;
     for (int k = 0; k < NP; ++k)
@@ -1022,24 +1399,29 @@ private:
 
   // The gather at owned point (i, j): for each stencil offset o, G at the point j - o (when it exists)
   // differentiated with respect to the inputs at j, contracted with x there.
-  template <int CLO, int CHI, bool CK, int CS, int... E>
-  static void gather_offsets(const Eq &eq, const pointwise::Frame &f, const PetscScalar *xh, PetscInt at, PetscInt own, PetscInt i, PetscInt j,
+  template <int CLO, int CHI, int W, int CS, class M, int... E>
+  static void gather_offsets(const M &eq, const pointwise::Frame &f, const PetscScalar *xh, PetscInt at, PetscInt own, PetscInt i, PetscInt j,
                       PetscInt nx, PetscInt ny, bool px, bool py, double *yv, double *zv, double *gv,
                       std::integer_sequence<int, E...>) {
-    (gather_one<Sten::offset(E)[0], Sten::offset(E)[1], CLO, CHI, CK, CS>(eq, f, xh, at, own, i, j, nx, ny, px, py, yv, zv, gv), ...);
+    (gather_one<Sten::offset(E)[0], Sten::offset(E)[1], CLO, CHI, W, CS>(eq, f, xh, at, own, i, j, nx, ny, px, py, yv, zv, gv), ...);
   }
-  template <int OX, int OY, int CLO, int CHI, bool CK, int CS>
-  static void gather_one(const Eq &eq, const pointwise::Frame &f, const PetscScalar *xh, PetscInt at, PetscInt own,
+  // W: how the point reads (for_points<true>); G exists at real points alone: near a wall (W = 1, 3) the
+  // gather skips the others. (Beyond it the transpose's x reads 0, so that an Edge point's neighbours
+  // there would add nothing; but their stencils would reach beyond the ghosted box.)
+  template <int OX, int OY, int CLO, int CHI, int W, int CS, class M>
+  static void gather_one(const M &eq, const pointwise::Frame &f, const PetscScalar *xh, PetscInt at, PetscInt own,
                          PetscInt i, PetscInt j, PetscInt nx, PetscInt ny, bool px, bool py, double *yv, double *zv,
                          double *gv) {
+    constexpr bool CK = W == 1;
     const PetscInt si = i - OX, sj = j - OY;
-    if constexpr (CK) {
+    if constexpr (W == 1 || W == 3) {
       if (!px && (si < 0 || si >= nx)) return;
       if (D == 2 && !py && (sj < 0 || sj >= ny)) return;
     }
     const PetscInt sat = at - OX - OY * f.sy, sown = own - OX - OY * f.syo;
-    typename Pt<Mode::Gather, OX, OY, CK, CS>::Number gd[C + H];
-    eq.rhs(Pt<Mode::Gather, OX, OY, CK, CS>(f, sat, sown, si, sj, i, j), gd);
+    using P = Pt<Mode::Gather, OX, OY, CK, CS, W == 1 || W == 3>; // (an Edge point's neighbours are never on a wall)
+    typename P::Number gd[C + H];
+    eq.rhs(P(f, sat, sown, si, sj, i, j), gd);
     auto contract = [&](const auto &g, double xc) {
       for (int cc = 0; cc < C; ++cc) yv[cc] += g.d[cc] * xc;
       for (int k = 0; k < K; ++k) zv[k] += g.d[C + k] * xc;
@@ -1169,7 +1551,7 @@ private:
     PointwiseModel *m;
     PetscFunctionBeginUser;
     PetscCall(MatShellGetContext(A, &m));
-    PetscCall(m->transpose(0, m->jac_, x, y, false, 1.0, nullptr, false));
+    PetscCall(m->transpose(0, m->jac_, x, y, 1.0, nullptr, false));
     PetscFunctionReturn(0);
   }
   static PetscErrorCode jp_mult(Mat A, Vec dp, Vec y) {
@@ -1184,7 +1566,7 @@ private:
     PetscFunctionBeginUser;
     PetscCall(MatShellGetContext(A, &m));
     PetscCall(VecSet(mu, 0.0));
-    PetscCall(m->transpose(m->jp_t_, m->jp_, x, nullptr, false, 1.0, mu, false));
+    PetscCall(m->transpose(m->jp_t_, m->jp_, x, nullptr, 1.0, mu, false));
     PetscFunctionReturn(0);
   }
 
@@ -1198,9 +1580,27 @@ private:
   OwnedVec P_, dP_, Pg_, Xl_;
   LocalState st_, jac_, jp_; // the state of rhs and the adjoint sweeps, of the Jacobian, of dG/dp
   OwnedScatter ghost_scatter_; // global -> the ghost entries of a ghosted Vec (null: no rank has any)
+  std::vector<PetscReal> coefficients_; // Eq::coefficient at the owned points, NF per point
+  std::vector<PetscInt> src_;  // Frame::src, Frame::sgn
+  struct Folded {
+    PetscInt at, src; // a position of the ghosted box and the one whose value it holds (-1: 0)
+    double sign;
+  };
+  std::vector<Folded> folded_;
+  struct Image {
+    PetscInt at, own, i, j; // a mirror image beyond a wall (ghosted index, grid indices) of owned point `own`
+    double sign;
+  };
+  std::vector<Image> images_;
+  mutable std::deque<std::pair<PetscInt, RunPlan>> plans_; // for_points' runs, per margin and flags
+  std::vector<double> sgn_;
+  PetscInt strip_ = 1;         // the owned edge strips fill_ghosts copies into a ghosted array
   OwnedDM pos_dm_;             // second-order models: the positions alone,
   LocalState pos_;             // as the leapfrog's trajectory stores them
   OwnedScatter pos_scatter_;
+  OwnedVec pos_rec_;           // an explicit RK's stored positions of a stage, placed (stage_adjoint)
+  OwnedVec pos_copy_;          // the positions copied out of a whole state
+  mutable int positions_probe_ = -1; // positions_suffice: unknown, no, yes
   OwnedVec Ag_, dAl_, Zg_, Hg_, XHl_, field_, Yt_; // non-local maps: their fields and scratch
   PetscReal jp_t_ = 0;
   ParameterBounds bounds_;
