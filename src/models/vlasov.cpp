@@ -149,6 +149,7 @@ public:
     PetscCheck(grid.periodic() && !grid.periodic_y(), grid.comm(), PETSC_ERR_ARG_WRONG,
                "Model vlasov needs x periodic (-grid_periodic 1) and v not periodic (-grid_periodic_y 0)");
     grid_ = &grid;
+    dissipative_ = dissipation_ > 0;
     k_ = 2 * PETSC_PI * mode_ / (grid.x1() - grid.x0());
     cx_ = 1 / (12 * grid.h()), cv_ = 1 / (12 * grid.hy());
     decl.parameter(alpha, "vlasov_alpha", false, PETSC_NINFINITY, d.alpha);
@@ -165,7 +166,7 @@ public:
   template <class P> void rhs(const P &pt, typename P::Number *g) const {
     const double v = pt.x(1);
     g[0] = -v * dx(pt) + pt.aux(0) * dv(pt);
-    if (dissipation_ > 0) g[0] -= dissipation_ * (std::fabs(v) * cx_ * d4x(pt) + E_cfl_ * cv_ * q(pt));
+    if (dissipative_) g[0] -= dissipation_ * (std::fabs(v) * cx_ * d4x(pt) + E_cfl_ * cv_ * q(pt));
   }
   template <class P> void initial(const P &pt, typename P::Number *f) const {
     f[0] = (1.0 + pt.param(alpha) * std::cos(k_ * pt.x(0))) * profile(pt.x(1), pt.param(vt), pt.param(v0), pt.param(ratio));
@@ -324,6 +325,7 @@ private:
 
   const Grid *grid_ = nullptr;
   PetscInt ic_ = landau, mode_ = 1;
+  bool dissipative_ = false; // a bool, not a double: a store to a double array cannot change it, so the test leaves the loops
   PetscReal k_ = 0.5, cx_ = 1, cv_ = 1, dissipation_ = 0, E_cfl_ = 1;
   Antiderivative K_;
   mutable std::vector<PetscReal> column_; // a length-N_x work array: S f, E, K E
