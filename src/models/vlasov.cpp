@@ -1,43 +1,32 @@
-// Vlasov-Poisson for electrons on a neutralising ion background, 1D in x and 1D in velocity v:
+// Vlasov-Poisson for electrons (charge -1, mass 1; time in 1/omega_p, length in Debye lengths) on a
+// neutralising ion background of density 1, 1D in x and 1D in velocity v:
 //
-//   f_t + v f_x - E f_v = 0,     E_x = 1 - rho,   rho(x) = int f dv,   int E dx = 0.
+//   f_t + v f_x - E f_v = 0,     E_x = 1 - rho,   rho(x) = int f dv,   int E dx = 0,
 //
-// Electrons have charge -1 and mass 1 (time in 1/omega_p, length in Debye lengths), so the force on
-// them is -E; the ions are a uniform density 1. f lives on the phase-space grid (x, v): x periodic on
-// [0, L), v in [-v_max, v_max] (the grid's y direction, end points included), f = 0 beyond it.
+// on the phase-space grid (x, v): x periodic on [0, L), v in [-v_max, v_max] (the grid's y direction,
+// end points included), f = 0 beyond it. At every grid point (i, j):
+//   G(f) = -v_j D_x f + E_i(f) D_v f  [- c (|v_j| / 12h d_x^4 f + E_cfl / 12hv Q f)]
+//   D_x  centred fourth order, periodic: (f_{i-2} - 8 f_{i-1} + 8 f_{i+1} - f_{i+2}) / 12h;
+//   D_v  conservative flux form (F_{j+1/2} - F_{j-1/2}) / hv, faces F_{j+1/2} = (-f_{j-1} + 7 f_j
+//        + 7 f_{j+1} - f_{j+2}) / 12, no flux through the two outer faces: the centred stencil away
+//        from the end rows (f = 0 beyond them); its columns sum to 0, so the mass is conserved to round-off;
+//   E = L f = -hv R K S f  (the auxiliary field): S sums over v, K is the spectral zero-mean
+//        antiderivative, (K s)^_m = s^_m / (i kappa_m) for 0 < |m| < N_x/2 and 0 for the mean and the
+//        Nyquist mode (E = K(1 - rho) = -K rho as K 1 = 0), R replicates along v; L^T = hv R K S (K^T = -K);
+//   the optional dissipation (-vlasov_dissipation c): d_x^4 the periodic fourth difference, Q = (B^T B)^2
+//        with B^T B the second difference without flux through the velocity bounds; symmetric, negative
+//        semi-definite, mass-conserving; c = 1 makes the x advection third-order upwind-biased.
+// The pointwise layer (pointwise.hpp) derives dG/dU (a shell), its transpose, dU0/dp and the adjoint
+// sweeps from rhs() and initial().
 //
-//   G(f)_ij = -v_j (D_x f)_ij + E_i(f) (D_v f)_ij - c (dissipation)
-//   D_x: centred fourth order, periodic:  (f_{i-2} - 8 f_{i-1} + 8 f_{i+1} - f_{i+2}) / 12h
-//   D_v: conservative flux form, (F_{j+1/2} - F_{j-1/2}) / hv with faces F_{j+1/2} = (-f_{j-1} + 7f_j
-//        + 7f_{j+1} - f_{j+2}) / 12 and no flux through the two outer faces. Away from the two end rows
-//        this is the centred stencil above (f = 0 beyond the ends); the column sums of D_v vanish, so
-//        the mass h hv sum f is conserved to round-off.
-//   E = L f = -hv R K S f: S sums over v, K is the spectral zero-mean antiderivative on x,
-//        (K s)^_m = s^_m / (i kappa_m) for 0 < |m| < N_x/2, 0 for the mean and the Nyquist mode
-//        (E = K(1 - rho) = -K rho since K 1 = 0), and R replicates E along v: the auxiliary field.
-//        K^T = -K, so L^T z = hv R K S z.
-// The pointwise layer (pointwise.hpp) derives dG/dU (a shell: tangents through L x, transposes through
-// the gather and L^T), dU0/dp and the adjoint sweeps from rhs() and initial() below.
-//
-// Dissipation (-vlasov_dissipation c, default 0): G -= c [ |v| / 12h  d_x^4 f + E_cfl / 12hv  Q f ],
-// d_x^4 the periodic fourth difference, Q = (B^T B)^2 with B^T B the second difference without flux
-// through the velocity bounds: linear, symmetric, negative semi-definite, mass-conserving. c = 1 makes
-// the x advection the third-order upwind-biased scheme.
-//
-// Initial condition f0 = (1 + alpha cos(k x)) F(v), k = 2 pi m / L (-vlasov_mode m):
-//   -vlasov_ic landau      F = M(v; vt)                                     (k 0.5, alpha 0.01)
-//   -vlasov_ic two_stream  F = [M(v - v0; vt) + M(v + v0; vt sqrt(r))] / 2  (k 0.2, alpha 1e-3, v0 2.4)
-// with M(u; s) = exp(-u^2 / 2s^2) / (sqrt(2 pi) s), r the beams' temperature ratio. alpha, vt (and v0, r
-// for two_stream) are the scalar parameters vlasov_alpha, vlasov_vt, vlasov_v0, vlasov_temperature_ratio.
-// -vlasov_k sets the default domain length 2 pi / k, -vlasov_vmax the default velocity bounds.
-//
-// Functionals (for -objective_type functional / functional_integral): field_energy 0.5 h sum_i E_i^2,
-// mass h hv sum f, momentum h hv sum v f, kinetic_energy 0.5 h hv sum v^2 f, energy (kinetic + field),
-// l2 sqrt(h hv sum f^2).
-//
-// Explicit stability: eigenvalues of dG/dU in i [-R, R], R = 1.372 (v_max / h + E_max / hv) (1.372: the
-// largest fourth-order symbol), E_max the larger of max|E(f0)| and -vlasov_E_cfl; with dissipation,
-// sampled sums of the x and v symbols.
+// f0 = (1 + alpha cos(k x)) F(v), k = 2 pi m / L (-vlasov_mode m), M(u; s) = exp(-u^2 / 2s^2) / (sqrt(2 pi) s):
+//   -vlasov_ic landau      F = M(v; vt)                                     (k 0.5, alpha 0.01, v_max 6)
+//   -vlasov_ic two_stream  F = [M(v - v0; vt) + M(v + v0; vt sqrt(r))] / 2  (k 0.2, alpha 1e-3, v0 2.4, v_max 8)
+// with the scalar parameters vlasov_alpha, vlasov_vt, vlasov_v0, vlasov_temperature_ratio (r). -vlasov_k
+// and -vlasov_vmax set the default domain [0, 2 pi / k) x [-v_max, v_max].
+// Functionals: field_energy 0.5 h sum E^2, mass, momentum, kinetic_energy (cell sums of f, v f, v^2 f / 2),
+// energy (kinetic + field), l2. Explicit stability: the spectrum lies in i [-R, R], R = 1.372 (v_max / h +
+// E_max / hv), E_max the larger of max|E(f0)| and -vlasov_E_cfl; with dissipation, sampled symbols.
 //
 //   mpiexec --allow-run-as-root --oversubscribe -n 2 ./flexipde -model vlasov -task forward
 //           -da_grid_x 64 -da_grid_y 128 -ts_dt 0.05 -ts_max_time 10                           (one line)
@@ -48,9 +37,9 @@
 //           -task gradient -da_grid_x 32 -da_grid_y 64 -ts_type cn -ts_dt 0.1 -ts_max_time 5
 //           -objective_type functional_integral -vlasov_dissipation 1 -check_fd                  (one line)
 #include "flexipde/pointwise.hpp"
-#include <fftw3.h>
+#include <complex>
 #include <cstring>
-#include <memory>
+#include <fftw3.h>
 
 namespace flexipde {
 namespace {
@@ -73,37 +62,28 @@ PetscInt read_ic() {
 class Antiderivative {
 public:
   void setup(PetscInt n, PetscReal length) {
-    n_ = n;
-    in_.reset(fftw_alloc_real(n));
-    out_.reset(fftw_alloc_complex(n / 2 + 1));
-    forward_.reset(fftw_plan_dft_r2c_1d((int)n, in_.get(), out_.get(), FFTW_ESTIMATE));
-    backward_.reset(fftw_plan_dft_c2r_1d((int)n, out_.get(), in_.get(), FFTW_ESTIMATE));
-    inv_kappa_.assign(n / 2 + 1, 0.0);
-    for (PetscInt m = 1; 2 * m < n; ++m) inv_kappa_[m] = length / (2 * PETSC_PI * m);
+    in_.assign(n, 0.0), out_.assign(n / 2 + 1, 0.0), inv_kappa_.assign(n / 2 + 1, 0.0);
+    auto *c = reinterpret_cast<fftw_complex *>(out_.data());
+    forward_ = fftw_plan_dft_r2c_1d((int)n, in_.data(), c, FFTW_ESTIMATE);
+    backward_ = fftw_plan_dft_c2r_1d((int)n, c, in_.data(), FFTW_ESTIMATE);
+    for (PetscInt m = 1; 2 * m < n; ++m) inv_kappa_[m] = length / (2 * PETSC_PI * m) / n; // and FFTW's 1/n
   }
-  void apply(std::vector<PetscReal> &s) const { // s = K s
-    std::copy(s.begin(), s.end(), in_.get());
-    fftw_execute(forward_.get());
-    for (PetscInt m = 0; m <= n_ / 2; ++m) { // (a + ib) / (i kappa) = (b - ia) / kappa, and 1/n
-      const double a = out_.get()[m][0], b = out_.get()[m][1], c = inv_kappa_[m] / n_;
-      out_.get()[m][0] = b * c, out_.get()[m][1] = -a * c;
-    }
-    fftw_execute(backward_.get());
-    std::copy(in_.get(), in_.get() + n_, s.begin());
+  void apply(std::vector<PetscReal> &s) const { // s = K s: s^_m / (i kappa_m)
+    std::copy(s.begin(), s.end(), in_.begin());
+    fftw_execute(forward_);
+    for (size_t m = 0; m < out_.size(); ++m) out_[m] *= std::complex<double>(0, -inv_kappa_[m]);
+    fftw_execute(backward_);
+    std::copy(in_.begin(), in_.end(), s.begin());
+  }
+  ~Antiderivative() {
+    if (forward_) fftw_destroy_plan(forward_), fftw_destroy_plan(backward_);
   }
 
 private:
-  struct Free {
-    void operator()(void *p) const { fftw_free(p); }
-  };
-  struct Destroy {
-    void operator()(fftw_plan p) const { fftw_destroy_plan(p); }
-  };
-  PetscInt n_ = 0;
-  std::unique_ptr<double, Free> in_;
-  std::unique_ptr<fftw_complex, Free> out_;
-  std::unique_ptr<std::remove_pointer_t<fftw_plan>, Destroy> forward_, backward_;
+  mutable std::vector<double> in_;
+  mutable std::vector<std::complex<double>> out_;
   std::vector<PetscReal> inv_kappa_;
+  fftw_plan forward_ = nullptr, backward_ = nullptr;
 };
 
 } // namespace
@@ -270,7 +250,7 @@ private:
   template <class P> auto d4x(const P &pt) const {
     return pt.u(0, -2) - 4.0 * pt.u(0, -1) + 6.0 * pt.u(0, 0) - 4.0 * pt.u(0, 1) + pt.u(0, 2);
   }
-  // (B^T B f) at row j + o and Q f = (B^T B)^2 f: differences between rows, none through the bounds.
+  // (B^T B f) at row j + o, and Q f = (B^T B)^2 f: differences between rows, none through the bounds.
   template <class P> auto lap(const P &pt, int o) const {
     const PetscInt j = pt.index(1) + o;
     typename P::Number s(0.0);
@@ -279,11 +259,7 @@ private:
     return s;
   }
   template <class P> auto q(const P &pt) const {
-    const PetscInt j = pt.index(1);
-    typename P::Number s(0.0);
-    if (j > 0) s += lap(pt, -1) - lap(pt, 0);
-    if (j < pt.points(1) - 1) s += lap(pt, 1) - lap(pt, 0);
-    return s;
+    return (pt.index(1) > 0 ? lap(pt, -1) - lap(pt, 0) : 0.0) + (pt.index(1) < pt.points(1) - 1 ? lap(pt, 1) - lap(pt, 0) : 0.0);
   }
   static PetscReal sym(PetscReal th) { return (8 * std::sin(th) - std::sin(2 * th)) / 6; } // of 12 h D_x
   template <class T> static T maxwellian(const T &u, const T &s) { return exp(-0.5 * u * u / (s * s)) / (std::sqrt(2 * PETSC_PI) * s); }
