@@ -312,6 +312,11 @@ template <class Eq>
 struct RhsParametersOf<Eq, std::void_t<decltype(Eq::rhs_parameters)>> : std::integral_constant<int, Eq::rhs_parameters> {};
 template <class Eq, class = void> struct OutputsOf : std::integral_constant<int, 0> {};
 template <class Eq> struct OutputsOf<Eq, std::void_t<decltype(Eq::outputs)>> : std::integral_constant<int, Eq::outputs> {};
+// Optional named functionals of the state (Model::functional): `functional_names()` and
+// `functional(name, U, value, dFdU)`, forwarded as the model states them.
+template <class Eq, class = void> struct HasFunctionals : std::false_type {};
+template <class Eq>
+struct HasFunctionals<Eq, std::void_t<decltype(std::declval<const Eq &>().functional_names())>> : std::true_type {};
 
 } // namespace pointwise
 
@@ -750,6 +755,16 @@ public:
     if constexpr (HasSpectrum<Eq>::value) PetscCall(eq_.spectrum(bounds_, s));
     else PetscCall(gershgorin(s));
     PetscFunctionReturn(0);
+  }
+
+  // Named functionals: the model's own (Eq::functional_names, Eq::functional), else none.
+  std::string functional_names() const override {
+    if constexpr (pointwise::HasFunctionals<Eq>::value) return eq_.functional_names();
+    else return Model::functional_names();
+  }
+  PetscErrorCode functional(const char *fname, Vec U, PetscReal *value, Vec dFdU) override {
+    if constexpr (pointwise::HasFunctionals<Eq>::value) return eq_.functional(fname, U, value, dFdU);
+    else return Model::functional(fname, U, value, dFdU);
   }
 
   // U0 = U0(p) pointwise, and grad += (dU0/dp)^T lambda0 from Dual numbers in the parameters.
