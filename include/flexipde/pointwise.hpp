@@ -371,6 +371,11 @@ struct HasCheckInitial<Eq, std::void_t<decltype(std::declval<const Eq &>().check
 template <class Eq, class = void> struct HasForcedPoints : std::false_type {};
 template <class Eq>
 struct HasForcedPoints<Eq, std::void_t<decltype(std::declval<const Eq &>().forced(PetscInt(), PetscInt()))>> : std::true_type {};
+// Optional named functionals of the state (Model::functional): `functional_names()` and
+// `functional(name, U, value, dFdU)`, forwarded as the model states them.
+template <class Eq, class = void> struct HasFunctionals : std::false_type {};
+template <class Eq>
+struct HasFunctionals<Eq, std::void_t<decltype(std::declval<const Eq &>().functional_names())>> : std::true_type {};
 
 } // namespace pointwise
 
@@ -955,6 +960,15 @@ public:
   // The integrator's fixed step, for a model whose U0 is defined through the scheme (Eq::set_time_step).
   void set_time_step(PetscReal dt) override {
     if constexpr (pointwise::HasTimeStep<Eq>::value) eq_.set_time_step(dt);
+  }
+  // Named functionals: the model's own (Eq::functional_names, Eq::functional), else none.
+  std::string functional_names() const override {
+    if constexpr (pointwise::HasFunctionals<Eq>::value) return eq_.functional_names();
+    else return Model::functional_names();
+  }
+  PetscErrorCode functional(const char *fname, Vec U, PetscReal *value, Vec dFdU) override {
+    if constexpr (pointwise::HasFunctionals<Eq>::value) return eq_.functional(fname, U, value, dFdU);
+    else return Model::functional(fname, U, value, dFdU);
   }
 
   // U0 = U0(p) pointwise, and grad += (dU0/dp)^T lambda0 from Dual numbers in the parameters.
