@@ -86,15 +86,9 @@ public:
   // per grid point, laid out like the grid's own one-component Vecs for m = 1): a full-storage
   // trajectory then hands the kick the stored positions in place instead of copying them into a state.
   virtual bool second_order_adjoint_takes_positions() const { return false; }
-  // True when second_order_adjoint can work from the record rhs_record writes at the level's state
-  // (stage_record_size() entries) instead of the state: all it reads of the state is in the record.
-  // A full-storage trajectory then keeps, for every level, the record that the forward's evaluation of
-  // G there writes, and hands it to the kick (`record` non-null, U null). `prefetch` is then where the
-  // next call's record is.
-  virtual bool second_order_adjoint_takes_record() const { return false; }
-  virtual PetscErrorCode second_order_adjoint(PetscReal t, Vec U, const PetscScalar *record, Vec lambda, PetscReal w,
-                                              Vec mu, PetscReal drift, const PetscScalar *prefetch) {
-    (void)t, (void)U, (void)record, (void)w, (void)mu, (void)drift, (void)prefetch;
+  virtual PetscErrorCode second_order_adjoint(PetscReal t, Vec U, Vec lambda, PetscReal w, Vec mu, PetscReal drift,
+                                              const PetscScalar *prefetch) {
+    (void)t, (void)U, (void)w, (void)mu, (void)drift, (void)prefetch;
     SETERRQ(PetscObjectComm((PetscObject)lambda), PETSC_ERR_SUP, "Model %s has no fused second-order adjoint", name());
   }
   // Optional: the products of one explicit-RK adjoint stage fused into one sweep without any matrix:

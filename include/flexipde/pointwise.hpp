@@ -834,8 +834,8 @@ public:
   // stores.
   bool has_second_order_adjoint() const override { return pointwise::PairsOf<Eq>::value > 0; }
   bool second_order_adjoint_takes_positions() const override { return pointwise::PairsOf<Eq>::value > 0; }
-  PetscErrorCode second_order_adjoint(PetscReal t, Vec U, const PetscScalar *, Vec lambda, PetscReal w, Vec mu,
-                                      PetscReal drift, const PetscScalar *next) override {
+  PetscErrorCode second_order_adjoint(PetscReal t, Vec U, Vec lambda, PetscReal w, Vec mu, PetscReal drift,
+                                      const PetscScalar *next) override {
     constexpr int m = pointwise::PairsOf<Eq>::value;
     PetscFunctionBeginUser;
     if constexpr (m > 0) {
