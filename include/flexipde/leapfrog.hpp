@@ -68,8 +68,8 @@ inline void leapfrog_drift_transpose(PetscScalar *lambda, PetscInt lo, PetscInt 
     for (PetscInt i = lo; i < hi; ++i)
       for (PetscInt c = 0; c < m; ++c) lambda[2 * m * i + m + c] += s * lambda[2 * m * i + c];
 }
-// takes_positions: the kick also accepts the positions alone as U (Model::second_order_adjoint_takes_positions).
-PetscErrorCode leapfrog_set_adjoint_kick(TS ts, LeapfrogAdjointKick kick, void *ctx, bool takes_positions = false);
+// The kick takes U as a whole state or as the positions alone.
+PetscErrorCode leapfrog_set_adjoint_kick(TS ts, LeapfrogAdjointKick kick, void *ctx);
 // For a trajectory that stores the positions alone (m of every 2m components, contiguous): the next
 // adjoint step's level k-1 reads them from q in place when the kick takes positions (*placed), else
 // the trajectory must fill the stage with U_{k-1} itself. q must stay valid until that step is done.

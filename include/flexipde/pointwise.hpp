@@ -833,7 +833,6 @@ public:
   // U may be the positions alone (m per point; G_p reads nothing else), which is all a trajectory then
   // stores.
   bool has_second_order_adjoint() const override { return pointwise::PairsOf<Eq>::value > 0; }
-  bool second_order_adjoint_takes_positions() const override { return pointwise::PairsOf<Eq>::value > 0; }
   PetscErrorCode second_order_adjoint(PetscReal t, Vec U, Vec lambda, PetscReal w, Vec mu, PetscReal drift,
                                       const PetscScalar *next) override {
     constexpr int m = pointwise::PairsOf<Eq>::value;

@@ -28,10 +28,9 @@ struct Leapfrog {
   // the model's fused adjoint kick, when it has one
   LeapfrogAdjointKick adjoint_kick = nullptr;
   void *adjoint_kick_ctx = nullptr;
-  // ... and whether it reads the positions alone: a full-storage trajectory then points Q (a Vec of
-  // the positions, no array of its own) at the stored ones of level k-1 before the adjoint of step
-  // k-1 -> k, which reads them there instead of from Y0 (leapfrog_place_positions).
-  bool kick_takes_positions = false;
+  // It reads the positions alone: a full-storage trajectory points Q (a Vec of the positions, no array
+  // of its own) at the stored ones of level k-1 before the adjoint of step k-1 -> k, which reads them
+  // there instead of from Y0 (leapfrog_place_positions).
   Vec Q = nullptr;
   bool Q_placed = false;
   const PetscScalar *Q_next = nullptr; // the positions the step after that reads, for the kick to prefetch
@@ -398,11 +397,10 @@ PetscErrorCode set_pairs(TS ts, PetscInt m) {
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode set_adjoint_kick(TS ts, LeapfrogAdjointKick kick, void *ctx, PetscBool takes_positions) {
+PetscErrorCode set_adjoint_kick(TS ts, LeapfrogAdjointKick kick, void *ctx) {
   PetscFunctionBegin;
   data(ts)->adjoint_kick = kick;
   data(ts)->adjoint_kick_ctx = ctx;
-  data(ts)->kick_takes_positions = kick && takes_positions;
   PetscFunctionReturn(0);
 }
 
@@ -442,10 +440,9 @@ PetscErrorCode leapfrog_set_pairs(TS ts, PetscInt m) {
 
 PetscInt leapfrog_pairs(TS ts) { return is_leapfrog(ts) ? data(ts)->pairs : 0; }
 
-PetscErrorCode leapfrog_set_adjoint_kick(TS ts, LeapfrogAdjointKick kick, void *ctx, bool takes_positions) {
+PetscErrorCode leapfrog_set_adjoint_kick(TS ts, LeapfrogAdjointKick kick, void *ctx) {
   PetscFunctionBegin;
-  PetscTryMethod(ts, "FlexipdeLeapfrogSetAdjointKick_C", (TS, LeapfrogAdjointKick, void *, PetscBool),
-                 (ts, kick, ctx, takes_positions ? PETSC_TRUE : PETSC_FALSE));
+  PetscTryMethod(ts, "FlexipdeLeapfrogSetAdjointKick_C", (TS, LeapfrogAdjointKick, void *), (ts, kick, ctx));
   PetscFunctionReturn(0);
 }
 
@@ -462,7 +459,7 @@ PetscErrorCode leapfrog_place_positions(TS ts, const PetscScalar *q, const Petsc
   *placed = false;
   if (!is_leapfrog(ts)) PetscFunctionReturn(0);
   Leapfrog *lf = data(ts);
-  if (!lf->kick_takes_positions || ts->quadraturets) PetscFunctionReturn(0);
+  if (!lf->adjoint_kick || ts->quadraturets) PetscFunctionReturn(0);
   if (!lf->Q) {
     PetscInt n;
     PetscCall(VecGetLocalSize(ts->vec_sol, &n));

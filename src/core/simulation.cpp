@@ -468,7 +468,7 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
                model_->name());
     PetscCall(leapfrog_set_pairs(ts, model_->second_order_pairs()));
     if (leapfrog_fused_)
-      PetscCall(leapfrog_set_adjoint_kick(ts, adjoint_kick_cb, this, model_->second_order_adjoint_takes_positions()));
+      PetscCall(leapfrog_set_adjoint_kick(ts, adjoint_kick_cb, this));
   }
   // An explicit RK only applies dG/dU (its adjoint: the transpose): the model's matrix-free operator
   // when it has one.
