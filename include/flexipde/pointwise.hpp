@@ -191,9 +191,7 @@ public:
   // Parameter k (a field's value at the offset; a scalar's value anywhere).
   Number param(int k, int dx = 0, int dy = 0) const { return field(f_.P, f_.dP, f_.np, k, k < NP ? C + K + k : -1, dx, dy); }
   // Coefficient field k (Eq::coefficients: fixed by the geometry, computed once) at the offset: a constant.
-  Number coefficient(int k, int dx = 0, int dy = 0) const {
-    return Number(PetscRealPart(f_.P[(at_ + dx + dy * f_.sy) * f_.np + f_.coef0 + k]));
-  }
+  Number coefficient(int k, int dx = 0, int dy = 0) const { return field(f_.P, nullptr, f_.np, f_.coef0 + k, -1, dx, dy); }
   // Auxiliary field k (Eq::auxiliaries: a = L U from the model's non-local linear maps) at the offset.
   Number aux(int k, int dx = 0, int dy = 0) const {
     static_assert(M != Mode::Rows, "a model with auxiliary fields has no assembled Jacobian");
