@@ -671,9 +671,11 @@ public:
   // ADDY: y += w (dG/dU)^T x (the leapfrog kick), else y = (dG/dU)^T x. GRAD: y is formed and so is the
   // gradient, a null mu's into scratch: one compiled sweep where the gradient costs little next to y.
   template <int CLO = 0, int CHI = C, int YLO = 0, int YHI = C, int CS = C, bool ADDY = false, bool GRAD = ADDY>
-  PetscErrorCode transpose(PetscReal t, const LocalState &s, Vec x, Vec y, PetscReal w, Vec mu, bool defer) {
+  // x_ghosts: Xl_ already holds x ghosted (the caller filled it).
+  PetscErrorCode transpose(PetscReal t, const LocalState &s, Vec x, Vec y, PetscReal w, Vec mu, bool defer,
+                           bool x_ghosts = false) {
     PetscFunctionBeginUser;
-    PetscCall(fill_ghosts(x, Xl_, true));
+    if (!x_ghosts) PetscCall(fill_ghosts(x, Xl_, true));
     if constexpr (H > 0) {
       for (int m = 0; m < H; ++m) {
         PetscCall(eq_.output_transpose(m, x, field_));
@@ -849,13 +851,17 @@ public:
           for (int c = 0; c < m; ++c) q.data()[i * m + c] = u.data()[i * C + c];
         pos_.ref = pos_copy_;
       }
-      PetscCall(fill_ghosts(pos_.ref, pos_.g, pos_scatter_, m));
+      // the ghosts of the positions and of lambda (after the drift) travel at once
+      if (pos_scatter_) PetscCall(VecScatterBegin(pos_scatter_, pos_.ref, pos_.g, INSERT_VALUES, SCATTER_FORWARD));
       if (drift != 0) {
         Array l(lambda);
         PetscCall(l.error());
         leapfrog_drift_transpose(l.data(), 0, grid_->local_points(), m, drift);
       }
-      PetscCall((transpose<m, 2 * m, 0, m, m, true>(t, pos_, lambda, lambda, w, mu, in_adjoint_)));
+      if (ghost_scatter_) PetscCall(VecScatterBegin(ghost_scatter_, lambda, Xl_, INSERT_VALUES, SCATTER_FORWARD));
+      PetscCall(fill_ghosts(pos_.ref, pos_.g, pos_scatter_, m, false, true));
+      PetscCall(fill_ghosts(lambda, Xl_, ghost_scatter_, C, true, true));
+      PetscCall((transpose<m, 2 * m, 0, m, m, true>(t, pos_, lambda, lambda, w, mu, in_adjoint_, true)));
     }
     PetscFunctionReturn(0);
   }
@@ -1225,9 +1231,11 @@ private:
   // maps elsewhere: mirror images beyond odd walls (their sign times the point's value) and 0 on held
   // walls and beyond other walls, or, for a cotangent (the x of a transpose, whose entries are per
   // equation), 0 at all of them: beyond a wall and on a held wall there is no equation.
-  PetscErrorCode fill_ghosts(Vec x, Vec local, VecScatter sc, PetscInt ncomp = C, bool cotangent = false) const {
+  // begun: the caller has begun the scatter (to have two arrays' ghosts on their way at once).
+  PetscErrorCode fill_ghosts(Vec x, Vec local, VecScatter sc, PetscInt ncomp = C, bool cotangent = false,
+                             bool begun = false) const {
     PetscFunctionBeginUser;
-    if (sc) PetscCall(VecScatterBegin(sc, x, local, INSERT_VALUES, SCATTER_FORWARD));
+    if (sc && !begun) PetscCall(VecScatterBegin(sc, x, local, INSERT_VALUES, SCATTER_FORWARD));
     {
       ConstArray o(x);
       Array g(local);
