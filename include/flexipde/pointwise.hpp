@@ -43,7 +43,7 @@
 #include <vector>
 
 // The sweeps inline everything they call, the model's pointwise functions above all: only then do
-// the zero lanes of seeds placed elsewhere fold away. FLEXIPDE_RUN marks the loop over one run of
+// the zero lanes of seeds placed elsewhere fold away. FLEXIPDE_RUN marks the loop over the runs of
 // points of one kind: a function of its own, so that each stays small enough for the compiler's
 // passes (one function per sweep holding every kind of point took minutes to compile).
 #define FLEXIPDE_SWEEP __attribute__((flatten))
@@ -1363,10 +1363,7 @@ private:
     for (int k = 0; k < NP; ++k) {
       gk[k] = nullptr;
       if (index_[k] < 0) {
-        if (dummy) {
-          if (dummy_target_[k].size() != (size_t)grid_->local_points()) dummy_target_[k].assign(grid_->local_points(), 0.0);
-          gk[k] = dummy_target_[k].data();
-        }
+        if (dummy) gk[k] = scratch_target(k);
         continue;
       }
       const ParamInfo &pi = params_->info(index_[k]);
@@ -1380,10 +1377,12 @@ private:
   }
   // Every parameter's pointwise gradient into scratch (a sweep that forms it when no one asked).
   void scratch_targets(PetscReal **gk) {
-    for (int k = 0; k < NP; ++k) {
-      if (dummy_target_[k].size() != (size_t)grid_->local_points()) dummy_target_[k].assign(grid_->local_points(), 0.0);
-      gk[k] = dummy_target_[k].data();
-    }
+    for (int k = 0; k < NP; ++k) gk[k] = scratch_target(k);
+  }
+  // Slot k's scratch target: one per slot, so that no two targets overlap.
+  PetscReal *scratch_target(int k) {
+    if (dummy_target_[k].size() != (size_t)grid_->local_points()) dummy_target_[k].assign(grid_->local_points(), 0.0);
+    return dummy_target_[k].data();
   }
   PetscErrorCode flush_scratch_scalars(Vec mu) {
     PetscFunctionBeginUser;
