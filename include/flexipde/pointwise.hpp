@@ -818,13 +818,17 @@ public:
     constexpr int m = pointwise::PairsOf<Eq>::value;
     PetscFunctionBeginUser;
     PetscCall(rhs(t, U, G));
-    if constexpr (m > 0) {
-      ConstArray u(U);
-      PetscCall(u.error());
-      const PetscInt n = grid_->local_points();
-      for (PetscInt q = 0; q < n; ++q)
-        for (int c = 0; c < m; ++c) record[q * m + c] = u.data()[q * C + c];
-    }
+    if constexpr (m > 0) PetscCall(positions_of(U, record));
+    PetscFunctionReturn(0);
+  }
+  // q = the positions of the state U (its first m components at every owned point, m per point).
+  PetscErrorCode positions_of(Vec U, PetscScalar *q) const {
+    constexpr int m = pointwise::PairsOf<Eq>::value;
+    ConstArray u(U);
+    PetscFunctionBeginUser;
+    PetscCall(u.error());
+    for (PetscInt i = 0; i < grid_->local_points(); ++i)
+      for (int c = 0; c < m; ++c) q[i * m + c] = u.data()[i * C + c];
     PetscFunctionReturn(0);
   }
 
@@ -843,12 +847,9 @@ public:
       PetscCall(VecGetLocalSize(U, &n));
       pos_.ref = U;
       if (n != grid_->local_points() * m) { // a whole state: its positions are all the kick reads
-        ConstArray u(U);
         Array q(pos_copy_);
-        PetscCall(u.error());
         PetscCall(q.error());
-        for (PetscInt i = 0; i < grid_->local_points(); ++i)
-          for (int c = 0; c < m; ++c) q.data()[i * m + c] = u.data()[i * C + c];
+        PetscCall(positions_of(U, q.data()));
         pos_.ref = pos_copy_;
       }
       // the ghosts of the positions and of lambda (after the drift) travel at once
