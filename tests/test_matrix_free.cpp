@@ -125,7 +125,7 @@ TEST_P(MatrixFree, FusedAdjointKickEqualsAssembledTransposes) {
   OwnedVec mu0;
   PETSC_ASSERT_OK(VecDuplicate(mu, mu0.out()));
   PETSC_ASSERT_OK(VecCopy(mu, mu0));
-  PETSC_ASSERT_OK(scene.model->second_order_adjoint(0.0, U, nullptr, lam, w, mu, 0.0, nullptr));
+  PETSC_ASSERT_OK(scene.model->second_order_adjoint(0.0, U, lam, w, mu, 0.0, nullptr));
   EXPECT_LT(rel_diff(lam, expect), 1e-13);
   PETSC_ASSERT_OK(VecAXPY(mu, -1.0, mu0));
   EXPECT_LT(rel_diff(mu, mu_ref), 1e-12);
@@ -160,10 +160,10 @@ TEST_P(MatrixFree, FusedAdjointKickAppliesTheDrift) {
       for (PetscInt i = 0; i < n; i += 2) r[i + 1] += s * r[i];
       PETSC_ASSERT_OK(VecRestoreArray(ref, &r));
     }
-    PETSC_ASSERT_OK(scene.model->second_order_adjoint(0.0, X, nullptr, ref, w, mu_ref, 0.0, nullptr));
+    PETSC_ASSERT_OK(scene.model->second_order_adjoint(0.0, X, ref, w, mu_ref, 0.0, nullptr));
     const PetscScalar *next; // some positions to prefetch (the hint must not change the numbers)
     PETSC_ASSERT_OK(VecGetArrayRead(q, &next));
-    PETSC_ASSERT_OK(scene.model->second_order_adjoint(0.0, X, nullptr, lam, w, mu, s, next));
+    PETSC_ASSERT_OK(scene.model->second_order_adjoint(0.0, X, lam, w, mu, s, next));
     PETSC_ASSERT_OK(VecRestoreArrayRead(q, &next));
     EXPECT_EQ(rel_diff(lam, ref), 0.0);
     EXPECT_EQ(rel_diff(mu, mu_ref), 0.0);

@@ -51,10 +51,8 @@ PetscInt leapfrog_pairs(TS ts); // m, or 0 for another TS type
 // each step's drift instead of making a pass of its own (the model may fold it into its sweep).
 // `prefetch`: the stored positions the next adjoint step will read (leapfrog_place_positions), for the
 // kick to prefetch while it sweeps (null: none).
-// `record` (null: none): the kick works from the model's record of the level's state instead of U (null
-// then; leapfrog_place_record).
-using LeapfrogAdjointKick = PetscErrorCode (*)(void *ctx, PetscReal t, Vec U, const PetscScalar *record, Vec lambda, PetscReal w,
-                                               Vec mu, PetscReal drift, const PetscScalar *prefetch);
+using LeapfrogAdjointKick = PetscErrorCode (*)(void *ctx, PetscReal t, Vec U, Vec lambda, PetscReal w, Vec mu, PetscReal drift,
+                                               const PetscScalar *prefetch);
 // One prefetch per cache line of the n entries at q (null: nothing), for kicks that do not spread them.
 inline void leapfrog_prefetch(const PetscScalar *q, PetscInt n) {
   if (!q) return;
@@ -70,21 +68,8 @@ inline void leapfrog_drift_transpose(PetscScalar *lambda, PetscInt lo, PetscInt 
     for (PetscInt i = lo; i < hi; ++i)
       for (PetscInt c = 0; c < m; ++c) lambda[2 * m * i + m + c] += s * lambda[2 * m * i + c];
 }
-// takes_positions: the kick also accepts the positions alone as U (Model::second_order_adjoint_takes_positions);
-// takes_record: it also works from a record of the state alone (Model::second_order_adjoint_takes_record).
-PetscErrorCode leapfrog_set_adjoint_kick(TS ts, LeapfrogAdjointKick kick, void *ctx, bool takes_positions = false,
-                                         bool takes_record = false);
-bool leapfrog_kick_takes_record(TS ts);
-// Records (Model::stage_record_size entries per level, written by the evaluations of G): for a trajectory
-// that keeps them instead of the states. The next step's evaluation of G at its end state writes that
-// state's record to `end`, and (at_start non-null) the one at its start state writes it to at_start
-// (the first step: the initial level's). leapfrog_record_target gives the RHS callback where the
-// evaluation in progress writes its record (null: nowhere).
-PetscErrorCode leapfrog_sink_records(TS ts, PetscScalar *at_start, PetscScalar *end);
-PetscScalar *leapfrog_record_target(TS ts);
-// The next adjoint step's level k-1 reads its record from rec in place (the kick takes records: *placed);
-// `next`: where the record of the step after it is, for the kick to prefetch.
-PetscErrorCode leapfrog_place_record(TS ts, const PetscScalar *rec, const PetscScalar *next, bool *placed);
+// The kick takes U as a whole state or as the positions alone.
+PetscErrorCode leapfrog_set_adjoint_kick(TS ts, LeapfrogAdjointKick kick, void *ctx);
 // For a trajectory that stores the positions alone (m of every 2m components, contiguous): the next
 // adjoint step's level k-1 reads them from q in place when the kick takes positions (*placed), else
 // the trajectory must fill the stage with U_{k-1} itself. q must stay valid until that step is done.

@@ -77,24 +77,16 @@ public:
   // transpose of the drift that ends at this level; drift = 0: none), then
   //   lambda_q += w (dG_p/dq)^T lambda_p   and, unless mu is null,   mu += w (dG_p/dtheta)^T lambda_p
   // (lambda updated in place). A model may fold the drift into its sweep or apply it first
-  // (leapfrog_drift_transpose). `prefetch` (null: none) is where the next call's stored positions are
-  // (as many as U's positions): the model should prefetch them, best spread over its sweep. Without
-  // this the integrator uses rhs_jacobian and rhs_jacobian_p with their transposes and its own drift
-  // pass: the same numbers in more passes.
+  // (leapfrog_drift_transpose). U is a whole state or the positions q alone (m contiguous components
+  // per grid point, laid out like the grid's own one-component Vecs for m = 1; G_p reads nothing
+  // else): a full-storage trajectory hands the kick the stored positions in place. `prefetch` (null:
+  // none) is where the next call's stored positions are (as many as U's positions): the model should
+  // prefetch them, best spread over its sweep. Without this the integrator uses rhs_jacobian and
+  // rhs_jacobian_p with their transposes and its own drift pass: the same numbers in more passes.
   virtual bool has_second_order_adjoint() const { return false; }
-  // True when second_order_adjoint also accepts, as U, the positions q alone (m contiguous components
-  // per grid point, laid out like the grid's own one-component Vecs for m = 1): a full-storage
-  // trajectory then hands the kick the stored positions in place instead of copying them into a state.
-  virtual bool second_order_adjoint_takes_positions() const { return false; }
-  // True when second_order_adjoint can work from the record rhs_record writes at the level's state
-  // (stage_record_size() entries) instead of the state: all it reads of the state is in the record.
-  // A full-storage trajectory then keeps, for every level, the record that the forward's evaluation of
-  // G there writes, and hands it to the kick (`record` non-null, U null). `prefetch` is then where the
-  // next call's record is.
-  virtual bool second_order_adjoint_takes_record() const { return false; }
-  virtual PetscErrorCode second_order_adjoint(PetscReal t, Vec U, const PetscScalar *record, Vec lambda, PetscReal w,
-                                              Vec mu, PetscReal drift, const PetscScalar *prefetch) {
-    (void)t, (void)U, (void)record, (void)w, (void)mu, (void)drift, (void)prefetch;
+  virtual PetscErrorCode second_order_adjoint(PetscReal t, Vec U, Vec lambda, PetscReal w, Vec mu, PetscReal drift,
+                                              const PetscScalar *prefetch) {
+    (void)t, (void)U, (void)w, (void)mu, (void)drift, (void)prefetch;
     SETERRQ(PetscObjectComm((PetscObject)lambda), PETSC_ERR_SUP, "Model %s has no fused second-order adjoint", name());
   }
   // Optional: the products of one explicit-RK adjoint stage fused into one sweep without any matrix:

@@ -43,7 +43,7 @@
 #include <vector>
 
 // The sweeps inline everything they call, the model's pointwise functions above all: only then do
-// the zero lanes of seeds placed elsewhere fold away. FLEXIPDE_RUN marks the loop over one run of
+// the zero lanes of seeds placed elsewhere fold away. FLEXIPDE_RUN marks the loop over the runs of
 // points of one kind: a function of its own, so that each stays small enough for the compiler's
 // passes (one function per sweep holding every kind of point took minutes to compile).
 #define FLEXIPDE_SWEEP __attribute__((flatten))
@@ -191,9 +191,7 @@ public:
   // Parameter k (a field's value at the offset; a scalar's value anywhere).
   Number param(int k, int dx = 0, int dy = 0) const { return field(f_.P, f_.dP, f_.np, k, k < NP ? C + K + k : -1, dx, dy); }
   // Coefficient field k (Eq::coefficients: fixed by the geometry, computed once) at the offset: a constant.
-  Number coefficient(int k, int dx = 0, int dy = 0) const {
-    return Number(PetscRealPart(f_.P[(at_ + dx + dy * f_.sy) * f_.np + f_.coef0 + k]));
-  }
+  Number coefficient(int k, int dx = 0, int dy = 0) const { return field(f_.P, nullptr, f_.np, f_.coef0 + k, -1, dx, dy); }
   // Auxiliary field k (Eq::auxiliaries: a = L U from the model's non-local linear maps) at the offset.
   Number aux(int k, int dx = 0, int dy = 0) const {
     static_assert(M != Mode::Rows, "a model with auxiliary fields has no assembled Jacobian");
@@ -678,9 +676,11 @@ public:
   // ADDY: y += w (dG/dU)^T x (the leapfrog kick), else y = (dG/dU)^T x. GRAD: y is formed and so is the
   // gradient, a null mu's into scratch: one compiled sweep where the gradient costs little next to y.
   template <int CLO = 0, int CHI = C, int YLO = 0, int YHI = C, int CS = C, bool ADDY = false, bool GRAD = ADDY>
-  PetscErrorCode transpose(PetscReal t, const LocalState &s, Vec x, Vec y, PetscReal w, Vec mu, bool defer) {
+  // x_ghosts: Xl_ already holds x ghosted (the caller filled it).
+  PetscErrorCode transpose(PetscReal t, const LocalState &s, Vec x, Vec y, PetscReal w, Vec mu, bool defer,
+                           bool x_ghosts = false) {
     PetscFunctionBeginUser;
-    PetscCall(fill_ghosts(x, Xl_, true));
+    if (!x_ghosts) PetscCall(fill_ghosts(x, Xl_, true));
     if constexpr (H > 0) {
       for (int m = 0; m < H; ++m) {
         PetscCall(eq_.output_transpose(m, x, field_));
@@ -823,13 +823,17 @@ public:
     constexpr int m = pointwise::PairsOf<Eq>::value;
     PetscFunctionBeginUser;
     PetscCall(rhs(t, U, G));
-    if constexpr (m > 0) {
-      ConstArray u(U);
-      PetscCall(u.error());
-      const PetscInt n = grid_->local_points();
-      for (PetscInt q = 0; q < n; ++q)
-        for (int c = 0; c < m; ++c) record[q * m + c] = u.data()[q * C + c];
-    }
+    if constexpr (m > 0) PetscCall(positions_of(U, record));
+    PetscFunctionReturn(0);
+  }
+  // q = the positions of the state U (its first m components at every owned point, m per point).
+  PetscErrorCode positions_of(Vec U, PetscScalar *q) const {
+    constexpr int m = pointwise::PairsOf<Eq>::value;
+    ConstArray u(U);
+    PetscFunctionBeginUser;
+    PetscCall(u.error());
+    for (PetscInt i = 0; i < grid_->local_points(); ++i)
+      for (int c = 0; c < m; ++c) q[i * m + c] = u.data()[i * C + c];
     PetscFunctionReturn(0);
   }
 
@@ -838,9 +842,8 @@ public:
   // U may be the positions alone (m per point; G_p reads nothing else), which is all a trajectory then
   // stores.
   bool has_second_order_adjoint() const override { return pointwise::PairsOf<Eq>::value > 0; }
-  bool second_order_adjoint_takes_positions() const override { return pointwise::PairsOf<Eq>::value > 0; }
-  PetscErrorCode second_order_adjoint(PetscReal t, Vec U, const PetscScalar *, Vec lambda, PetscReal w, Vec mu,
-                                      PetscReal drift, const PetscScalar *next) override {
+  PetscErrorCode second_order_adjoint(PetscReal t, Vec U, Vec lambda, PetscReal w, Vec mu, PetscReal drift,
+                                      const PetscScalar *next) override {
     constexpr int m = pointwise::PairsOf<Eq>::value;
     PetscFunctionBeginUser;
     if constexpr (m > 0) {
@@ -849,21 +852,22 @@ public:
       PetscCall(VecGetLocalSize(U, &n));
       pos_.ref = U;
       if (n != grid_->local_points() * m) { // a whole state: its positions are all the kick reads
-        ConstArray u(U);
         Array q(pos_copy_);
-        PetscCall(u.error());
         PetscCall(q.error());
-        for (PetscInt i = 0; i < grid_->local_points(); ++i)
-          for (int c = 0; c < m; ++c) q.data()[i * m + c] = u.data()[i * C + c];
+        PetscCall(positions_of(U, q.data()));
         pos_.ref = pos_copy_;
       }
-      PetscCall(fill_ghosts(pos_.ref, pos_.g, pos_scatter_, m));
+      // the ghosts of the positions and of lambda (after the drift) travel at once
+      if (pos_scatter_) PetscCall(VecScatterBegin(pos_scatter_, pos_.ref, pos_.g, INSERT_VALUES, SCATTER_FORWARD));
       if (drift != 0) {
         Array l(lambda);
         PetscCall(l.error());
         leapfrog_drift_transpose(l.data(), 0, grid_->local_points(), m, drift);
       }
-      PetscCall((transpose<m, 2 * m, 0, m, m, true>(t, pos_, lambda, lambda, w, mu, in_adjoint_)));
+      if (ghost_scatter_) PetscCall(VecScatterBegin(ghost_scatter_, lambda, Xl_, INSERT_VALUES, SCATTER_FORWARD));
+      PetscCall(fill_ghosts(pos_.ref, pos_.g, pos_scatter_, m, false, true));
+      PetscCall(fill_ghosts(lambda, Xl_, ghost_scatter_, C, true, true));
+      PetscCall((transpose<m, 2 * m, 0, m, m, true>(t, pos_, lambda, lambda, w, mu, in_adjoint_, true)));
     }
     PetscFunctionReturn(0);
   }
@@ -1242,9 +1246,11 @@ private:
   // maps elsewhere: mirror images beyond odd walls (their sign times the point's value) and 0 on held
   // walls and beyond other walls, or, for a cotangent (the x of a transpose, whose entries are per
   // equation), 0 at all of them: beyond a wall and on a held wall there is no equation.
-  PetscErrorCode fill_ghosts(Vec x, Vec local, VecScatter sc, PetscInt ncomp = C, bool cotangent = false) const {
+  // begun: the caller has begun the scatter (to have two arrays' ghosts on their way at once).
+  PetscErrorCode fill_ghosts(Vec x, Vec local, VecScatter sc, PetscInt ncomp = C, bool cotangent = false,
+                             bool begun = false) const {
     PetscFunctionBeginUser;
-    if (sc) PetscCall(VecScatterBegin(sc, x, local, INSERT_VALUES, SCATTER_FORWARD));
+    if (sc && !begun) PetscCall(VecScatterBegin(sc, x, local, INSERT_VALUES, SCATTER_FORWARD));
     {
       ConstArray o(x);
       Array g(local);
@@ -1372,10 +1378,7 @@ private:
     for (int k = 0; k < NP; ++k) {
       gk[k] = nullptr;
       if (index_[k] < 0) {
-        if (dummy) {
-          if (dummy_target_[k].size() != (size_t)grid_->local_points()) dummy_target_[k].assign(grid_->local_points(), 0.0);
-          gk[k] = dummy_target_[k].data();
-        }
+        if (dummy) gk[k] = scratch_target(k);
         continue;
       }
       const ParamInfo &pi = params_->info(index_[k]);
@@ -1389,10 +1392,12 @@ private:
   }
   // Every parameter's pointwise gradient into scratch (a sweep that forms it when no one asked).
   void scratch_targets(PetscReal **gk) {
-    for (int k = 0; k < NP; ++k) {
-      if (dummy_target_[k].size() != (size_t)grid_->local_points()) dummy_target_[k].assign(grid_->local_points(), 0.0);
-      gk[k] = dummy_target_[k].data();
-    }
+    for (int k = 0; k < NP; ++k) gk[k] = scratch_target(k);
+  }
+  // Slot k's scratch target: one per slot, so that no two targets overlap.
+  PetscReal *scratch_target(int k) {
+    if (dummy_target_[k].size() != (size_t)grid_->local_points()) dummy_target_[k].assign(grid_->local_points(), 0.0);
+    return dummy_target_[k].data();
   }
   PetscErrorCode flush_scratch_scalars(Vec mu) {
     PetscFunctionBeginUser;

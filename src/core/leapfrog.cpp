@@ -28,20 +28,12 @@ struct Leapfrog {
   // the model's fused adjoint kick, when it has one
   LeapfrogAdjointKick adjoint_kick = nullptr;
   void *adjoint_kick_ctx = nullptr;
-  // ... and whether it reads the positions alone: a full-storage trajectory then points Q (a Vec of
-  // the positions, no array of its own) at the stored ones of level k-1 before the adjoint of step
-  // k-1 -> k, which reads them there instead of from Y0 (leapfrog_place_positions).
-  bool kick_takes_positions = false;
+  // It reads the positions alone: a full-storage trajectory points Q (a Vec of the positions, no array
+  // of its own) at the stored ones of level k-1 before the adjoint of step k-1 -> k, which reads them
+  // there instead of from Y0 (leapfrog_place_positions).
   Vec Q = nullptr;
   bool Q_placed = false;
   const PetscScalar *Q_next = nullptr; // the positions the step after that reads, for the kick to prefetch
-  // ... or records: the kick works from the model's record of each level's state, which the forward's
-  // evaluations of G write into a full-storage trajectory (leapfrog_sink_records: rec_start for the first
-  // step's start state, rec_end for the next step's end state; rec_target while an evaluation runs) and
-  // the adjoint hands to the kick in place (leapfrog_place_record: R, with R_next to prefetch).
-  bool kick_takes_record = false;
-  PetscScalar *rec_start = nullptr, *rec_end = nullptr, *rec_target = nullptr;
-  const PetscScalar *R = nullptr, *R_next = nullptr;
   // Where the next step also writes the positions it produces (a full-storage trajectory's next slot,
   // leapfrog_sink_positions), with non-temporal stores; consumed by that one step. `sunk` = where the
   // last step wrote them (null: nowhere).
@@ -183,11 +175,7 @@ PetscErrorCode TSStep_Leapfrog(TS ts) {
   PetscObjectState st;
   PetscFunctionBegin;
   PetscCall(PetscObjectStateGet((PetscObject)U, &st));
-  if (lf->rec_start || !lf->F_valid || st != lf->F_state || t != lf->F_time) { // (with its record when asked)
-    lf->rec_target = lf->rec_start;
-    PetscCall(TSComputeRHSFunction(ts, t, U, lf->F));
-    lf->rec_target = lf->rec_start = nullptr;
-  }
+  if (!lf->F_valid || st != lf->F_state || t != lf->F_time) PetscCall(TSComputeRHSFunction(ts, t, U, lf->F));
   if (ts->steps == 0) { // once per solve: does anything read this solve's stages?
     PetscBool store = PETSC_FALSE;
     if (ts->trajectory) PetscCall(PetscObjectTypeCompare((PetscObject)ts->trajectory, FLEXIPDE_TSTRAJECTORY_STORE, &store));
@@ -197,11 +185,8 @@ PetscErrorCode TSStep_Leapfrog(TS ts) {
   const bool need_stage = lf->copy_stage || (ts->quadraturets && ts->costintegralfwd && lf->r_end_step != ts->steps);
   PetscCall(start_kick_drift(*lf, U, lf->F, need_stage ? lf->Y0 : nullptr, dt));
   lf->sink = nullptr; // one step only
-  // G_p does not depend on p, so G at (q_{k+1}, p_h) already gives a(t_{k+1}, q_{k+1}) (and a record
-  // that reads q alone is that of U_{k+1})
-  lf->rec_target = lf->rec_end;
+  // G_p does not depend on p, so G at (q_{k+1}, p_h) already gives a(t_{k+1}, q_{k+1})
   PetscCall(TSComputeRHSFunction(ts, t + dt, U, lf->F));
-  lf->rec_target = lf->rec_end = nullptr;
   PetscCall(kick(*lf, U, lf->F, 0.5 * dt));
   PetscCall(PetscObjectStateGet((PetscObject)U, &lf->F_state));
   lf->F_time = t + dt;
@@ -245,8 +230,6 @@ PetscErrorCode TSReset_Leapfrog(TS ts) {
   PetscCall(VecDestroy(&lf->Q));
   lf->F_valid = false;
   lf->r_end_step = -1;
-  lf->rec_start = lf->rec_end = lf->rec_target = nullptr;
-  lf->R = lf->R_next = nullptr;
   PetscFunctionReturn(0);
 }
 
@@ -311,7 +294,7 @@ PetscErrorCode half_kicks(TS ts, Mat J, PetscReal t, Vec X, PetscReal w, PetscRe
   if (w == 0 && drift == 0) PetscFunctionReturn(0);
   if (lf->adjoint_kick) {
     for (PetscInt k = 0; k < ts->numcost; ++k)
-      PetscCall(lf->adjoint_kick(lf->adjoint_kick_ctx, t, X, X ? nullptr : lf->R, ts->vecs_sensi[k], w,
+      PetscCall(lf->adjoint_kick(lf->adjoint_kick_ctx, t, X, ts->vecs_sensi[k], w,
                                  ts->vecs_sensip ? ts->vecs_sensip[k] : nullptr, drift, k == 0 ? prefetch : nullptr));
     PetscFunctionReturn(0);
   }
@@ -380,11 +363,8 @@ PetscErrorCode TSAdjointStep_Leapfrog(TS ts) {
   if (!fuse_drift)
     for (PetscInt k = 0; k < ts->numcost; ++k) PetscCall(drift_transpose(*lf, ts->vecs_sensi[k], dt));
   // level k-1: the right half-kick of this step, then (except at t_0) the left one of the step before
-  // (X null: the kick reads the level's record R)
-  PetscCall(adjoint_level(ts, tk - dt, lf->R ? nullptr : lf->Q_placed ? lf->Q : lf->Y0, 0.5 * dt, ts->steps == 0 ? 0.5 * dt : dt,
-                          ts->steps == 0 ? 0 : 0.5 * dt, fuse_drift ? dt : 0,
-                          lf->R ? lf->R_next : lf->Q_placed ? lf->Q_next : nullptr));
-  lf->R = lf->R_next = nullptr;
+  PetscCall(adjoint_level(ts, tk - dt, lf->Q_placed ? lf->Q : lf->Y0, 0.5 * dt, ts->steps == 0 ? 0.5 * dt : dt,
+                          ts->steps == 0 ? 0 : 0.5 * dt, fuse_drift ? dt : 0, lf->Q_placed ? lf->Q_next : nullptr));
   if (lf->Q_placed) {
     PetscCall(VecResetArray(lf->Q));
     lf->Q_placed = false;
@@ -417,12 +397,10 @@ PetscErrorCode set_pairs(TS ts, PetscInt m) {
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode set_adjoint_kick(TS ts, LeapfrogAdjointKick kick, void *ctx, PetscBool takes_positions, PetscBool takes_record) {
+PetscErrorCode set_adjoint_kick(TS ts, LeapfrogAdjointKick kick, void *ctx) {
   PetscFunctionBegin;
   data(ts)->adjoint_kick = kick;
   data(ts)->adjoint_kick_ctx = ctx;
-  data(ts)->kick_takes_positions = kick && takes_positions;
-  data(ts)->kick_takes_record = kick && takes_record;
   PetscFunctionReturn(0);
 }
 
@@ -462,34 +440,9 @@ PetscErrorCode leapfrog_set_pairs(TS ts, PetscInt m) {
 
 PetscInt leapfrog_pairs(TS ts) { return is_leapfrog(ts) ? data(ts)->pairs : 0; }
 
-PetscErrorCode leapfrog_set_adjoint_kick(TS ts, LeapfrogAdjointKick kick, void *ctx, bool takes_positions, bool takes_record) {
+PetscErrorCode leapfrog_set_adjoint_kick(TS ts, LeapfrogAdjointKick kick, void *ctx) {
   PetscFunctionBegin;
-  PetscTryMethod(ts, "FlexipdeLeapfrogSetAdjointKick_C", (TS, LeapfrogAdjointKick, void *, PetscBool, PetscBool),
-                 (ts, kick, ctx, takes_positions ? PETSC_TRUE : PETSC_FALSE, takes_record ? PETSC_TRUE : PETSC_FALSE));
-  PetscFunctionReturn(0);
-}
-
-bool leapfrog_kick_takes_record(TS ts) { return is_leapfrog(ts) && data(ts)->kick_takes_record; }
-
-PetscErrorCode leapfrog_sink_records(TS ts, PetscScalar *at_start, PetscScalar *end) {
-  PetscFunctionBegin;
-  if (!is_leapfrog(ts)) PetscFunctionReturn(0);
-  data(ts)->rec_start = at_start;
-  data(ts)->rec_end = end;
-  PetscFunctionReturn(0);
-}
-
-PetscScalar *leapfrog_record_target(TS ts) { return is_leapfrog(ts) ? data(ts)->rec_target : nullptr; }
-
-PetscErrorCode leapfrog_place_record(TS ts, const PetscScalar *rec, const PetscScalar *next, bool *placed) {
-  PetscFunctionBegin;
-  *placed = false;
-  if (!is_leapfrog(ts)) PetscFunctionReturn(0);
-  Leapfrog *lf = data(ts);
-  if (!lf->kick_takes_record || ts->quadraturets) PetscFunctionReturn(0);
-  lf->R = rec;
-  lf->R_next = next;
-  *placed = true;
+  PetscTryMethod(ts, "FlexipdeLeapfrogSetAdjointKick_C", (TS, LeapfrogAdjointKick, void *), (ts, kick, ctx));
   PetscFunctionReturn(0);
 }
 
@@ -506,7 +459,7 @@ PetscErrorCode leapfrog_place_positions(TS ts, const PetscScalar *q, const Petsc
   *placed = false;
   if (!is_leapfrog(ts)) PetscFunctionReturn(0);
   Leapfrog *lf = data(ts);
-  if (!lf->kick_takes_positions || ts->quadraturets) PetscFunctionReturn(0);
+  if (!lf->adjoint_kick || ts->quadraturets) PetscFunctionReturn(0);
   if (!lf->Q) {
     PetscInt n;
     PetscCall(VecGetLocalSize(ts->vec_sol, &n));

@@ -35,9 +35,6 @@ PetscErrorCode Simulation::rhs_cb(TS ts, PetscReal t, Vec U, Vec G, void *ctx) {
   // An explicit RK's stage of a stored forward solve: G's evaluation also writes the stage's record
   // where full storage keeps it (Model::stage_record_size).
   if (sim->rk_stage_records_) PetscCall(rk_adjoint_record_target(ts, U, &record));
-  // A leapfrog step of a stored forward solve whose adjoint kick reads records instead of the states.
-  // (only that TS's full-storage trajectory arms them: leapfrog_sink_records)
-  if (!record) record = leapfrog_record_target(ts);
   if (record) PetscCall(sim->model_->rhs_record(t, U, G, record));
   else PetscCall(sim->model_->rhs(t, U, G));
   PetscFunctionReturn(0);
@@ -221,11 +218,11 @@ PetscErrorCode Simulation::use_shifted_operator(TS ts) {
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode Simulation::adjoint_kick_cb(void *ctx, PetscReal t, Vec U, const PetscScalar *record, Vec lambda, PetscReal w,
-                                           Vec mu, PetscReal drift, const PetscScalar *prefetch) {
+PetscErrorCode Simulation::adjoint_kick_cb(void *ctx, PetscReal t, Vec U, Vec lambda, PetscReal w, Vec mu, PetscReal drift,
+                                           const PetscScalar *prefetch) {
   auto *sim = static_cast<Simulation *>(ctx);
   PetscFunctionBeginUser;
-  PetscCall(sim->model_->second_order_adjoint(t, U, record, lambda, w, mu, drift, prefetch));
+  PetscCall(sim->model_->second_order_adjoint(t, U, lambda, w, mu, drift, prefetch));
   PetscFunctionReturn(0);
 }
 
@@ -470,14 +467,8 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
                "choose -ts_type rk, theta, cn or beuler",
                model_->name());
     PetscCall(leapfrog_set_pairs(ts, model_->second_order_pairs()));
-    bool records = model_->second_order_adjoint_takes_record();
-    if (records) { // a record per level in a position slot: as many entries as the positions
-      DMDALocalInfo info;
-      PetscCall(DMDAGetLocalInfo(dm_, &info));
-      records = model_->stage_record_size() == (PetscInt)info.xm * info.ym * info.zm * model_->second_order_pairs();
-    }
     if (leapfrog_fused_)
-      PetscCall(leapfrog_set_adjoint_kick(ts, adjoint_kick_cb, this, model_->second_order_adjoint_takes_positions(), records));
+      PetscCall(leapfrog_set_adjoint_kick(ts, adjoint_kick_cb, this));
   }
   // An explicit RK only applies dG/dU (its adjoint: the transpose): the model's matrix-free operator
   // when it has one.

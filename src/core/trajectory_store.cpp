@@ -64,10 +64,6 @@ struct StoreTrajectory {
   // Set (one copy and one vector of memory per step fewer). Slot k = [Y_0 = U_k, Y_1, ..., Y_{s-1}].
   bool compact = false;
   bool lf_placed = false; // the leapfrog's stage Vec points into the buffer
-  // Leapfrog whose kick works from a record of each level's state (leapfrog_kick_takes_record, as many
-  // entries as the positions): slot k = the record of U_k, written there by the forward's evaluation of
-  // G at U_k (leapfrog_sink_records; nothing is copied), read in place by the adjoint.
-  bool lf_records = false;
   // Explicit RK whose adjoint stage reads a record of each stage (rk_adjoint_stage_needs:
   // Model::stage_record_size): rec_n entries per stage, those of step k -> k+1 at rec_offset in the slot
   // where that step's stages are (compact: k, placed: k + 1). The RHS evaluations at the stages write
@@ -199,7 +195,6 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
     PetscCall(VecGetBlockSize(ts->vec_sol, &st->dof));
     st->pairs = leapfrog_pairs(ts);
   }
-  st->lf_records = st->pairs && ts->max_steps < PETSC_MAX_INT && leapfrog_kick_takes_record(ts);
   st->times.clear();
   st->steps.clear();
   st->last = -1;
@@ -283,12 +278,6 @@ PetscErrorCode store_set(TSTrajectory tj, TS ts, PetscInt stepnum, PetscReal tim
     PetscFunctionReturn(0);
   }
   if (ts->reason) PetscFunctionReturn(0); // the final state stays in the TS for the first adjoint step
-  if (st->lf_records) { // the next step's evaluations of G write the records (the first step: level 0's too)
-    const size_t need = (size_t)(stepnum + 2) * st->slot;
-    if (st->buffer->size < need) st->buffer->grow(std::max(need, 2 * st->buffer->size), true);
-    PetscCall(leapfrog_sink_records(ts, stepnum == 0 ? at(*st, 0, 0) : nullptr, at(*st, stepnum + 1, 0)));
-    PetscFunctionReturn(0);
-  }
   const size_t need = (size_t)(stepnum + 1) * st->slot;
   if (st->buffer->size < need) {
     PetscCall(place_stages(*st, ts, -1)); // the buffer moves
@@ -337,11 +326,7 @@ PetscErrorCode store_get(TSTrajectory tj, TS ts, PetscInt k, PetscReal *t) {
   if (is_leapfrog(ts)) { // its one stage is U_{k-1}, also for the last step (whose forward step did not keep it)
     Vec *Y;
     PetscCall(TSGetStages(ts, nullptr, &Y));
-    if (st->lf_records) { // the model's kick reads the level's record in place
-      bool placed;
-      PetscCall(leapfrog_place_record(ts, at(*st, k - 1, 0), st->use_prefetch && k >= 2 ? at(*st, k - 2, 0) : nullptr, &placed));
-      PetscCheck(placed, PetscObjectComm((PetscObject)tj), PETSC_ERR_PLIB, "TSTrajectory store: the kick refused its record");
-    } else if (st->pairs) { // the model's kick reads the stored positions in place when it can
+    if (st->pairs) { // the model's kick reads the stored positions in place when it can
       bool placed;
       // the kick reading them in place also prefetches the next slot while it sweeps (a burst of
       // prefetches here, before it, holds up its own loads)
