@@ -10,9 +10,10 @@
 //   D_v  conservative flux form (F_{j+1/2} - F_{j-1/2}) / hv, faces F_{j+1/2} = (-f_{j-1} + 7 f_j
 //        + 7 f_{j+1} - f_{j+2}) / 12, no flux through the two outer faces: the centred stencil away
 //        from the end rows (f = 0 beyond them); its columns sum to 0, so the mass is conserved to round-off;
-//   E = L f = -hv R K S f  (the auxiliary field): S sums over v, K is the spectral zero-mean
-//        antiderivative, (K s)^_m = s^_m / (i kappa_m) for 0 < |m| < N_x/2 and 0 for the mean and the
-//        Nyquist mode (E = K(1 - rho) = -K rho as K 1 = 0), R replicates along v; L^T = hv R K S (K^T = -K);
+//   E = -hv K S f  (the auxiliary field, a function of x alone): S sums over v, K is the spectral
+//        zero-mean antiderivative, (K s)^_m = s^_m / (i kappa_m) for 0 < |m| < N_x/2 and 0 for the mean
+//        and the Nyquist mode (E = K(1 - rho) = -K rho as K 1 = 0); the layer forms S f and reads E(x_i)
+//        at every v_j, and its transpose with (-hv K)^T = hv K (K^T = -K);
 //   the optional dissipation (-vlasov_dissipation c): d_x^4 the periodic fourth difference, Q = (B^T B)^2
 //        with B^T B the second difference without flux through the velocity bounds; symmetric, negative
 //        semi-definite, mass-conserving; c = 1 makes the x advection third-order upwind-biased.
@@ -37,6 +38,7 @@
 //           -task gradient -da_grid_x 32 -da_grid_y 64 -ts_type cn -ts_dt 0.1 -ts_max_time 5
 //           -objective_type functional_integral -vlasov_dissipation 1 -check_fd                  (one line)
 #include "flexipde/pointwise.hpp"
+#include <algorithm>
 #include <complex>
 #include <cstring>
 #include <fftw3.h>
@@ -91,6 +93,7 @@ private:
 class Vlasov {
 public:
   static constexpr int dim = 2, components = 1, radius = 2, parameters = 4, auxiliaries = 1;
+  static constexpr bool auxiliaries_from_column_sums = true; // E(x) from rho(x) = hv sum_j f(x, v_j)
   static constexpr int rhs_parameters = 0; // the parameters shape f0 alone
   enum Parameter { alpha, vt, v0, ratio };
 
@@ -159,19 +162,19 @@ public:
     PetscFunctionReturn(0);
   }
 
-  // a = L f = -hv R K S f, and the transpose's y += L^T z = hv R K S z.
-  PetscErrorCode auxiliary(int, Vec f, Vec a) const {
-    PetscFunctionBeginUser;
-    PetscCall(field(f));
-    PetscCall(replicate(1.0, a, false));
-    PetscFunctionReturn(0);
-  }
-  PetscErrorCode auxiliary_transpose(int, Vec z, Vec y) const {
-    PetscFunctionBeginUser;
-    PetscCall(column_sums(z));
+  // E = -hv K s from the column sums s = S f (the layer sums f over v and reads E(x) at every v), and
+  // the transpose's w += (-hv K)^T z = hv K z.
+  PetscErrorCode auxiliary(int, const PetscReal *s, PetscReal *E) const {
+    std::transform(s, s + grid_->n(), column_.begin(), [&](PetscReal r) { return -grid_->hy() * r; });
     K_.apply(column_);
-    PetscCall(replicate(grid_->hy(), y, true));
-    PetscFunctionReturn(0);
+    std::copy(column_.begin(), column_.end(), E);
+    return 0;
+  }
+  PetscErrorCode auxiliary_transpose(int, const PetscReal *z, PetscReal *w) const {
+    std::transform(z, z + grid_->n(), column_.begin(), [&](PetscReal r) { return grid_->hy() * r; });
+    K_.apply(column_);
+    for (PetscInt i = 0; i < grid_->n(); ++i) w[i] += column_[i];
+    return 0;
   }
 
   std::string functional_names() const { return "field_energy, mass, momentum, kinetic_energy, energy, l2"; }
@@ -287,16 +290,6 @@ private:
     PetscCall(column_sums(f));
     for (PetscReal &r : column_) r *= -grid_->hy();
     K_.apply(column_);
-    PetscFunctionReturn(0);
-  }
-  PetscErrorCode replicate(PetscReal c, Vec out, bool add) const { // out (+)= c R column_
-    const Grid &g = *grid_;
-    PetscScalar *o;
-    PetscFunctionBeginUser;
-    PetscCall(VecGetArray(out, &o));
-    for (PetscInt jl = 0, n = 0; jl < g.ym(); ++jl)
-      for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i, ++n) o[n] = (add ? o[n] : 0.0) + c * column_[i];
-    PetscCall(VecRestoreArray(out, &o));
     PetscFunctionReturn(0);
   }
 
