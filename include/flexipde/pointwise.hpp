@@ -854,22 +854,33 @@ public:
         PetscCall(VecResetArray(pos_rec_));
         PetscFunctionReturn(0);
       }
+    if constexpr (KL)
+      if (record) { // the stage's auxiliary lines
+        st_.ref = U;
+        PetscCall(fill_ghosts(U, st_.g));
+        pad_lines(record, st_.line);
+        PetscCall(transpose(t, st_, x, y, 1.0, mu, in_adjoint_));
+        PetscFunctionReturn(0);
+      }
     PetscCall(load(U, st_));
     PetscCall(transpose(t, st_, x, y, 1.0, mu, in_adjoint_));
     PetscFunctionReturn(0);
   }
   // An explicit RK's stored stages: the positions alone of a second-order model (m per point) when the
   // transposes read nothing else of the state, which a probe at random inputs finds once (their
-  // products at two states that differ in the other components alone are the same).
+  // products at two states that differ in the other components alone are the same); or, besides the
+  // stage, its auxiliary lines (K per column), which the adjoint would otherwise form again.
   PetscInt stage_record_size() const override {
+    if constexpr (KL) return grid_->n() * K;
     return positions_suffice() ? grid_->local_points() * pointwise::PairsOf<Eq>::value : 0;
   }
-  bool stage_record_replaces_state() const override { return stage_record_size() > 0; }
+  bool stage_record_replaces_state() const override { return !KL && stage_record_size() > 0; }
   PetscErrorCode rhs_record(PetscReal t, Vec U, Vec G, PetscScalar *record) override {
     constexpr int m = pointwise::PairsOf<Eq>::value;
     PetscFunctionBeginUser;
     PetscCall(rhs(t, U, G));
     if constexpr (m > 0) PetscCall(positions_of(U, record));
+    if constexpr (KL) std::copy(st_.line.begin() + line_pad * K, st_.line.end() - line_pad * K, record);
     PetscFunctionReturn(0);
   }
   // q = the positions of the state U (its first m components at every owned point, m per point).
@@ -1160,9 +1171,9 @@ private:
   // The model as the sweeps read it: a copy when it can be copied (the point loops copy it again with
   // the rest of what they capture), so that the compiler knows no store of a sweep changes its
   // members: it keeps them in registers, hoists the branches on them out of the loop over points, and
-  // vectorises.
+  // vectorises. (A model holds what is costly to copy, such as FFT plans, through a shared pointer.)
   template <class F> void with_model(F &&f) const {
-    if constexpr (std::is_trivially_copyable_v<Eq>) {
+    if constexpr (std::is_copy_constructible_v<Eq>) {
       const Eq eq = eq_;
       f(eq);
     } else f(ModelView{&eq_});
@@ -1383,7 +1394,7 @@ private:
     PetscFunctionReturn(0);
   }
   // The auxiliary lines a_k = L_k s of U, s its column sums (over all ranks; collective), K per column,
-  // padded by line_pad columns each side: periodic images, or 0 beyond walls.
+  // padded (pad_lines).
   PetscErrorCode auxiliary_lines(Vec U, std::vector<PetscReal> &line) {
     const PetscInt n = grid_->n(), xs = grid_->xs(), xm = grid_->xm(), ym = grid_->ym();
     PetscFunctionBeginUser;
@@ -1398,16 +1409,25 @@ private:
           for (PetscInt q = 0; q < xm * C; ++q) sum[q] += PetscRealPart(a[j * xm * C + q]);
       }
       PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, sums_.data(), (PetscMPIInt)(n * C), MPIU_REAL, MPI_SUM, grid_->comm()));
-      const bool periodic = grid_->periodic();
       for (int k = 0; k < K; ++k) {
         PetscCall(eq_.auxiliary(k, sums_.data(), aline_.data()));
-        for (PetscInt i = -line_pad; i < n + line_pad; ++i) {
-          const PetscInt src = periodic ? (i % n + n) % n : i;
-          line[(i + line_pad) * K + k] = src >= 0 && src < n ? aline_[src] : 0.0;
-        }
+        for (PetscInt i = 0; i < n; ++i) line[(i + line_pad) * K + k] = aline_[i];
       }
+      pad_lines(line.data() + line_pad * K, line);
     }
     PetscFunctionReturn(0);
+  }
+  // line = the lines a (K per column, n columns; may be line's own middle) padded by line_pad columns
+  // each side: periodic images, or 0 beyond walls.
+  void pad_lines(const PetscScalar *a, std::vector<PetscReal> &line) const {
+    const PetscInt n = grid_->n();
+    const bool periodic = grid_->periodic();
+    if (a != line.data() + line_pad * K) std::copy(a, a + n * K, line.begin() + line_pad * K);
+    for (PetscInt i = -line_pad; i < n + line_pad; ++i) {
+      if (i >= 0 && i < n) continue;
+      const PetscInt src = periodic ? (i % n + n) % n : -1;
+      for (int k = 0; k < K; ++k) line[(i + line_pad) * K + k] = src >= 0 ? line[(src + line_pad) * K + k] : 0.0;
+    }
   }
   // y += w R sum_k L_k^T z_k, z_k the column sums of the gather's (dG/da_k)^T x (in zline_, this
   // rank's share; summed here, collective) and R the copy of a line to every row.

@@ -42,6 +42,7 @@
 #include <complex>
 #include <cstring>
 #include <fftw3.h>
+#include <memory>
 
 namespace flexipde {
 namespace {
@@ -63,6 +64,9 @@ PetscInt read_ic() {
 // space, and a distributed transform would cost more in communication than this in arithmetic.
 class Antiderivative {
 public:
+  Antiderivative() = default;
+  Antiderivative(const Antiderivative &) = delete; // owns its plans
+  Antiderivative &operator=(const Antiderivative &) = delete;
   void setup(PetscInt n, PetscReal length) {
     in_.assign(n, 0.0), out_.assign(n / 2 + 1, 0.0), inv_kappa_.assign(n / 2 + 1, 0.0);
     auto *c = reinterpret_cast<fftw_complex *>(out_.data());
@@ -90,7 +94,9 @@ private:
 
 } // namespace
 
-class Vlasov {
+// Dissipative: the dissipation term is there (a compile-time constant of the sweeps: no branch in
+// their loops; -vlasov_dissipation picks the instance).
+template <bool Dissipative> class Vlasov {
 public:
   static constexpr int dim = 2, components = 1, radius = 2, parameters = 4, auxiliaries = 1;
   static constexpr bool auxiliaries_from_column_sums = true; // E(x) from rho(x) = hv sum_j f(x, v_j)
@@ -133,7 +139,6 @@ public:
     PetscCheck(grid.periodic() && !grid.periodic_y(), grid.comm(), PETSC_ERR_ARG_WRONG,
                "Model vlasov needs x periodic (-grid_periodic 1) and v not periodic (-grid_periodic_y 0)");
     grid_ = &grid;
-    dissipative_ = dissipation_ > 0;
     k_ = 2 * PETSC_PI * mode_ / (grid.x1() - grid.x0());
     cx_ = 1 / (12 * grid.h()), cv_ = 1 / (12 * grid.hy());
     decl.parameter(alpha, "vlasov_alpha", false, PETSC_NINFINITY, d.alpha);
@@ -142,7 +147,9 @@ public:
       decl.parameter(v0, "vlasov_v0", false, PETSC_NINFINITY, d.v0);
       decl.parameter(ratio, "vlasov_temperature_ratio", false, 0.0, d.ratio);
     } else decl.fixed(v0, d.v0), decl.fixed(ratio, d.ratio);
-    K_.setup(grid.n(), grid.x1() - grid.x0());
+    auto K = std::make_shared<Antiderivative>();
+    K->setup(grid.n(), grid.x1() - grid.x0());
+    K_ = K;
     column_.assign(grid.n(), 0.0);
     PetscFunctionReturn(0);
   }
@@ -150,7 +157,7 @@ public:
   template <class P> void rhs(const P &pt, typename P::Number *g) const {
     const double v = pt.x(1);
     g[0] = -v * dx(pt) + pt.aux(0) * dv(pt);
-    if (dissipative_) g[0] -= dissipation_ * (std::fabs(v) * cx_ * d4x(pt) + E_cfl_ * cv_ * q(pt));
+    if constexpr (Dissipative) g[0] -= dissipation_ * (std::fabs(v) * cx_ * d4x(pt) + E_cfl_ * cv_ * q(pt));
   }
   template <class P> void initial(const P &pt, typename P::Number *f) const {
     f[0] = (1.0 + pt.param(alpha) * std::cos(k_ * pt.x(0))) * profile(pt.x(1), pt.param(vt), pt.param(v0), pt.param(ratio));
@@ -166,13 +173,13 @@ public:
   // the transpose's w += (-hv K)^T z = hv K z.
   PetscErrorCode auxiliary(int, const PetscReal *s, PetscReal *E) const {
     std::transform(s, s + grid_->n(), column_.begin(), [&](PetscReal r) { return -grid_->hy() * r; });
-    K_.apply(column_);
+    K_->apply(column_);
     std::copy(column_.begin(), column_.end(), E);
     return 0;
   }
   PetscErrorCode auxiliary_transpose(int, const PetscReal *z, PetscReal *w) const {
     std::transform(z, z + grid_->n(), column_.begin(), [&](PetscReal r) { return grid_->hy() * r; });
-    K_.apply(column_);
+    K_->apply(column_);
     for (PetscInt i = 0; i < grid_->n(); ++i) w[i] += column_[i];
     return 0;
   }
@@ -195,7 +202,7 @@ public:
     if (with_field) {
       PetscCall(field(f));
       for (PetscReal e : column_) W += 0.5 * g.h() * e * e;
-      K_.apply(column_); // K E
+      K_->apply(column_); // K E
     }
     auto moment = [&](PetscReal v) { return which == mass ? 1.0 : which == momentum ? v : which == field_energy ? 0.0 : 0.5 * v * v; };
     const PetscScalar *u;
@@ -224,7 +231,7 @@ public:
     PetscReal F = 0; // S f0 = (1 + alpha cos k x) sum_j F(v_j)
     for (PetscInt j = 0; j < g.ny(); ++j) F += profile(g.y(j), b.min[vt], b.min[v0], b.min[ratio]);
     for (PetscInt i = 0; i < g.n(); ++i) column_[i] = -g.hy() * (1 + b.min[alpha] * std::cos(k_ * g.x(i))) * F;
-    K_.apply(column_); // E(f0) = -hv K S f0
+    K_->apply(column_); // E(f0) = -hv K S f0
     PetscReal Emax = E_cfl_, symbol = 0;
     for (PetscReal e : column_) Emax = std::max(Emax, std::fabs(e));
     for (PetscInt q = 0; q <= 1000; ++q) symbol = std::max(symbol, sym(PETSC_PI * q / 1000));
@@ -289,18 +296,24 @@ private:
     PetscFunctionBeginUser;
     PetscCall(column_sums(f));
     for (PetscReal &r : column_) r *= -grid_->hy();
-    K_.apply(column_);
+    K_->apply(column_);
     PetscFunctionReturn(0);
   }
 
   const Grid *grid_ = nullptr;
   PetscInt ic_ = landau, mode_ = 1;
-  bool dissipative_ = false; // a bool, not a double: a store to a double array cannot change it, so the test leaves the loops
   PetscReal k_ = 0.5, cx_ = 1, cv_ = 1, dissipation_ = 0, E_cfl_ = 1;
-  Antiderivative K_;
+  std::shared_ptr<const Antiderivative> K_; // shared by the copies of the model the sweeps make
   mutable std::vector<PetscReal> column_; // a length-N_x work array: S f, E, K E
 };
 
-FLEXIPDE_REGISTER_MODEL("vlasov", PointwiseModel<Vlasov>);
+std::unique_ptr<Model> make_vlasov() {
+  PetscReal c = 0;
+  (void)PetscOptionsGetReal(nullptr, nullptr, "-vlasov_dissipation", &c, nullptr);
+  if (c > 0) return std::make_unique<PointwiseModel<Vlasov<true>>>();
+  return std::make_unique<PointwiseModel<Vlasov<false>>>(); // (a negative c is refused at setup)
+}
+
+static const ModelRegistration vlasov("vlasov", make_vlasov);
 
 } // namespace flexipde
