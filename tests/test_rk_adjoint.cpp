@@ -205,25 +205,3 @@ TEST_P(RkStagesWave2D, SameGradientAsJacobianTransposes) {
 
 INSTANTIATE_TEST_SUITE_P(Wave2D, RkStagesWave2D, ::testing::ValuesIn(wave2d_stage_cases()), rk_name);
 
-// Stage records (Model::stage_record_size): Vlasov's RHS evaluations at the stages leave the field E(f)
-// at the owned x, which the adjoint stage reads instead of summing the stored stage's density again
-// (its gradient against PETSc's step: RkAdjoint's vlasov case). Full storage keeps exactly the records
-// beside the stages: s * xm entries per step beside the s * xm * ym of the stages (the first of which is
-// U_k), on this rank. Tableaux of 4 and 3 stages, x split over 2 ranks or not (16 x 16: v split).
-TEST(RkStageRecords, VlasovFieldRecordsBesideTheStages) {
-  const std::pair<const char *, PetscInt> tableaux[] = {{"4", 4}, {"3", 3}};
-  for (const auto &[rk, stages] : tableaux)
-    for (const char *nx : {"16", "32"}) {
-      SCOPED_TRACE(std::string("-ts_rk_type ") + rk + ", " + nx + " x 16");
-      RkScene s;
-      s.set_up({{"-model", "vlasov"}, {"-vlasov_ic", "landau"}, {"-da_grid_x", nx}, {"-da_grid_y", "16"},
-                {"-objective_type", "functional"}, {"-ts_rk_type", rk}, {"-ts_dt", "0.05"}, {"-ts_max_time", "1"}});
-      OwnedVec p_true, g;
-      PetscReal J;
-      flexipde_test::data_and_gradient(s.scene, s.p, p_true, g, &J);
-      EXPECT_GT(flexipde_test::norm(g), 0.0);
-      const PetscReal xm = s.scene.grid.xm(), ym = s.scene.grid.ym();
-      const PetscReal entries = (PetscReal)(s.scene.sim.stats().steps + 1) * stages * (xm * ym + xm);
-      EXPECT_NEAR(s.scene.sim.checkpoint_stats().stored_mb / (entries * sizeof(PetscScalar) / 1048576.0), 1.0, 1e-14);
-    }
-}

@@ -111,14 +111,10 @@ TEST_P(VlasovJacobian, TransposeAndCentralDifference) {
 
 INSTANTIATE_TEST_SUITE_P(Vlasov, VlasovJacobian, ::testing::Values("landau", "two_stream", "two_stream_dissipation"));
 
-// The linearisation is a snapshot: rhs_jacobian copies f and sums its density; E(f) follows at once
-// on one rank, and on more than one with the first product (the transpose reduces the density with
-// its own sum w and then takes a second pass; MatMult reduces it alone). The transpose reads the copy
-// (w = S (f o D_v^T y)), and MatMult makes D_v f from it on first use. Relinearising at a second
-// state, in either order of MatMult and MatMultTranspose, must give what a fresh Jacobian gives
-// (exactly: both orders of the products, so both transpose paths on 2 ranks), and the dot product
-// must hold on a grid that 2 ranks split in x (40 x 20) as well as in v (20 x 40, where the
-// transpose exchanges ghost rows while it sweeps the inner rows).
+// dG/dU is the linearisation at the state of the last rhs_jacobian, whatever happens to that state
+// afterwards. Relinearising at a second state, in either order of MatMult and MatMultTranspose, must
+// give what a fresh Jacobian gives (exactly), and the dot product must hold on a grid that 2 ranks split
+// in x (40 x 20) as well as in v (20 x 40).
 class VlasovRelinearise : public ::testing::TestWithParam<std::array<const char *, 2>> {};
 
 TEST_P(VlasovRelinearise, SnapshotAndDotProduct) {
@@ -171,10 +167,8 @@ INSTANTIATE_TEST_SUITE_P(Vlasov, VlasovRelinearise,
 // (DMGlobalToLocal): D_x by its stencil, D_v as differences of the face values (-1, 7, 7, -1) / 12
 // with no flux through the outer faces and f = 0 beyond the velocity bounds, E = -K rho with K by a
 // direct DFT, and the dissipation with Q = L^2, L the second difference without flux through the
-// bounds. The model reads U in place (owned rows from U's array, ghosts from a Halo exchanged while it
-// sweeps), so the grids are ones that 2 ranks split in x (40 x 20) and in v (20 x 40). Two states in
-// turn, with a transpose product (which uses the same ghost buffers) in between: no stale ghost is
-// read.
+// bounds. On grids that 2 ranks split in x (40 x 20) and in v (20 x 40); two states in turn, with a
+// transpose product in between: no stale ghost or field is read.
 struct RhsCase {
   const char *nx, *nv, *dissipation;
 };
@@ -279,7 +273,7 @@ TEST_P(VlasovRhs, MatchesReference) {
                 c.nx, c.nv, c.dissipation, k, (double)Emax, (double)norm(Gref, NORM_INFINITY), (double)err);
     EXPECT_GT(Emax, 0.1);
     EXPECT_LE(err, 1e-13);
-    // A transpose product between the two states (it exchanges and buffers ghosts of its own).
+    // A transpose product between the two states.
     PETSC_ASSERT_OK(fill_random(y, -1, 1, 71 + k));
     PETSC_ASSERT_OK(scene.model->rhs_jacobian(0.0, U, J));
     PETSC_ASSERT_OK(MatMultTranspose(J, y, Jty));

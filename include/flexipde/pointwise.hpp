@@ -131,6 +131,9 @@ struct Frame {
   const PetscScalar *dP = nullptr; // direction of the parameters (Tangent; null: 0)
   const PetscScalar *A = nullptr;  // auxiliary fields a = L U, `na` per point (non-local linear maps of the state)
   const PetscScalar *dA = nullptr; // their direction L X (Tangent; null: 0)
+  // Auxiliary fields of x alone (Eq::auxiliaries_from_column_sums; Point's KL): A and dA are lines,
+  // K per grid column, indexed by the global i + line_pad.
+  PetscInt line_pad = 0;
   const PetscReal *theta = nullptr, *dtheta = nullptr; // parameter vectors' entries, and their direction
   PetscInt np = 0, na = 0, sy = 0, syo = 0;
   PetscInt xs = 0, ys = 0, xm = 0, ym = 1; // the owned block
@@ -161,9 +164,11 @@ struct Frame {
 // are reflected or zero, and (Gather) the seeded input is found by its position (ti, tj) at run time.
 // CS < C: the state arrays hold the first CS components alone (a second-order model's positions), and
 // the others read as 0. NP: the parameters with a lane (those G reads: Eq::rhs_parameters, the first ones).
+// KL: the auxiliary fields are lines (Frame::line_pad).
 // WL: the point may lie on a wall (wall() is tested; else a compile-time false): every checked point,
 // and the neighbours a gather evaluates G at from a point within R of a wall.
-template <int C, int K, int NP, class Sten, Mode M, int SX = 0, int SY = 0, bool CK = false, int CS = C, bool WL = CK>
+template <int C, int K, int NP, class Sten, Mode M, int SX = 0, int SY = 0, bool CK = false, int CS = C, bool WL = CK,
+          bool KL = false>
 class Point {
 public:
   using Number = std::conditional_t<
@@ -195,6 +200,7 @@ public:
   // Auxiliary field k (Eq::auxiliaries: a = L U from the model's non-local linear maps) at the offset.
   Number aux(int k, int dx = 0, int dy = 0) const {
     static_assert(M != Mode::Rows, "a model with auxiliary fields has no assembled Jacobian");
+    if constexpr (KL) return line(k, dx);
     return field(f_.A, f_.dA, K, k, C + k, dx, dy);
   }
   // Entry e of the parameter vectors (Declarations::vector). In Rows and Gather modes a constant: their
@@ -234,6 +240,22 @@ private:
     } else if constexpr (M == Mode::Gather) {
       const bool seed = lane >= 0 && (CK ? i_ + dx == ti_ && j_ + dy == tj_ : dx == SX && dy == SY);
       return seed ? Number::seeded(v, lane) : Number(v);
+    } else return v;
+  }
+  // Auxiliary line k at column i + dx (the padded line holds 0 beyond a wall). A gather seeds it at
+  // the target in the point's own row, so that each read is counted once in the column sums of
+  // (dG/da)^T x.
+  Number line(int k, int dx) const {
+    const PetscInt gi = i_ + dx;
+    const PetscInt at = (gi + f_.line_pad) * K + k;
+    const double v = PetscRealPart(f_.A[at]);
+    if constexpr (M == Mode::Tangent) {
+      Number r(v);
+      r.d[0] = f_.dA ? PetscRealPart(f_.dA[at]) : 0.0;
+      return r;
+    } else if constexpr (M == Mode::Gather) {
+      const bool seed = CK ? gi == ti_ && j_ == tj_ : dx == SX && SY == 0;
+      return seed ? Number::seeded(v, C + k) : Number(v);
     } else return v;
   }
   // Position g in direction d, kept when inside (or periodic), reflected beyond a wall (sign flipped),
@@ -307,9 +329,9 @@ inline const PetscScalar &read_split(const Frame &f, const PetscScalar *x, const
 
 // The point view of the reverse sweep: Rev numbers whose tape inputs are the parameter vectors'
 // entries (input e: entry e); the state and the per-point parameters are constants.
-template <int C, int K, int NP, class Sten, bool CK, int CS = C>
-class ReversePoint : public Point<C, K, NP, Sten, Mode::Value, 0, 0, CK, CS> {
-  using Base = Point<C, K, NP, Sten, Mode::Value, 0, 0, CK, CS>;
+template <int C, int K, int NP, class Sten, bool CK, int CS = C, bool KL = false>
+class ReversePoint : public Point<C, K, NP, Sten, Mode::Value, 0, 0, CK, CS, CK, KL> {
+  using Base = Point<C, K, NP, Sten, Mode::Value, 0, 0, CK, CS, CK, KL>;
 
 public:
   using Number = Rev;
@@ -347,6 +369,12 @@ struct PairsOf<Eq, std::void_t<decltype(Eq::second_order_pairs)>> : std::integra
 // written by rhs after the C components, entering G through G += B_m h_m (L, B: the model's linear maps).
 template <class Eq, class = void> struct AuxOf : std::integral_constant<int, 0> {};
 template <class Eq> struct AuxOf<Eq, std::void_t<decltype(Eq::auxiliaries)>> : std::integral_constant<int, Eq::auxiliaries> {};
+// Auxiliary fields of x alone, made from the sums of the state over y (the moments of a kinetic model):
+// a_k = L_k s with s(i) = sum_j U(i, j), L_k a map between lines (Eq::auxiliaries_from_column_sums).
+template <class Eq, class = void> struct AuxFromColumnSums : std::false_type {};
+template <class Eq>
+struct AuxFromColumnSums<Eq, std::void_t<decltype(Eq::auxiliaries_from_column_sums)>>
+    : std::bool_constant<Eq::auxiliaries_from_column_sums> {};
 template <class Eq, class = void> struct RhsParametersOf : std::integral_constant<int, Eq::parameters> {};
 template <class Eq>
 struct RhsParametersOf<Eq, std::void_t<decltype(Eq::rhs_parameters)>> : std::integral_constant<int, Eq::rhs_parameters> {};
@@ -369,6 +397,11 @@ struct HasCheckInitial<Eq, std::void_t<decltype(std::declval<const Eq &>().check
 template <class Eq, class = void> struct HasForcedPoints : std::false_type {};
 template <class Eq>
 struct HasForcedPoints<Eq, std::void_t<decltype(std::declval<const Eq &>().forced(PetscInt(), PetscInt()))>> : std::true_type {};
+// Optional named functionals of the state (Model::functional): `functional_names()` and
+// `functional(name, U, value, dFdU)`, forwarded as the model states them.
+template <class Eq, class = void> struct HasFunctionals : std::false_type {};
+template <class Eq>
+struct HasFunctionals<Eq, std::void_t<decltype(std::declval<const Eq &>().functional_names())>> : std::true_type {};
 
 } // namespace pointwise
 
@@ -378,6 +411,9 @@ template <class Eq>
 class PointwiseModel final : public Model {
   static constexpr int D = Eq::dim, C = Eq::components, R = Eq::radius, NP = Eq::parameters;
   static constexpr int K = pointwise::AuxOf<Eq>::value, H = pointwise::OutputsOf<Eq>::value;
+  // The auxiliary fields are lines (functions of x alone, from column sums), else fields on the grid.
+  static constexpr bool KL = K > 0 && pointwise::AuxFromColumnSums<Eq>::value;
+  static_assert(!KL || D == 2, "auxiliary fields from column sums need a 2D grid");
   // The parameters G reads (the first NG; the others enter U0 alone): the transposes carry lanes for those.
   static constexpr int NG = pointwise::RhsParametersOf<Eq>::value;
   static_assert(NG <= NP, "rhs_parameters: at most parameters");
@@ -387,7 +423,7 @@ class PointwiseModel final : public Model {
   using Sten = pointwise::Stencil<D, R, Shape>;
   using Mode = pointwise::Mode;
   template <Mode M, int SX = 0, int SY = 0, bool CK = false, int CS = C, bool WL = CK>
-  using Pt = pointwise::Point<C, K, NG, Sten, M, SX, SY, CK, CS, WL>;
+  using Pt = pointwise::Point<C, K, NG, Sten, M, SX, SY, CK, CS, WL, KL>;
   template <bool CK> using PtInitial = pointwise::Point<C, 0, NP, Sten, Mode::Gather, 0, 0, CK>;
   template <bool CK> using Check = std::integral_constant<bool, CK>;
   // How a point of a sweep reads (for_points<true>): in place from the owned block (0, Check<false>),
@@ -404,12 +440,14 @@ class PointwiseModel final : public Model {
   struct LocalState {
     Vec ref = nullptr;  // the state itself (global layout): `copy`, or a Vec the caller holds
     OwnedVec copy, g, a; // a kept copy; ghosted with the ghost entries filled; auxiliary fields
+    std::vector<PetscReal> line; // auxiliary lines (KL), K per column over [-line_pad, n + line_pad)
   };
   // The arrays of a state for a sweep's frame.
   struct StateView {
-    StateView(const LocalState &s) : u(s.ref), g(s.g), a(s.a) {}
+    StateView(const LocalState &s) : u(s.ref), g(s.g), a(s.a), line(s.line.data()) {}
     PetscErrorCode error() const { return u.error() ? u.error() : (g.error() ? g.error() : a.error()); }
     ConstArray u, g, a;
+    const PetscReal *line;
   };
 
 public:
@@ -449,7 +487,12 @@ public:
     PetscCall(create_state(st_));
     PetscCall(create_state(jac_));
     PetscCall(create_state(jp_));
-    if constexpr (K > 0) {
+    if constexpr (KL) {
+      const size_t n = (size_t)grid.n();
+      for (auto *s : {&st_, &jac_, &jp_}) s->line.assign((n + 2 * line_pad) * K, 0.0);
+      dline_ = st_.line;
+      sums_.assign(n * C, 0.0), zline_.assign(n * K, 0.0), wline_.assign(n * C, 0.0), aline_.assign(n, 0.0);
+    } else if constexpr (K > 0) {
       PetscCall(grid.create_dm(K, aux_dm_.out()));
       PetscCall(DMCreateGlobalVector(aux_dm_, Ag_.out()));
       PetscCall(VecDuplicate(Ag_, Zg_.out()));
@@ -485,6 +528,7 @@ public:
     make_fold_table();
     frame_.np = NP + NF, frame_.coef0 = NP;
     frame_.na = K;
+    frame_.line_pad = line_pad;
     frame_.syo = grid.xm();
     frame_.xs = grid.xs(), frame_.ys = grid.ys(), frame_.xm = grid.xm(), frame_.ym = grid.ym();
     if constexpr (NF > 0) {
@@ -575,13 +619,15 @@ public:
     PetscFunctionBeginUser;
     if (x) PetscCall(fill_ghosts(x, Xl_));
     if (dp) PetscCall(params_to_local(dp, dP_));
-    if constexpr (K > 0)
+    if constexpr (KL) {
+      if (x) PetscCall(auxiliary_lines(x, dline_));
+    } else if constexpr (K > 0)
       if (x) PetscCall(auxiliaries(x, dAl_));
     if (dp) PetscCall(vectors_from(dp, dtheta_));
     {
       StateView sv(s);
       ConstArray xo(x), xg(x ? Xl_.get() : nullptr), p(P_), dpa(dp ? dP_.get() : nullptr),
-          da(K > 0 && x ? dAl_.get() : nullptr);
+          da(K > 0 && !KL && x ? dAl_.get() : nullptr);
       Array ya(y);
       PetscCall(sv.error());
       PetscCall(ya.error());
@@ -589,7 +635,7 @@ public:
       f.X = xo.data();
       f.Xg = xg.data();
       f.dP = dpa.data();
-      f.dA = da.data();
+      f.dA = KL ? (x ? dline_.data() : nullptr) : da.data();
       f.dtheta = dp && !dtheta_.empty() ? dtheta_.data() : nullptr;
       const pointwise::Frame fe = edge_frame(f);
       PetscScalar *out = ya.data();
@@ -645,7 +691,9 @@ public:
             if constexpr (ADDY) y[own * C + c] += w * yv[c];
             else y[own * C + c] = yv[c];
           }
-        if constexpr (K > 0 && WY)
+        if constexpr (KL && WY)
+          for (int k = 0; k < K; ++k) z[i * K + k] += zv[k];
+        else if constexpr (K > 0 && WY)
           for (int k = 0; k < K; ++k) z[own * K + k] = zv[k];
         if constexpr (WG)
           for (int k = 0; k < NG; ++k) gk[k][own] += w * gv[k];
@@ -691,7 +739,8 @@ public:
       if (y == x) xo = ya; // the leapfrog kick: reads x's components, writes others
       else PetscCall(VecGetArrayRead(x, &xo));
       if (mu) PetscCall(VecGetArray(mu, &m));
-      if (K > 0 && y) PetscCall(VecGetArray(Zg_, &za));
+      if (KL && y) std::fill(zline_.begin(), zline_.end(), 0.0), za = zline_.data();
+      else if (K > 0 && y) PetscCall(VecGetArray(Zg_, &za));
       PetscReal *gk[NP > 0 ? NP : 1] = {};
       if (mu) fill_gradient_targets(m, defer, gk, true);
       else if (GRAD) scratch_targets(gk);
@@ -711,11 +760,13 @@ public:
         PetscCall((theta_gather<CLO, CHI, CS>(t, s, xo, w, defer ? theta_acc_.data() : dtheta_.data())));
       }
       if (y != x) PetscCall(VecRestoreArrayRead(x, &xo));
-      if (za) PetscCall(VecRestoreArray(Zg_, &za));
+      if (za && !KL) PetscCall(VecRestoreArray(Zg_, &za));
       if (mu) PetscCall(VecRestoreArray(mu, &m));
       if (y) PetscCall(VecRestoreArray(y, &ya));
     }
-    if constexpr (K > 0)
+    if constexpr (KL) {
+      if (y) PetscCall(add_auxiliary_lines_transpose(y, ADDY ? w : 1.0));
+    } else if constexpr (K > 0)
       if (y) {
         PetscCall(VecSet(Yt_, 0.0));
         for (int k = 0; k < K; ++k) {
@@ -803,22 +854,33 @@ public:
         PetscCall(VecResetArray(pos_rec_));
         PetscFunctionReturn(0);
       }
+    if constexpr (KL)
+      if (record) { // the stage's auxiliary lines
+        st_.ref = U;
+        PetscCall(fill_ghosts(U, st_.g));
+        pad_lines(record, st_.line);
+        PetscCall(transpose(t, st_, x, y, 1.0, mu, in_adjoint_));
+        PetscFunctionReturn(0);
+      }
     PetscCall(load(U, st_));
     PetscCall(transpose(t, st_, x, y, 1.0, mu, in_adjoint_));
     PetscFunctionReturn(0);
   }
   // An explicit RK's stored stages: the positions alone of a second-order model (m per point) when the
   // transposes read nothing else of the state, which a probe at random inputs finds once (their
-  // products at two states that differ in the other components alone are the same).
+  // products at two states that differ in the other components alone are the same); or, besides the
+  // stage, its auxiliary lines (K per column), which the adjoint would otherwise form again.
   PetscInt stage_record_size() const override {
+    if constexpr (KL) return grid_->n() * K;
     return positions_suffice() ? grid_->local_points() * pointwise::PairsOf<Eq>::value : 0;
   }
-  bool stage_record_replaces_state() const override { return stage_record_size() > 0; }
+  bool stage_record_replaces_state() const override { return !KL && stage_record_size() > 0; }
   PetscErrorCode rhs_record(PetscReal t, Vec U, Vec G, PetscScalar *record) override {
     constexpr int m = pointwise::PairsOf<Eq>::value;
     PetscFunctionBeginUser;
     PetscCall(rhs(t, U, G));
     if constexpr (m > 0) PetscCall(positions_of(U, record));
+    if constexpr (KL) std::copy(st_.line.begin() + line_pad * K, st_.line.end() - line_pad * K, record);
     PetscFunctionReturn(0);
   }
   // q = the positions of the state U (its first m components at every owned point, m per point).
@@ -960,6 +1022,15 @@ public:
   void set_time_step(PetscReal dt) override {
     if constexpr (pointwise::HasTimeStep<Eq>::value) eq_.set_time_step(dt);
   }
+  // Named functionals: the model's own (Eq::functional_names, Eq::functional), else none.
+  std::string functional_names() const override {
+    if constexpr (pointwise::HasFunctionals<Eq>::value) return eq_.functional_names();
+    else return Model::functional_names();
+  }
+  PetscErrorCode functional(const char *fname, Vec U, PetscReal *value, Vec dFdU) override {
+    if constexpr (pointwise::HasFunctionals<Eq>::value) return eq_.functional(fname, U, value, dFdU);
+    else return Model::functional(fname, U, value, dFdU);
+  }
 
   // U0 = U0(p) pointwise, and grad += (dU0/dp)^T lambda0 from Dual numbers in the parameters.
   FLEXIPDE_SWEEP PetscErrorCode initial_condition(Vec p, Vec U0) override {
@@ -1053,7 +1124,7 @@ private:
     for_points(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
       Rev g[C];
       tape.begin(ne);
-      eq_.rhs(pointwise::ReversePoint<C, K, NG, Sten, decltype(ck)::value, CS>(f, at, own, i, j), g);
+      eq_.rhs(pointwise::ReversePoint<C, K, NG, Sten, decltype(ck)::value, CS, KL>(f, at, own, i, j), g);
       tape.begin_seeding();
       for (int c = CLO; c < CHI; ++c) tape.seed(g[c].i, w * PetscRealPart(xo[own * C + c]));
       tape.backward();
@@ -1100,9 +1171,9 @@ private:
   // The model as the sweeps read it: a copy when it can be copied (the point loops copy it again with
   // the rest of what they capture), so that the compiler knows no store of a sweep changes its
   // members: it keeps them in registers, hoists the branches on them out of the loop over points, and
-  // vectorises.
+  // vectorises. (A model holds what is costly to copy, such as FFT plans, through a shared pointer.)
   template <class F> void with_model(F &&f) const {
-    if constexpr (std::is_trivially_copyable_v<Eq>) {
+    if constexpr (std::is_copy_constructible_v<Eq>) {
       const Eq eq = eq_;
       f(eq);
     } else f(ModelView{&eq_});
@@ -1115,7 +1186,7 @@ private:
 
   pointwise::Frame frame(PetscReal t, const StateView &s, const PetscScalar *P) const {
     pointwise::Frame f = frame_;
-    f.t = t, f.U = s.u.data(), f.Ug = s.g.data(), f.A = s.a.data(), f.P = P;
+    f.t = t, f.U = s.u.data(), f.Ug = s.g.data(), f.A = KL ? s.line : s.a.data(), f.P = P;
     return f;
   }
   // The frame of the Edge points: the state and its direction read from their ghosted arrays.
@@ -1318,13 +1389,71 @@ private:
     if (keep) PetscCall(VecCopy(U, s.copy));
     s.ref = keep ? s.copy.get() : U;
     PetscCall(fill_ghosts(s.ref, s.g));
-    if constexpr (K > 0) PetscCall(auxiliaries(s.ref, s.a));
+    if constexpr (KL) PetscCall(auxiliary_lines(s.ref, s.line));
+    else if constexpr (K > 0) PetscCall(auxiliaries(s.ref, s.a));
+    PetscFunctionReturn(0);
+  }
+  // The auxiliary lines a_k = L_k s of U, s its column sums (over all ranks; collective), K per column,
+  // padded (pad_lines).
+  PetscErrorCode auxiliary_lines(Vec U, std::vector<PetscReal> &line) {
+    const PetscInt n = grid_->n(), xs = grid_->xs(), xm = grid_->xm(), ym = grid_->ym();
+    PetscFunctionBeginUser;
+    if constexpr (KL) {
+      std::fill(sums_.begin(), sums_.end(), 0.0);
+      {
+        ConstArray u(U);
+        PetscCall(u.error());
+        const PetscScalar *a = u.data();
+        PetscReal *sum = sums_.data() + xs * C;
+        for (PetscInt j = 0; j < ym; ++j)
+          for (PetscInt q = 0; q < xm * C; ++q) sum[q] += PetscRealPart(a[j * xm * C + q]);
+      }
+      PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, sums_.data(), (PetscMPIInt)(n * C), MPIU_REAL, MPI_SUM, grid_->comm()));
+      for (int k = 0; k < K; ++k) {
+        PetscCall(eq_.auxiliary(k, sums_.data(), aline_.data()));
+        for (PetscInt i = 0; i < n; ++i) line[(i + line_pad) * K + k] = aline_[i];
+      }
+      pad_lines(line.data() + line_pad * K, line);
+    }
+    PetscFunctionReturn(0);
+  }
+  // line = the lines a (K per column, n columns; may be line's own middle) padded by line_pad columns
+  // each side: periodic images, or 0 beyond walls.
+  void pad_lines(const PetscScalar *a, std::vector<PetscReal> &line) const {
+    const PetscInt n = grid_->n();
+    const bool periodic = grid_->periodic();
+    if (a != line.data() + line_pad * K) std::copy(a, a + n * K, line.begin() + line_pad * K);
+    for (PetscInt i = -line_pad; i < n + line_pad; ++i) {
+      if (i >= 0 && i < n) continue;
+      const PetscInt src = periodic ? (i % n + n) % n : -1;
+      for (int k = 0; k < K; ++k) line[(i + line_pad) * K + k] = src >= 0 ? line[(src + line_pad) * K + k] : 0.0;
+    }
+  }
+  // y += w R sum_k L_k^T z_k, z_k the column sums of the gather's (dG/da_k)^T x (in zline_, this
+  // rank's share; summed here, collective) and R the copy of a line to every row.
+  PetscErrorCode add_auxiliary_lines_transpose(Vec y, PetscReal w) {
+    const PetscInt n = grid_->n(), xs = grid_->xs(), xm = grid_->xm(), ym = grid_->ym();
+    PetscFunctionBeginUser;
+    if constexpr (KL) {
+      PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, zline_.data(), (PetscMPIInt)(n * K), MPIU_REAL, MPI_SUM, grid_->comm()));
+      std::fill(wline_.begin(), wline_.end(), 0.0);
+      for (int k = 0; k < K; ++k) {
+        for (PetscInt i = 0; i < n; ++i) aline_[i] = zline_[i * K + k];
+        PetscCall(eq_.auxiliary_transpose(k, aline_.data(), wline_.data()));
+      }
+      Array ya(y);
+      PetscCall(ya.error());
+      PetscScalar *out = ya.data();
+      const PetscReal *wl = wline_.data() + xs * C;
+      for (PetscInt j = 0; j < ym; ++j)
+        for (PetscInt q = 0; q < xm * C; ++q) out[j * xm * C + q] += w * wl[q];
+    }
     PetscFunctionReturn(0);
   }
   // a_k = L_k U for every k, ghosted into `local` (K per point).
   PetscErrorCode auxiliaries(Vec U, Vec local) {
     PetscFunctionBeginUser;
-    if constexpr (K > 0) {
+    if constexpr (K > 0 && !KL) {
       for (int k = 0; k < K; ++k) {
         PetscCall(eq_.auxiliary(k, U, field_));
         PetscCall(VecStrideScatter(field_, k, Ag_, INSERT_VALUES));
@@ -1607,6 +1736,10 @@ private:
   OwnedVec pos_copy_;          // the positions copied out of a whole state
   mutable int positions_probe_ = -1; // positions_suffice: unknown, no, yes
   OwnedVec Ag_, dAl_, Zg_, Hg_, XHl_, field_, Yt_; // non-local maps: their fields and scratch
+  // Auxiliary lines (KL): the direction's lines, the state's column sums, the gather's column sums
+  // of (dG/da)^T x, L^T of them, one line.
+  static constexpr PetscInt line_pad = 2 * R;
+  std::vector<PetscReal> dline_, sums_, zline_, wline_, aline_;
   PetscReal jp_t_ = 0;
   ParameterBounds bounds_;
   const PointSource *source_ = nullptr;
