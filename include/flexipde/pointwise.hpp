@@ -1459,12 +1459,14 @@ private:
       PetscCall(PetscRandomDestroy(&rnd));
     }
     std::vector<int> local(Sten::size * C * C, 0);
-    // At positive and at negative states: an upwind flux reads one side's values for one sign only.
-    for (int pass = 0; pass < 2; ++pass) {
-      if (pass) {
+    // At states and at parameters of either sign: an upwind flux reads one side's values for one sign
+    // of its state (Burgers) or of its velocity (advection) only.
+    for (int pass = 0; pass < 4; ++pass) {
+      if (pass == 1 || pass == 3) {
         PetscCall(VecScale(Ur.copy, -1.0));
         PetscCall(VecScale(Ur.g, -1.0));
       }
+      if (pass == 2) PetscCall(VecScale(Pr, -1.0));
       StateView u(Ur);
       ConstArray p(Pr);
       pointwise::Frame f = frame(0.5, u, p.data());
