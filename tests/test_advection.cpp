@@ -602,13 +602,14 @@ TEST(AdvectionScene, DeclaresOnlyWhatItUses) {
     PetscInt count, global_size, width;
     bool has_D, has_A;
   } cases[] = {
-      {{}, 1, 1, 1, false, false},
-      {{{"-advection_ic_amplitude_param", "1"}}, 2, 2, 1, false, true},
-      {{{"-advection_D", "0.1"}}, 2, 2, 1, true, false},
-      {{{"-advection_D", "0.1"}, {"-advection_diffusion", "0"}}, 1, 1, 1, false, false},
-      {{{"-advection_diffusion", "1"}, {"-advection_scheme", "fd4"}}, 2, 2, 3, true, false}, // fd_order follows: 4
-      {{{"-advection_D_field", "1"}}, 2, 1 + 32, 1, true, false},
-      {{{"-advection_scheme", "fd4"}}, 1, 1, 2, false, false},
+      // width: the ghost width 2R of the pointwise layer, R the stencil radius
+      {{}, 1, 1, 2, false, false},
+      {{{"-advection_ic_amplitude_param", "1"}}, 2, 2, 2, false, true},
+      {{{"-advection_D", "0.1"}}, 2, 2, 2, true, false},
+      {{{"-advection_D", "0.1"}, {"-advection_diffusion", "0"}}, 1, 1, 2, false, false},
+      {{{"-advection_diffusion", "1"}, {"-advection_scheme", "fd4"}}, 2, 2, 6, true, false}, // fd_order follows: 4
+      {{{"-advection_D_field", "1"}}, 2, 1 + 32, 2, true, false},
+      {{{"-advection_scheme", "fd4"}}, 1, 1, 4, false, false},
   };
   for (auto &c : cases) {
     ScopedOptions o;
