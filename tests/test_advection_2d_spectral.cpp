@@ -443,7 +443,7 @@ TEST(AdvectionSampledStability, AcceptsJustBelowTheTrueLimitAndRefusesJustAbove)
     bool exact; // scalar D: samples are the eigenvalues; field D: a bound (accepted steps stable)
   } cases[] = {
       {"fd2 1D, D = 0.0245", {{"-advection_D", "0.0245"}}, true},
-      {"fd4 2D, D = 0.02, b = -0.6", {{"-advection_dim", "2"}, {"-da_grid_y", "12"}, {"-advection_scheme", "fd4"}, {"-advection_D", "0.02"}, {"-advection_b", "-0.6"}}, true},
+      {"fd4 2D, D = 0.02, b = -0.6", {{"-advection_dim", "2"}, {"-da_grid_y", "16"}, {"-advection_scheme", "fd4"}, {"-advection_D", "0.02"}, {"-advection_b", "-0.6"}}, true},
       {"upwind 2D, b = 0.3", {{"-advection_dim", "2"}, {"-da_grid_y", "12"}, {"-advection_scheme", "upwind"}, {"-advection_b", "0.3"}}, true},
       {"spectral 1D, D = 0.05", {{"-advection_scheme", "spectral"}, {"-advection_D", "0.05"}}, true},
       {"spectral 1D, field D", {{"-advection_scheme", "spectral"}, {"-advection_D_field", "1"}, {"-advection_D", "0.05"}}, false},
