@@ -101,6 +101,7 @@ PetscErrorCode read_choice(Choice &c) {
 template <int Dim, int R, int K = 0, int H = 0>
 class Advection {
   static constexpr bool spectral = R == 0;
+  static constexpr bool laplacian = spectral && H == 0 && K == Dim + 1; // scalar D (1D field D also has K = 2)
   enum Parameter { A_VEL = 0, B_VEL = 1, DIFF = Dim, AMP = Dim + 1 };
 
 public:
@@ -185,7 +186,7 @@ public:
     if constexpr (spectral) {
       T G = -pt.param(A_VEL) * pt.aux(0);
       if constexpr (Dim == 2) G -= pt.param(B_VEL) * pt.aux(1);
-      if constexpr (K == Dim + 1) G += pt.param(DIFF) * pt.aux(Dim); // D times the Laplacian
+      if constexpr (laplacian) G += pt.param(DIFF) * pt.aux(Dim); // D times the Laplacian
       g[0] = G;
       for (int d = 0; d < H; ++d) g[1 + d] = pt.param(DIFF) * pt.aux(Dim + d); // the flux D E_d u
     } else {
@@ -353,7 +354,7 @@ private:
   }
   // L_k: d/dx_k (k < Dim), then the Laplacian (scalar D) or E_{k - Dim} (field D).
   const SpectralDifferentiator::Symbol &aux_symbol(int k) const {
-    return k < Dim ? derivative_[k] : K == Dim + 1 ? laplacian_ : dealiased_[k - Dim];
+    return k < Dim ? derivative_[k] : laplacian ? laplacian_ : dealiased_[k - Dim];
   }
 
   PetscInt scheme_ = FD2, order_ = 2, ic_ = SINUSOID, mode_[2] = {1, 1}, n_[2] = {1, 1};
