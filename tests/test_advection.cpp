@@ -410,7 +410,7 @@ struct MixedCase {
 // and the true limit (the largest dt, to 0.1%, with every |R(dt lambda_k)| <= 1).
 PetscErrorCode max_amplification(const char *rk, PetscReal dt, PetscReal *amp, PetscReal *axis_dt, PetscReal *true_dt) {
   Scene s;
-  OwnedVec p;
+  OwnedVec p, U;
   OwnedMat J;
   OwnedTS ts;
   PetscMPIInt rank;
@@ -421,7 +421,8 @@ PetscErrorCode max_amplification(const char *rk, PetscReal dt, PetscReal *amp, P
   PetscCall(s.parameters_from_options("", p));
   PetscCall(s.model->set_parameters(p));
   PetscCall(s.model->create_jacobian(J.out()));
-  PetscCall(s.model->rhs_jacobian(0.0, nullptr, J));
+  PetscCall(s.sim.create_state(U.out())); // dG/dU of the linear model is the same at every state
+  PetscCall(s.model->rhs_jacobian(0.0, U, J));
   const PetscInt n = s.grid.n();
   std::vector<PetscReal> row(n, 0.0);
   if (rank == 0) {

@@ -402,13 +402,15 @@ PetscErrorCode check_dt(PetscReal dt, PetscErrorCode *outcome) {
 PetscErrorCode explicit_eigenvalues(std::vector<std::complex<double>> &ev) {
   flexipde_test::SceneProblem pb;
   OwnedMat J;
+  OwnedVec U;
   KSP ksp;
   PC pc;
   PetscFunctionBeginUser;
   PetscCall(pb.setup(PETSC_COMM_WORLD));
   PetscCall(pb.scene.model->set_parameters(pb.p));
   PetscCall(pb.scene.model->create_jacobian(J.out()));
-  PetscCall(pb.scene.model->rhs_jacobian(0.0, nullptr, J));
+  PetscCall(pb.scene.sim.create_state(U.out())); // dG/dU of the linear model is the same at every state
+  PetscCall(pb.scene.model->rhs_jacobian(0.0, U, J));
   PetscInt n;
   PetscCall(MatGetSize(J, &n, nullptr));
   std::vector<PetscReal> re(n), im(n);

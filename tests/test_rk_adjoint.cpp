@@ -69,7 +69,7 @@ std::vector<RkCase> rk_cases() {
        5e-12}, // P applied to the sum of the stages' field sums, not to each: round-off of a longer sum
       {"advection_2d_fd4_D_field_order4_rk4",
        {{"-model", "advection"}, {"-advection_dim", "2"}, {"-grid_periodic", "1"}, {"-da_grid_x", "16"},
-        {"-da_grid_y", "12"}, {"-advection_scheme", "fd4"}, {"-fd_order", "4"}, {"-advection_D", "0.02"},
+        {"-da_grid_y", "16"}, {"-advection_scheme", "fd4"}, {"-fd_order", "4"}, {"-advection_D", "0.02"},
         {"-advection_D_field", "1"}, {"-advection_D_profile", "gaussian"}, {"-advection_D_bump", "0.01"},
         {"-advection_b", "-0.6"}, {"-ts_rk_type", "4"}},
        1e-12},
