@@ -7,43 +7,43 @@
 // The velocities a (-advection_a) and, in 2D, b (-advection_b) are scalar parameters. Diffusion is
 // optional: -advection_diffusion (default on exactly when -advection_D, -advection_D_field or
 // -advection_D_profile is given) adds the parameter D, a scalar or a field (-advection_D_field 1).
+// Without it the scene declares no D and G has no diffusion term.
 //
-// Space, per direction d with spacing h (every stencil periodic):
-//   fd2       (u_x)_i = (u_{i+1} - u_{i-1}) / 2h                                    order 2
-//   fd4       (u_x)_i = (u_{i-2} - 8u_{i-1} + 8u_{i+1} - u_{i+2}) / 12h             order 4
-//   upwind    (u_x)_i = (u_i - u_{i-1}) / h for a >= 0, (u_{i+1} - u_i) / h for a < 0: order 1,
-//             monotone; dG/da is taken on the side of the current sign (one-sided at a = 0)
-//   spectral  u_x = F^-1 i kappa F u (FFTW-MPI, include/flexipde/spectral.hpp); N even
-//   Diffusion, finite differences: the flux form G_i = -(B^T diag(D_f) B u)_i, with the face gradient
-//   B and face diffusivity D_f at f = i + 1/2:
-//     -fd_order 2: (Bu)_f = (u_{i+1} - u_i) / h,  D_f = (D_i + D_{i+1}) / 2
-//     -fd_order 4: (Bu)_f = (u_{i-1} - 27u_i + 27u_{i+1} - u_{i+2}) / 24h,
-//                  D_f = (-D_{i-1} + 9D_i + 9D_{i+1} - D_{i+2}) / 16
-//   symmetric, negative semi-definite while D_f >= 0, conservative, of the stated order for a smooth
-//   field D. -fd_order defaults to 4 with fd4, else 2.
-//   Diffusion, spectral: a scalar D multiplies the Laplacian F^-1 (-|kappa|^2) F u; a field D gives
-//   sum_d E_d (D .* E_d u), E_d = P d/dx_d with P the 2/3-rule truncation: the gradient is truncated
-//   and so is the flux, symmetric negative semi-definite for D >= 0 and conservative.
+// Space (-advection_scheme), per direction d with spacing h, v the velocity along d:
+//   fd2       h v (u_d)_i = v (u_{i+1} - u_{i-1}) / 2                                  order 2
+//   fd4       h v (u_d)_i = v (u_{i-2} - 8u_{i-1} + 8u_{i+1} - u_{i+2}) / 12           order 4
+//   upwind    h v (u_d)_i = v+ (u_i - u_{i-1}) + v- (u_{i+1} - u_i),  v+ = max(v, 0), v- = min(v, 0):
+//             order 1, monotone; at v = 0 dG/dv is the backward difference
+//   spectral  u_d = F^-1 i kappa_d F u (FFTW-MPI, include/flexipde/spectral.hpp); N even
+// Diffusion, finite differences, in flux form G_i += -(B^T diag(D_f) B u)_i with the face gradient B
+// and the face diffusivity D_f at f = i + 1/2 (-fd_order, default 4 with fd4, else 2):
+//   order 2: h (Bu)_f = u_{i+1} - u_i,                              D_f = (D_i + D_{i+1}) / 2
+//   order 4: h (Bu)_f = (u_{i-1} - 27u_i + 27u_{i+1} - u_{i+2}) / 24,  D_f = (-D_{i-1} + 9D_i + 9D_{i+1} - D_{i+2}) / 16
+// symmetric, negative semi-definite while D_f >= 0, conservative, of the stated order for a smooth D.
+// Diffusion, spectral: a scalar D multiplies the Laplacian F^-1 (-|kappa|^2) F u; a field D gives
+// sum_d E_d ((P D) .* E_d u), E_d = P d/dx_d, P the 2/3-rule truncation: both factors of the flux and
+// the flux itself are truncated (de-aliased), and the operator is symmetric negative semi-definite
+// while P D >= 0 (checked). dG/dD is then P(...): the gradient with respect to D is truncated too.
 //
-// The layer (include/flexipde/pointwise.hpp) takes G at one point (rhs below) and derives dG/dU,
-// dG/da, dG/db, dG/dD, their transposes and the adjoint sweeps. The spectral scheme enters through its
-// non-local maps: auxiliary fields a_d = d/dx_d u (and the Laplacian, or E_d u for a field D) read at
-// points, and for a field D the outputs h_d = D E_d u that G receives through E_d.
+// G is rhs() below, at one point; the pointwise layer (include/flexipde/pointwise.hpp) derives dG/dU,
+// dG/dp, their transposes and the adjoint sweeps. The spectral scheme is stated through its non-local
+// maps: auxiliary fields read at points (u_d, the Laplacian, E_d u), outputs (the flux (P D) E_d u)
+// that enter G through E_d, and the parameter map P of a field D.
 //
 // Spectrum (the explicit stability check): with no D or a scalar D the operator is a sum of circulants,
-// normal, and its eigenvalues are the symbols per mode lambda(theta_x) + lambda(theta_y): all of them
-// are passed. With a field D they lie in the field of values, inside W(advection) + [-Dmax rho, 0]
-// (rho the largest |symbol|^2 of the face gradients, Dmax bounding every D_f): its boundary is passed.
+// normal, and its eigenvalues, the symbols per mode, are all passed. With a field D they lie in the
+// field of values, inside W(advection) + [-Dmax rho, 0] (rho the largest |symbol|^2 of the face
+// gradients): its boundary is passed.
 //
-// Initial condition (-advection_ic, u0 = A s):
+// Initial condition (-advection_ic, u0 = A s; -advection_ic_amplitude A, a parameter with
+// -advection_ic_amplitude_param 1):
 //   sinusoid  s = sin(2 pi m (x - x0) / Lx [+ 2 pi m_y (y - y0) / Ly] + phi)
 //   gaussian  s = exp(-|d|^2 / w^2)                       d the periodic distance to the centre
 //   square    s = 1 where |d_x| < w/2 [and |d_y| < w/2], else 0
-// A (-advection_ic_amplitude) is a parameter with dU0/dA = s when -advection_ic_amplitude_param 1.
 //
 //   mpiexec -n 2 ./flexipde -model advection -grid_periodic 1 -grid_x1 6.283185307179586 -da_grid_x 64
 //           -ts_dt 0.01 -ts_max_time 1 -task taylor -objective_type mean_square
-//           -advection_ic_amplitude_param 1 -advection_D 0.05 -advection_D_field 1           (one line)
+//           -advection_ic_amplitude_param 1 -advection_D 0.05 -advection_D_field 1
 //   mpiexec -n 2 ./flexipde -model advection -grid_periodic 1 -task gradient -advection_scheme upwind
 //           -advection_a 0.8 -true_advection_a 1 -ts_type cn -ts_dt 1e-3 -ts_max_time 0.5 -check_fd
 //   mpiexec -n 2 ./flexipde -model advection -grid_periodic 1 -grid_x1 6.283185307179586 -da_grid_x 64
@@ -52,6 +52,7 @@
 //   mpiexec -n 2 ./flexipde -model advection -advection_dim 2 -da_grid_x 32 -da_grid_y 32
 //           -advection_a 0.8 -advection_b 0.5 -true_advection_b 0.6 -advection_D 0.01 -ts_dt 0.005
 //           -ts_max_time 0.2 -task gradient -check_fd
+//   (each one command line)
 #include "flexipde/differentiator.hpp"
 #include "flexipde/pointwise.hpp"
 #include "flexipde/spectral.hpp"
@@ -62,24 +63,24 @@ namespace flexipde {
 namespace {
 
 const char *const schemes[] = {"fd2", "fd4", "upwind", "spectral"};
-enum Scheme : PetscInt { FD2, FD4, UPWIND, SPECTRAL };
+enum Scheme : int { FD2, FD4, UPWIND, SPECTRAL };
+// The diffusion term: none; finite-difference faces of order 2 or 4; spectral with a scalar or a field D.
+enum Diffusion : int { NONE, FACES2, FACES4, SCALAR_D, FIELD_D };
 const char *const ic_names[] = {"sinusoid", "gaussian", "square"};
 enum InitialCondition : PetscInt { SINUSOID, GAUSSIAN, SQUARE };
 constexpr PetscReal default_diffusion = 0.01; // D when diffusion is on without a value
 constexpr PetscInt default_points_2d = 64;
 using cplx = std::complex<PetscReal>;
 
-// What fixes the grid and the equations' shape, read before the grid exists (no -help there).
+// What fixes the equations' shape (dimension, stencil, non-local maps), read before the grid exists.
 struct Choice {
   PetscInt dim = 1, scheme = FD2, order = 2;
   PetscBool diffusion = PETSC_FALSE, field = PETSC_FALSE;
-  // Stencil radius (the layer's ghost width is twice it) and the spectral scheme's non-local fields.
-  int radius() const {
-    if (scheme == SPECTRAL) return 0;
-    return std::max(scheme == FD4 ? 2 : 1, diffusion ? (order == 4 ? 3 : 1) : 0);
+  int diffusion_term() const {
+    if (!diffusion) return NONE;
+    if (scheme == SPECTRAL) return field ? FIELD_D : SCALAR_D;
+    return order == 4 ? FACES4 : FACES2;
   }
-  int auxiliaries() const { return scheme != SPECTRAL ? 0 : !diffusion ? dim : field ? 2 * dim : dim + 1; }
-  int outputs() const { return scheme == SPECTRAL && diffusion && field ? dim : 0; }
 };
 PetscErrorCode read_choice(Choice &c) {
   PetscBool given[3];
@@ -97,16 +98,27 @@ PetscErrorCode read_choice(Choice &c) {
   PetscFunctionReturn(0);
 }
 
-// The equations for one shape: Dim, stencil radius R (0: spectral), K auxiliary fields, H outputs.
-template <int Dim, int R, int K = 0, int H = 0>
+// The spectral scheme's operators: d/dx_d, the Laplacian, E_d = P d/dx_d, and P itself (dealias).
+struct SpectralMaps {
+  SpectralDifferentiator fft;
+  SpectralDifferentiator::Symbol derivative[2], dealiased[2], laplacian;
+  OwnedVec work;
+};
+struct NoMaps {};
+
+// The equations in Dim dimensions for scheme S and diffusion term Df (template arguments, so that the
+// sweeps have no branch on them).
+template <int Dim, int S, int Df>
 class Advection {
-  static constexpr bool spectral = R == 0;
-  static constexpr bool laplacian = spectral && H == 0 && K == Dim + 1; // scalar D (1D field D also has K = 2)
-  enum Parameter { A_VEL = 0, B_VEL = 1, DIFF = Dim, AMP = Dim + 1 };
+  static constexpr bool spectral = S == SPECTRAL;
+  enum Parameter { A_VEL = 0, B_VEL = 1, DIFF = Dim, AMP = Dim + 1 }; // the velocity along d is slot d
 
 public:
-  static constexpr int dim = Dim, components = 1, radius = R, parameters = Dim + 2;
-  static constexpr int auxiliaries = K, outputs = H;
+  static constexpr int dim = Dim, components = 1, parameters = Dim + 2;
+  static constexpr int rhs_parameters = Dim + 1; // the amplitude enters U0 alone
+  static constexpr int radius = spectral ? 0 : std::max(S == FD4 ? 2 : 1, Df == FACES4 ? 3 : 1);
+  static constexpr int auxiliaries = spectral ? Dim + (Df == SCALAR_D ? 1 : Df == FIELD_D ? Dim : 0) : 0;
+  static constexpr int outputs = Df == FIELD_D ? Dim : 0;
   static constexpr bool linear = true;
 
   const char *name() const { return "advection"; }
@@ -162,9 +174,9 @@ public:
       c.order = order.order();
     }
     // The model was made for the choice read before the grid existed; -help must not change it.
-    PetscCheck(c.dim == Dim && c.radius() == R && c.auxiliaries() == K && c.outputs() == H, grid.comm(), PETSC_ERR_PLIB,
+    PetscCheck(c.dim == Dim && c.scheme == S && c.diffusion_term() == Df, grid.comm(), PETSC_ERR_PLIB,
                "advection: the options changed between the model's creation and its setup");
-    scheme_ = c.scheme, order_ = c.order, diffusion_ = c.diffusion, field_ = c.field;
+    field_ = c.field;
     for (int d = 0; d < Dim; ++d) {
       n_[d] = d == 0 ? grid.n() : grid.ny(), length_[d] = d == 0 ? Lx : Ly, x0_[d] = d == 0 ? grid.x0() : grid.y0();
       h_[d] = length_[d] / n_[d];
@@ -173,61 +185,63 @@ public:
 
     decl.parameter(A_VEL, "advection_a", false, PETSC_NINFINITY, 1.0);
     if (Dim == 2) decl.parameter(B_VEL, "advection_b", false, PETSC_NINFINITY, 1.0);
-    if (diffusion_) decl.parameter(DIFF, "advection_D", field_, 0.0, default_diffusion);
+    if (Df != NONE) decl.parameter(DIFF, "advection_D", c.field, 0.0, default_diffusion);
     else decl.fixed(DIFF, 0.0);
     if (amplitude_param) decl.parameter(AMP, "advection_ic_amplitude", false, PETSC_NINFINITY, amplitude);
     else decl.fixed(AMP, amplitude);
     PetscFunctionReturn(0);
   }
 
-  // G at one point: -sum_d v_d (u_d) + diffusion.
+  // G at one point: -sum_d v_d u_d + the diffusion term (g[1 + d]: the spectral flux (P D) E_d u).
   template <class P> void rhs(const P &pt, typename P::Number *g) const {
     using T = typename P::Number;
+    T G = T(0.0);
     if constexpr (spectral) {
-      T G = -pt.param(A_VEL) * pt.aux(0);
-      if constexpr (Dim == 2) G -= pt.param(B_VEL) * pt.aux(1);
-      if constexpr (laplacian) G += pt.param(DIFF) * pt.aux(Dim); // D times the Laplacian
-      g[0] = G;
-      for (int d = 0; d < H; ++d) g[1 + d] = pt.param(DIFF) * pt.aux(Dim + d); // the flux D E_d u
+      for (int d = 0; d < Dim; ++d) G -= pt.param(d) * pt.aux(d);
+      if constexpr (Df == SCALAR_D) G += pt.param(DIFF) * pt.aux(Dim);
+      if constexpr (Df == FIELD_D)
+        for (int d = 0; d < Dim; ++d) g[1 + d] = pt.param(DIFF) * pt.aux(Dim + d);
     } else {
-      const T a = pt.param(A_VEL);
-      T G = -a * slope<0>(pt, a) * pt.inv_h(0);
-      if constexpr (Dim == 2) {
-        const T b = pt.param(B_VEL);
-        G -= b * slope<1>(pt, b) * pt.inv_h(1);
+      G -= advective<0>(pt) * pt.inv_h(0);
+      if constexpr (Dim == 2) G -= advective<1>(pt) * pt.inv_h(1);
+      if constexpr (Df != NONE) {
+        G += diffusion<0>(pt) * sqr(pt.inv_h(0));
+        if constexpr (Dim == 2) G += diffusion<1>(pt) * sqr(pt.inv_h(1));
       }
-      if (diffusion_) {
-        G += diffusion<0>(pt) * (pt.inv_h(0) * pt.inv_h(0));
-        if constexpr (Dim == 2) G += diffusion<1>(pt) * (pt.inv_h(1) * pt.inv_h(1));
-      }
-      g[0] = G;
     }
+    g[0] = G;
   }
 
   template <class P> void initial(const P &pt, typename P::Number *u) const {
     u[0] = pt.param(AMP) * profile(pt.x(0), Dim == 2 ? pt.x(1) : 0.0);
   }
 
-  // The spectral maps: a_k = L_k U and its transpose; G += E_m h_m and its transpose.
-  PetscErrorCode auxiliary(int k, Vec U, Vec a) const { return spectral_.apply(aux_symbol(k), U, a); }
+  // The spectral maps: a_k = L_k U (k < Dim: d/dx_k; then the Laplacian or E_d) and G += E_m h_m, with
+  // their transposes; a field D is read as P D.
+  PetscErrorCode auxiliary(int k, Vec U, Vec a) const { return maps_.fft.apply(aux_symbol(k), U, a); }
   PetscErrorCode auxiliary_transpose(int k, Vec z, Vec y) const {
     PetscFunctionBeginUser;
-    PetscCall(spectral_.apply(aux_symbol(k), z, work_, true));
-    PetscCall(VecAXPY(y, 1.0, work_));
+    PetscCall(maps_.fft.apply(aux_symbol(k), z, maps_.work, true));
+    PetscCall(VecAXPY(y, 1.0, maps_.work));
     PetscFunctionReturn(0);
   }
   PetscErrorCode output(int m, Vec h, Vec G) const {
     PetscFunctionBeginUser;
-    PetscCall(spectral_.apply(dealiased_[m], h, work_));
-    PetscCall(VecAXPY(G, 1.0, work_));
+    PetscCall(maps_.fft.apply(maps_.dealiased[m], h, maps_.work));
+    PetscCall(VecAXPY(G, 1.0, maps_.work));
     PetscFunctionReturn(0);
   }
-  PetscErrorCode output_transpose(int m, Vec x, Vec hx) const { return spectral_.apply(dealiased_[m], x, hx, true); }
+  PetscErrorCode output_transpose(int m, Vec x, Vec hx) const { return maps_.fft.apply(maps_.dealiased[m], x, hx, true); }
+  bool maps_parameter(int k) const { return Df == FIELD_D && k == DIFF; }
+  PetscErrorCode map_parameter(int, Vec f) const {
+    if constexpr (spectral) return maps_.fft.dealias(f, f);
+    return 0;
+  }
 
   PetscErrorCode check_parameters(const ParameterBounds &b, MPI_Comm comm) const {
     PetscFunctionBeginUser;
-    PetscCheck(!diffusion_ || b.min[DIFF] >= 0, comm, PETSC_ERR_ARG_OUTOFRANGE, "Diffusivity must be non-negative, found D = %g",
-               (double)b.min[DIFF]);
+    PetscCheck(Df == NONE || b.min[DIFF] >= 0, comm, PETSC_ERR_ARG_OUTOFRANGE, "Diffusivity must be non-negative, found D = %g%s",
+               (double)b.min[DIFF], Df == FIELD_D ? " in its 2/3-rule truncation P D: smooth D or raise it away from 0" : "");
     PetscFunctionReturn(0);
   }
 
@@ -238,24 +252,21 @@ public:
     PetscFunctionBeginUser;
     for (int d = 0; d < Dim; ++d) {
       const PetscReal v = b.max[d];
-      PetscReal ih = 1 / h_[d];
-      PetscReal dmax = 0;
+      PetscReal ih = 1 / h_[d], dmax = 0;
       for (PetscInt k = 0; k < n_[d]; ++k) {
-        const PetscReal th = 2 * PETSC_PI * k / n_[d];
-        const cplx e = std::polar<PetscReal>(1.0, th);
-        cplx dx;    // the symbol of u_d times h (spectral: of u_d)
-        cplx grad = 0; // the face gradient's symbol times h
-        if (scheme_ == SPECTRAL) {
+        const cplx e = std::polar<PetscReal>(1.0, 2 * PETSC_PI * k / n_[d]);
+        cplx dx, grad = 0; // the symbols of h u_d and of the face gradient h B (spectral: of u_d, of the gradient)
+        if constexpr (spectral) {
           const PetscInt ks = k < n_[d] / 2 ? k : k - n_[d];
           const PetscReal w = 2 * PETSC_PI * ks / length_[d];
           dx = 2 * ks == -n_[d] ? cplx(0) : cplx(0, w); // Nyquist: the odd part is 0
-          if (diffusion_ && (!field_ || 3 * std::abs(ks) < n_[d])) grad = w;
+          if (Df == SCALAR_D || (Df == FIELD_D && 3 * std::abs(ks) < n_[d])) grad = w;
           ih = 1;
         } else {
-          if (scheme_ == FD4) dx = (8.0 * (e - 1.0 / e) - (e * e - 1.0 / (e * e))) / 12.0;
-          else if (scheme_ == UPWIND) dx = v >= 0 ? 1.0 - 1.0 / e : e - 1.0;
+          if (S == FD4) dx = (8.0 * (e - 1.0 / e) - (e * e - 1.0 / (e * e))) / 12.0;
+          else if (S == UPWIND) dx = v >= 0 ? 1.0 - 1.0 / e : e - 1.0;
           else dx = 0.5 * (e - 1.0 / e);
-          if (diffusion_) grad = order_ == 4 ? (1.0 / e - 27.0 + 27.0 * e - e * e) / 24.0 : e - 1.0;
+          if (Df != NONE) grad = Df == FACES4 ? (1.0 / e - 27.0 + 27.0 * e - e * e) / 24.0 : e - 1.0;
         }
         adv[d].push_back(-v * ih * dx);
         diff[d].push_back(std::norm(grad) * ih * ih);
@@ -263,19 +274,14 @@ public:
       }
       rho += dmax;
     }
-    const bool field = diffusion_ && field_;
-    const PetscReal D = diffusion_ && !field ? b.max[DIFF] : 0.0;
+    const bool field = Df != NONE && field_;
+    const PetscReal D = Df != NONE && !field ? b.max[DIFF] : 0.0;
     auto &ev = s->samples;
     ev.clear();
     for (PetscInt ky = 0; ky < (Dim == 2 ? n_[1] : 1); ++ky)
-      for (PetscInt kx = 0; kx < n_[0]; ++kx) {
-        cplx l = adv[0][kx] - D * diff[0][kx];
-        if (Dim == 2) l += adv[1][ky] - D * diff[1][ky];
-        ev.push_back(l);
-      }
+      for (PetscInt kx = 0; kx < n_[0]; ++kx) ev.push_back(adv[0][kx] - D * diff[0][kx] + (Dim == 2 ? adv[1][ky] - D * diff[1][ky] : 0.0));
     if (field) { // the boundary of W(advection) + [-Dmax rho, 0]; order 4's interpolation may overshoot max D
-      const PetscReal Dmax = scheme_ != SPECTRAL && order_ == 4 ? (9 * b.max[DIFF] - b.min[DIFF]) / 8 : b.max[DIFF];
-      const PetscReal shift = Dmax * rho;
+      const PetscReal Dmax = Df == FACES4 ? (9 * b.max[DIFF] - b.min[DIFF]) / 8 : b.max[DIFF], shift = Dmax * rho;
       size_t top = 0, bottom = 0;
       const size_t nadv = ev.size();
       for (size_t q = 0; q < nadv; ++q) {
@@ -306,26 +312,24 @@ private:
     if constexpr (d == 0) return pt.param(DIFF, o);
     else return pt.param(DIFF, 0, o);
   }
-  // h u_d by the scheme; v the velocity along d (upwinding takes the side the flow comes from).
-  template <int d, class P, class T = typename P::Number> T slope(const P &pt, const T &v) const {
-    if constexpr (R >= 2)
-      if (scheme_ == FD4) return (u<d>(pt, -2) - u<d>(pt, 2) + 8.0 * (u<d>(pt, 1) - u<d>(pt, -1))) * (1.0 / 12);
-    if (scheme_ == UPWIND) return value_of(v) >= 0 ? u<d>(pt, 0) - u<d>(pt, -1) : u<d>(pt, 1) - u<d>(pt, 0);
-    return 0.5 * (u<d>(pt, 1) - u<d>(pt, -1));
+  // h v u_d by the scheme, v the velocity along d.
+  template <int d, class P, class T = typename P::Number> static T advective(const P &pt) {
+    const T v = pt.param(d);
+    if constexpr (S == UPWIND) return max(v, T(0.0)) * (u<d>(pt, 0) - u<d>(pt, -1)) + min(T(0.0), v) * (u<d>(pt, 1) - u<d>(pt, 0));
+    else if constexpr (S == FD4) return v * ((u<d>(pt, -2) - u<d>(pt, 2) + 8.0 * (u<d>(pt, 1) - u<d>(pt, -1))) * (1.0 / 12));
+    else return v * (0.5 * (u<d>(pt, 1) - u<d>(pt, -1)));
   }
-  // h^2 (D u_d)_d in flux form: -B^T diag(D_f) B u (a scalar D is a constant field to the layer).
-  template <int d, class P, class T = typename P::Number> T diffusion(const P &pt) const {
-    if constexpr (R >= 3)
-      if (order_ == 4)
-        return (flux<d, -2>(pt) - flux<d, 1>(pt) + 27.0 * (flux<d, 0>(pt) - flux<d, -1>(pt))) * (1.0 / 24);
+  // h^2 (D u_d)_d in flux form, -h^2 B^T diag(D_f) B u (a scalar D is a constant field to the layer).
+  template <int d, class P, class T = typename P::Number> static T diffusion(const P &pt) {
+    if constexpr (Df == FACES4) return (flux<d, -2>(pt) - flux<d, 1>(pt) + 27.0 * (flux<d, 0>(pt) - flux<d, -1>(pt))) * (1.0 / 24);
     const T Dp = 0.5 * (D<d>(pt, 0) + D<d>(pt, 1)), Dm = 0.5 * (D<d>(pt, -1) + D<d>(pt, 0));
     return Dp * (u<d>(pt, 1) - u<d>(pt, 0)) - Dm * (u<d>(pt, 0) - u<d>(pt, -1));
   }
   // Order 4: h D_f (Bu)_f at the face f = i + k + 1/2.
-  template <int d, int k, class P, class T = typename P::Number> T flux(const P &pt) const {
+  template <int d, int k, class P, class T = typename P::Number> static T flux(const P &pt) {
     const T grad = (u<d>(pt, k - 1) - u<d>(pt, k + 2) + 27.0 * (u<d>(pt, k + 1) - u<d>(pt, k))) * (1.0 / 24);
-    const T Df = (9.0 * (D<d>(pt, k) + D<d>(pt, k + 1)) - D<d>(pt, k - 1) - D<d>(pt, k + 2)) * (1.0 / 16);
-    return Df * grad;
+    const T Df_ = (9.0 * (D<d>(pt, k) + D<d>(pt, k + 1)) - D<d>(pt, k - 1) - D<d>(pt, k + 2)) * (1.0 / 16);
+    return Df_ * grad;
   }
 
   PetscReal profile(PetscReal x, PetscReal y) const {
@@ -343,40 +347,47 @@ private:
   PetscErrorCode make_spectral_maps(const Grid &grid) {
     using SD = SpectralDifferentiator;
     PetscFunctionBeginUser;
-    PetscCall(spectral_.setup(grid));
-    PetscCall(DMCreateGlobalVector(grid.dm(), work_.out()));
-    for (int d = 0; d < Dim; ++d) {
-      derivative_[d] = spectral_.symbol([d](const FourierMode &k) { return SD::derivative_symbol(k, d, 1); });
-      dealiased_[d] = spectral_.symbol([d](const FourierMode &k) { return k.kept ? SD::derivative_symbol(k, d, 1) : cplx(0); });
+    if constexpr (spectral) {
+      PetscCall(maps_.fft.setup(grid));
+      PetscCall(DMCreateGlobalVector(grid.dm(), maps_.work.out()));
+      for (int d = 0; d < Dim; ++d) {
+        maps_.derivative[d] = maps_.fft.symbol([d](const FourierMode &k) { return SD::derivative_symbol(k, d, 1); });
+        maps_.dealiased[d] = maps_.fft.symbol([d](const FourierMode &k) { return k.kept ? SD::derivative_symbol(k, d, 1) : cplx(0); });
+      }
+      maps_.laplacian = maps_.fft.symbol([](const FourierMode &k) { return cplx(-(k.wx * k.wx + k.wy * k.wy)); });
     }
-    laplacian_ = spectral_.symbol([](const FourierMode &k) { return cplx(-(k.wx * k.wx + k.wy * k.wy)); });
     PetscFunctionReturn(0);
   }
-  // L_k: d/dx_k (k < Dim), then the Laplacian (scalar D) or E_{k - Dim} (field D).
   const SpectralDifferentiator::Symbol &aux_symbol(int k) const {
-    return k < Dim ? derivative_[k] : laplacian ? laplacian_ : dealiased_[k - Dim];
+    return k < Dim ? maps_.derivative[k] : Df == SCALAR_D ? maps_.laplacian : maps_.dealiased[k - Dim];
   }
 
-  PetscInt scheme_ = FD2, order_ = 2, ic_ = SINUSOID, mode_[2] = {1, 1}, n_[2] = {1, 1};
-  PetscBool diffusion_ = PETSC_FALSE, field_ = PETSC_FALSE;
+  PetscInt ic_ = SINUSOID, mode_[2] = {1, 1}, n_[2] = {1, 1};
+  PetscBool field_ = PETSC_FALSE; // D is a field
   PetscReal phase_ = 0, width_ = 0.1, center_[2] = {0, 0}, x0_[2] = {0, 0}, length_[2] = {1, 1}, h_[2] = {1, 1};
-  SpectralDifferentiator spectral_;
-  SpectralDifferentiator::Symbol derivative_[2], dealiased_[2], laplacian_;
-  OwnedVec work_;
+  // Finite differences hold none: the model is then trivially copyable, and the sweeps work on a copy
+  // whose members the compiler knows no store changes.
+  std::conditional_t<spectral, SpectralMaps, NoMaps> maps_;
 };
 
-// The shape is fixed at compile time (dimension, radius, non-local fields): the model is made for
-// the options given. Bad options fall back to the default here and setup reports them.
-template <int Dim> std::unique_ptr<Model> make(const Choice &c) {
-  auto m = [](auto *p) { return std::unique_ptr<Model>(p); };
-  if (c.scheme == SPECTRAL) {
-    if (!c.diffusion) return m(new PointwiseModel<Advection<Dim, 0, Dim>>());
-    if (!c.field) return m(new PointwiseModel<Advection<Dim, 0, Dim + 1>>());
-    return m(new PointwiseModel<Advection<Dim, 0, 2 * Dim, Dim>>());
+// The shape is fixed at compile time: the model is made for the options given. Options that are not
+// offered fall back to a default here, and setup reports them.
+template <int Dim, int S> std::unique_ptr<Model> make_scheme(int diffusion) {
+  if constexpr (S == SPECTRAL) {
+    if (diffusion == FIELD_D) return std::make_unique<PointwiseModel<Advection<Dim, S, FIELD_D>>>();
+    if (diffusion == SCALAR_D) return std::make_unique<PointwiseModel<Advection<Dim, S, SCALAR_D>>>();
+  } else {
+    if (diffusion == FACES4) return std::make_unique<PointwiseModel<Advection<Dim, S, FACES4>>>();
+    if (diffusion == FACES2) return std::make_unique<PointwiseModel<Advection<Dim, S, FACES2>>>();
   }
-  if (c.radius() == 3) return m(new PointwiseModel<Advection<Dim, 3>>());
-  if (c.radius() == 2) return m(new PointwiseModel<Advection<Dim, 2>>());
-  return m(new PointwiseModel<Advection<Dim, 1>>());
+  return std::make_unique<PointwiseModel<Advection<Dim, S, NONE>>>();
+}
+template <int Dim> std::unique_ptr<Model> make(const Choice &c) {
+  const int diffusion = c.diffusion_term();
+  if (c.scheme == FD4) return make_scheme<Dim, FD4>(diffusion);
+  if (c.scheme == UPWIND) return make_scheme<Dim, UPWIND>(diffusion);
+  if (c.scheme == SPECTRAL) return make_scheme<Dim, SPECTRAL>(diffusion);
+  return make_scheme<Dim, FD2>(diffusion);
 }
 
 const ModelRegistration registration("advection", [] {
