@@ -410,7 +410,7 @@ struct MixedCase {
 // and the true limit (the largest dt, to 0.1%, with every |R(dt lambda_k)| <= 1).
 PetscErrorCode max_amplification(const char *rk, PetscReal dt, PetscReal *amp, PetscReal *axis_dt, PetscReal *true_dt) {
   Scene s;
-  OwnedVec p;
+  OwnedVec p, U;
   OwnedMat J;
   OwnedTS ts;
   PetscMPIInt rank;
@@ -421,7 +421,8 @@ PetscErrorCode max_amplification(const char *rk, PetscReal dt, PetscReal *amp, P
   PetscCall(s.parameters_from_options("", p));
   PetscCall(s.model->set_parameters(p));
   PetscCall(s.model->create_jacobian(J.out()));
-  PetscCall(s.model->rhs_jacobian(0.0, nullptr, J));
+  PetscCall(s.sim.create_state(U.out())); // dG/dU of the linear model is the same at every state
+  PetscCall(s.model->rhs_jacobian(0.0, U, J));
   const PetscInt n = s.grid.n();
   std::vector<PetscReal> row(n, 0.0);
   if (rank == 0) {
@@ -602,13 +603,14 @@ TEST(AdvectionScene, DeclaresOnlyWhatItUses) {
     PetscInt count, global_size, width;
     bool has_D, has_A;
   } cases[] = {
-      {{}, 1, 1, 1, false, false},
-      {{{"-advection_ic_amplitude_param", "1"}}, 2, 2, 1, false, true},
-      {{{"-advection_D", "0.1"}}, 2, 2, 1, true, false},
-      {{{"-advection_D", "0.1"}, {"-advection_diffusion", "0"}}, 1, 1, 1, false, false},
-      {{{"-advection_diffusion", "1"}, {"-advection_scheme", "fd4"}}, 2, 2, 3, true, false}, // fd_order follows: 4
-      {{{"-advection_D_field", "1"}}, 2, 1 + 32, 1, true, false},
-      {{{"-advection_scheme", "fd4"}}, 1, 1, 2, false, false},
+      // width: the ghost width 2R of the pointwise layer, R the stencil radius
+      {{}, 1, 1, 2, false, false},
+      {{{"-advection_ic_amplitude_param", "1"}}, 2, 2, 2, false, true},
+      {{{"-advection_D", "0.1"}}, 2, 2, 2, true, false},
+      {{{"-advection_D", "0.1"}, {"-advection_diffusion", "0"}}, 1, 1, 2, false, false},
+      {{{"-advection_diffusion", "1"}, {"-advection_scheme", "fd4"}}, 2, 2, 6, true, false}, // fd_order follows: 4
+      {{{"-advection_D_field", "1"}}, 2, 1 + 32, 2, true, false},
+      {{{"-advection_scheme", "fd4"}}, 1, 1, 4, false, false},
   };
   for (auto &c : cases) {
     ScopedOptions o;

@@ -232,9 +232,10 @@ INSTANTIATE_TEST_SUITE_P(
 
 // ---------------------------------------------------------------------------------------------
 // A spectral field D enters the operator through its 2/3-rule truncation P D, so its exact gradient
-// is P g: truncated. The adjoint leaves P to the end (Model::end_adjoint), once for all steps; the
-// gradient must still be truncated, for each integrator family (RK stage hook, PETSc's RK step through
-// the Jacobians, theta), not only match Taylor tests whose smooth scenes barely reach the truncated modes.
+// is P g: truncated. The layer accumulates the pointwise sums over an adjoint and applies P once at its
+// end (Model::end_adjoint); the gradient must still be truncated, for each integrator family (RK stage
+// hook, PETSc's RK step through the Jacobians, theta), not only match Taylor tests whose smooth scenes
+// barely reach the truncated modes.
 
 using TruncationCase = flexipde_test::NamedOptions;
 
@@ -452,13 +453,15 @@ PetscErrorCode check_dt(PetscReal dt, PetscErrorCode *outcome) {
 PetscErrorCode explicit_eigenvalues(std::vector<std::complex<double>> &ev) {
   flexipde_test::SceneProblem pb;
   OwnedMat J;
+  OwnedVec U;
   KSP ksp;
   PC pc;
   PetscFunctionBeginUser;
   PetscCall(pb.setup(PETSC_COMM_WORLD));
   PetscCall(pb.scene.model->set_parameters(pb.p));
   PetscCall(pb.scene.model->create_jacobian(J.out()));
-  PetscCall(pb.scene.model->rhs_jacobian(0.0, nullptr, J));
+  PetscCall(pb.scene.sim.create_state(U.out())); // dG/dU of the linear model is the same at every state
+  PetscCall(pb.scene.model->rhs_jacobian(0.0, U, J));
   PetscInt n;
   PetscCall(MatGetSize(J, &n, nullptr));
   std::vector<PetscReal> re(n), im(n);
@@ -493,7 +496,7 @@ TEST(AdvectionSampledStability, AcceptsJustBelowTheTrueLimitAndRefusesJustAbove)
     bool exact; // scalar D: samples are the eigenvalues; field D: a bound (accepted steps stable)
   } cases[] = {
       {"fd2 1D, D = 0.0245", {{"-advection_D", "0.0245"}}, true},
-      {"fd4 2D, D = 0.02, b = -0.6", {{"-advection_dim", "2"}, {"-da_grid_y", "12"}, {"-advection_scheme", "fd4"}, {"-advection_D", "0.02"}, {"-advection_b", "-0.6"}}, true},
+      {"fd4 2D, D = 0.02, b = -0.6", {{"-advection_dim", "2"}, {"-da_grid_y", "16"}, {"-advection_scheme", "fd4"}, {"-advection_D", "0.02"}, {"-advection_b", "-0.6"}}, true},
       {"upwind 2D, b = 0.3", {{"-advection_dim", "2"}, {"-da_grid_y", "12"}, {"-advection_scheme", "upwind"}, {"-advection_b", "0.3"}}, true},
       {"spectral 1D, D = 0.05", {{"-advection_scheme", "spectral"}, {"-advection_D", "0.05"}}, true},
       {"spectral 1D, field D", {{"-advection_scheme", "spectral"}, {"-advection_D_field", "1"}, {"-advection_D", "0.05"}}, false},
@@ -539,22 +542,23 @@ TEST(AdvectionScene2D, DeclaresOnlyWhatItUses) {
     PetscInt dim, count, global_size, width;
     bool has_b;
   } cases[] = {
-      {{}, 1, 1, 1, 1, false},
-      {{{"-advection_scheme", "spectral"}, {"-advection_D", "0.1"}}, 1, 2, 2, 1, false},
-      {{{"-advection_dim", "2"}}, 2, 2, 2, 1, true},
-      {{{"-advection_dim", "2"}, {"-advection_D_field", "1"}}, 2, 3, 2 + 16 * 12, 1, true},
-      {{{"-advection_dim", "2"}, {"-advection_scheme", "fd4"}, {"-advection_diffusion", "1"}}, 2, 3, 3, 3, true},
-      {{{"-advection_dim", "2"}, {"-advection_scheme", "spectral"}}, 2, 2, 2, 1, true},
+      // width: the ghost width 2R of the pointwise layer (R the stencil radius; spectral: 0)
+      {{}, 1, 1, 1, 2, false},
+      {{{"-advection_scheme", "spectral"}, {"-advection_D", "0.1"}}, 1, 2, 2, 0, false},
+      {{{"-advection_dim", "2"}}, 2, 2, 2, 2, true},
+      {{{"-advection_dim", "2"}, {"-advection_D_field", "1"}}, 2, 3, 2 + 16 * 16, 2, true},
+      {{{"-advection_dim", "2"}, {"-advection_scheme", "fd4"}, {"-advection_diffusion", "1"}}, 2, 3, 3, 6, true},
+      {{{"-advection_dim", "2"}, {"-advection_scheme", "spectral"}}, 2, 2, 2, 0, true},
   };
   for (auto &c : cases) {
     ScopedOptions o;
     base_options(o, 16);
-    o.set("-da_grid_y", "12");
+    o.set("-da_grid_y", "16");
     for (auto &kv : c.options) o.set(kv.first, kv.second);
     Scene s;
     PETSC_ASSERT_OK(s.setup(PETSC_COMM_WORLD));
     EXPECT_EQ(s.grid.dim(), c.dim);
-    EXPECT_EQ(s.grid.points(), c.dim == 2 ? 16 * 12 : 16);
+    EXPECT_EQ(s.grid.points(), c.dim == 2 ? 16 * 16 : 16);
     EXPECT_EQ(s.params.count(), c.count);
     EXPECT_EQ(s.params.global_size(), c.global_size);
     EXPECT_EQ(s.grid.stencil_width(), c.width);

@@ -45,6 +45,8 @@ void small_scene(ScopedOptions &o, const std::string &model) {
   o.set("-ts_max_time", "0.02");
   // wave2d starts at rest by default (its waves come from point sources): a pulse gives it dynamics
   o.set("-wave2d_ic", "pulse");
+  // advection declares its diffusivity only with diffusion on: on here, so that D is checked too
+  o.set("-advection_diffusion", "1");
 }
 
 // The names of the model's parameters (a throwaway set-up).

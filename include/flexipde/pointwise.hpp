@@ -394,6 +394,12 @@ struct HasTimeStep<Eq, std::void_t<decltype(std::declval<Eq &>().set_time_step(P
 template <class Eq, class = void> struct HasCheckInitial : std::false_type {};
 template <class Eq>
 struct HasCheckInitial<Eq, std::void_t<decltype(std::declval<const Eq &>().check_initial(MPI_Comm()))>> : std::true_type {};
+// A field parameter that G reads through a symmetric linear map M of it (advection's spectral D: its
+// 2/3-rule truncation): maps_parameter(k) says which, map_parameter(k, f) applies f = M f in place (f on
+// the grid's DM). The sweeps read M p_k, and its gradient is M g, g the pointwise one.
+template <class Eq, class = void> struct HasParameterMap : std::false_type {};
+template <class Eq>
+struct HasParameterMap<Eq, std::void_t<decltype(std::declval<const Eq &>().map_parameter(0, Vec()))>> : std::true_type {};
 template <class Eq, class = void> struct HasForcedPoints : std::false_type {};
 template <class Eq>
 struct HasForcedPoints<Eq, std::void_t<decltype(std::declval<const Eq &>().forced(PetscInt(), PetscInt()))>> : std::true_type {};
@@ -473,6 +479,8 @@ public:
     Declarations decl(params, NP);
     PetscCall(eq_.setup(grid, decl));
     for (int k = 0; k < NP; ++k) index_[k] = decl.index(k), fixed_[k] = decl.fixed_value(k);
+    if constexpr (pointwise::HasParameterMap<Eq>::value)
+      for (int k = 0; k < NP; ++k) mapped_[k] = index_[k] >= 0 && params.info(index_[k]).kind == ParamKind::Field && eq_.maps_parameter(k);
     vector_slots_ = decl.vectors();
     theta_.assign(decl.theta_count(), 0.0), dtheta_ = theta_acc_ = theta_;
     bounds_.min.assign(NP, 0.0), bounds_.max.assign(NP, 0.0); // until parameters are set (a spectrum may be asked first)
@@ -515,7 +523,7 @@ public:
     }
     scalar_acc_.assign((size_t)NP, std::vector<PetscReal>());
     for (int k = 0; k < NP; ++k)
-      if (index_[k] >= 0 && params.info(index_[k]).kind == ParamKind::Scalar) scalar_acc_[k].assign(grid.local_points(), 0.0);
+      if (accumulated(k)) scalar_acc_[k].assign(grid.local_points(), 0.0);
     frame_.sy = D == 2 ? ghost_xm() : 0;
     frame_.h[0] = grid.h(), frame_.h[1] = grid.hy();
     frame_.ih[0] = 1 / grid.h(), frame_.ih[1] = 1 / grid.hy();
@@ -560,6 +568,7 @@ public:
     for (int k = 0; k < NP; ++k) {
       if (index_[k] >= 0) PetscCall(params_->as_field(p, index_[k], f));
       else PetscCall(VecSet(f, fixed_[k]));
+      if (mapped_[k]) PetscCall(map_parameter(k, f));
       PetscCall(VecStrideScatter(f, k, Pg_, INSERT_VALUES));
     }
     if constexpr (NF > 0) {
@@ -996,7 +1005,7 @@ public:
     in_adjoint_ = false;
     if (!was || !mu) PetscFunctionReturn(0);
     for (int k = 0; k < NP; ++k)
-      if (!scalar_acc_[k].empty()) PetscCall(params_->add_local_sum(mu, index_[k], sum(scalar_acc_[k])));
+      if (!scalar_acc_[k].empty()) PetscCall(add_accumulated(mu, k, scalar_acc_[k]));
     PetscCall(add_vector_sums(mu, theta_acc_));
     PetscFunctionReturn(0);
   }
@@ -1122,7 +1131,7 @@ private:
     Tape &tape = active_tape();
     const int ne = (int)theta_.size();
     for_points(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
-      Rev g[C];
+      Rev g[C + H];
       tape.begin(ne);
       eq_.rhs(pointwise::ReversePoint<C, K, NG, Sten, decltype(ck)::value, CS, KL>(f, at, own, i, j), g);
       tape.begin_seeding();
@@ -1480,6 +1489,7 @@ private:
     for (int k = 0; k < NP; ++k) {
       if (index_[k] >= 0) PetscCall(params_->as_field(p, index_[k], f));
       else PetscCall(VecSet(f, 0.0));
+      if (mapped_[k]) PetscCall(map_parameter(k, f));
       PetscCall(VecStrideScatter(f, k, Pg_, INSERT_VALUES));
     }
     PetscCall(DMGlobalToLocal(param_dm_, Pg_, INSERT_VALUES, l));
@@ -1497,7 +1507,7 @@ private:
         continue;
       }
       const ParamInfo &pi = params_->info(index_[k]);
-      if (pi.kind == ParamKind::Field) gk[k] = reinterpret_cast<PetscReal *>(m + pi.local_offset);
+      if (pi.kind == ParamKind::Field && !mapped_[k]) gk[k] = reinterpret_cast<PetscReal *>(m + pi.local_offset);
       else if (in_adjoint) gk[k] = scalar_acc_[k].data();
       else {
         scratch_scalar_[k].assign(grid_->local_points(), 0.0);
@@ -1517,11 +1527,44 @@ private:
   PetscErrorCode flush_scratch_scalars(Vec mu) {
     PetscFunctionBeginUser;
     for (int k = 0; k < NP; ++k)
-      if (index_[k] >= 0 && params_->info(index_[k]).kind == ParamKind::Scalar && !scratch_scalar_[k].empty()) {
-        PetscCall(params_->add_local_sum(mu, index_[k], sum(scratch_scalar_[k])));
+      if (accumulated(k) && !scratch_scalar_[k].empty()) {
+        PetscCall(add_accumulated(mu, k, scratch_scalar_[k]));
         scratch_scalar_[k].clear();
       }
     PetscFunctionReturn(0);
+  }
+  // Whether parameter k's pointwise gradient is accumulated apart and added at once (add_accumulated): a
+  // scalar's (summed) and a mapped field's (M applied), else written into the gradient in place.
+  bool accumulated(int k) const {
+    return index_[k] >= 0 && (params_->info(index_[k]).kind == ParamKind::Scalar || mapped_[k]);
+  }
+  // mu[k] += the accumulated pointwise gradient g: a scalar's sum over the points and ranks, or a mapped
+  // field's M g (collective).
+  PetscErrorCode add_accumulated(Vec mu, int k, std::vector<PetscReal> &g) {
+    PetscFunctionBeginUser;
+    if (!mapped_[k]) {
+      PetscCall(params_->add_local_sum(mu, index_[k], sum(g)));
+      PetscFunctionReturn(0);
+    }
+    OwnedVec f;
+    PetscCall(DMCreateGlobalVector(grid_->dm(), f.out()));
+    {
+      Array a(f);
+      PetscCall(a.error());
+      std::copy(g.begin(), g.end(), a.data());
+    }
+    PetscCall(map_parameter(k, f));
+    {
+      ConstArray a(f);
+      PetscCall(a.error());
+      std::copy(a.data(), a.data() + g.size(), g.begin());
+    }
+    PetscCall(params_->add_pointwise(mu, index_[k], g));
+    PetscFunctionReturn(0);
+  }
+  PetscErrorCode map_parameter(int k, Vec f) const {
+    if constexpr (pointwise::HasParameterMap<Eq>::value) return eq_.map_parameter(k, f);
+    return 0;
   }
   static PetscReal sum(const std::vector<PetscReal> &a) {
     PetscReal s[4] = {0, 0, 0, 0};
@@ -1588,12 +1631,14 @@ private:
       PetscCall(PetscRandomDestroy(&rnd));
     }
     std::vector<int> local(Sten::size * C * C, 0);
-    // At positive and at negative states: an upwind flux reads one side's values for one sign only.
-    for (int pass = 0; pass < 2; ++pass) {
-      if (pass) {
+    // At states and at parameters of either sign: an upwind flux reads one side's values for one sign
+    // of its state (Burgers) or of its velocity (advection) only.
+    for (int pass = 0; pass < 4; ++pass) {
+      if (pass == 1 || pass == 3) {
         PetscCall(VecScale(Ur.copy, -1.0));
         PetscCall(VecScale(Ur.g, -1.0));
       }
+      if (pass == 2) PetscCall(VecScale(Pr, -1.0));
       StateView u(Ur);
       ConstArray p(Pr);
       pointwise::Frame f = frame(0.5, u, p.data());
@@ -1710,6 +1755,7 @@ private:
   const Parameters *params_ = nullptr;
   PetscInt index_[NP > 0 ? NP : 1] = {};
   PetscReal fixed_[NP > 0 ? NP : 1] = {};
+  bool mapped_[NP > 0 ? NP : 1] = {}; // field parameters read through the model's map (HasParameterMap)
   OwnedDM param_dm_, matrix_dm_, aux_dm_, out_dm_;
   OwnedVec P_, dP_, Pg_, Xl_;
   LocalState st_, jac_, jp_; // the state of rhs and the adjoint sweeps, of the Jacobian, of dG/dp
@@ -1745,7 +1791,7 @@ private:
   const PointSource *source_ = nullptr;
   pointwise::Frame frame_;
   std::vector<int> pattern_;
-  std::vector<std::vector<PetscReal>> scalar_acc_;
+  std::vector<std::vector<PetscReal>> scalar_acc_; // scalars' and mapped fields' gradients during an adjoint
   std::vector<PetscReal> scratch_scalar_[NP > 0 ? NP : 1], dummy_target_[NP > 0 ? NP : 1];
   bool in_adjoint_ = false;
   // Parameter vectors: their slots, the entries (every rank), a direction or scratch gradient, and the
