@@ -132,10 +132,10 @@ TEST(WaveScalarSum, SameGradientAsPetscStep) {
       }
 }
 
-// Finite-difference advection forms a stage's h W_i straight into the ghosted copy its sweeps read
-// (Model::stage_adjoint_combination; on several ranks also into the scratch Vec whose halo is
-// exchanged): the gradient of PETSc's RK step (-adjoint_petsc_step) to round-off, for tableaux whose
-// stages combine 0 to 2 later stages' dLambda (rk4, rk3, rk2a), 1D and 2D.
+// The fused RK adjoint on advection (the integrator forms a stage's combination W_i of the later
+// stages' dLambda, the layer's gather applies the transposes): the gradient of PETSc's RK step
+// (-adjoint_petsc_step) to round-off, for tableaux whose stages combine 0 to 2 later stages' dLambda
+// (rk4, rk3, rk2a), 1D and 2D.
 TEST(RkStageCombination, AdvectionSameGradientAsPetscStep) {
   const std::pair<const char *, const char *> tableaux[] = {{"4", "fd2"}, {"3", "fd4"}, {"2a", "upwind"}};
   for (const auto &[rk, scheme] : tableaux)
@@ -149,12 +149,10 @@ TEST(RkStageCombination, AdvectionSameGradientAsPetscStep) {
     }
 }
 
-// A field D with fd2 faces: the RK adjoint stage's one loop per row (2D: field_stage_row_fd2; 1D:
-// field_stage_fd2_1d, the fd2 weights written into their arithmetic) gives the gradient of PETSc's RK
-// step (-adjoint_petsc_step) to round-off, for each advection scheme (taps of radius 1 and 2) and
-// tableaux with 1 to 3 later stages, on however many ranks the test runs; fd4 faces (the per-part
-// loops) as well.
-TEST(AdvectionRowLoop, SameGradientAsPetscStep) {
+// A field D with fd2 and fd4 faces: the fused RK adjoint gives the gradient of PETSc's RK step
+// (-adjoint_petsc_step) to round-off, for each advection scheme (taps of radius 1 and 2) and tableaux
+// with 1 to 3 later stages, on however many ranks the test runs.
+TEST(AdvectionFieldD, SameGradientAsPetscStep) {
   const std::array<const char *, 3> cases[] = {
       {"4", "fd2", "2"}, {"3", "fd4", "2"}, {"4", "upwind", "2"}, {"2a", "upwind", "2"}, {"4", "fd4", "4"}};
   for (const char *dim : {"1", "2"})

@@ -274,11 +274,10 @@ inline void expect_same_gradient_other_setup(flexipde::Scene &scene, Vec p, cons
   expect_gradients_match(J1, J0, g1, g0, tol);
 }
 
-// The RK fused (dG/dp)^T of a model's matrix-free J^T (sweep_support.hpp's ProductTag): with Jp the
-// model's dG/dp at U, the product J^T y forms in passing is taken by Jp^T y only for the same y,
-// unchanged, at the same recorded stage and parameters; otherwise Jp^T y is formed afresh, and it
-// always equals the columns' product. Returns, in *err, what applying Jp^T after U itself changed
-// gives (an error, unless the model forms its columns when recording).
+// dG/dp^T and the matrix-free J^T taken in any order, at one stage or at a new one, with y changed in
+// between or not: Jp^T y always equals the product of the columns (dG/dp at the state of the last
+// rhs_jacobian_p), and satisfies the dot-product identity with Jp. Returns, in *err, what applying Jp^T
+// after U itself changed gives (0 when the model keeps its own copy of the state).
 inline void check_fused_parameter_transpose(flexipde::Scene &scene, Mat Jmf, Mat Jp, Vec U, Vec p, PetscErrorCode *err) {
   using flexipde::OwnedVec;
   OwnedVec x, y, z, U2, g_cols, g_fused, Jx;

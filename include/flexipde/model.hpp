@@ -9,7 +9,6 @@
 #pragma once
 #include "flexipde/grid.hpp"
 #include "flexipde/parameters.hpp"
-#include "flexipde/rk_adjoint.hpp"
 #include <complex>
 #include <functional>
 #include <map>
@@ -112,15 +111,6 @@ public:
     (void)t, (void)record, (void)x, (void)y, (void)mu;
     SETERRQ(PetscObjectComm((PetscObject)x), PETSC_ERR_SUP, "Model %s has no fused RK adjoint stage", name());
   }
-  // The same stage with x given as its combination (what the RK adjoint calls): by default x is formed
-  // into the combination's scratch Vec first; a model that copies x anyway forms it in that copy.
-  virtual PetscErrorCode stage_adjoint_combination(PetscReal t, Vec U, const PetscScalar *record, const StageCombination &x,
-                                                   Vec y, Vec mu) {
-    PetscFunctionBeginUser;
-    PetscCall(x.form(x.scratch));
-    PetscCall(stage_adjoint(t, U, record, x.scratch, y, mu));
-    PetscFunctionReturn(0);
-  }
   // Optional, around one adjoint solve (the Simulation calls begin_adjoint() before TSAdjointSolve and
   // end_adjoint(mu) after it, also when the solve fails: mu null then): in between, the transposes of
   // dG/dtheta (rhs_jacobian_p's MatMultTranspose, stage_adjoint) may leave out a final linear map that
@@ -154,68 +144,6 @@ public:
   // Simulation sets them first: Simulation::initial_condition).
   virtual PetscErrorCode initial_condition(Vec p, Vec U0) = 0;
   virtual PetscErrorCode initial_condition_transpose(Vec p, Vec lambda0, Vec grad) = 0;
-};
-
-// A model with G(U; p) = A(p) U: A is assembled once per parameter value by the model's
-// assemble(); G is one MatMult and dG/dU is A itself. Assembled afresh into TS's matrix rather than
-// copied, because an implicit TS adds a diagonal to it (its pattern may be a superset of A's).
-class LinearModel : public Model {
-public:
-  bool linear() const override { return true; }
-  bool jacobian_constant() const override { return true; }
-  PetscErrorCode rhs(PetscReal, Vec U, Vec G) override {
-    PetscFunctionBeginUser;
-    PetscCall(assembled_operator());
-    PetscCall(MatMult(A_, U, G));
-    PetscFunctionReturn(0);
-  }
-  // dG/dU = A: a copy of A's values when J has A's pattern (explicit integrators: a memcpy instead of
-  // a second assembly), else assembled afresh (an implicit TS shifted J, adding diagonal entries).
-  PetscErrorCode rhs_jacobian(PetscReal, Vec, Mat J) override {
-    MatInfo ia, ij;
-    PetscBool aij;
-    PetscFunctionBeginUser;
-    PetscCall(assembled_operator());
-    PetscCall(PetscObjectTypeCompareAny((PetscObject)J, &aij, MATSEQAIJ, MATMPIAIJ, ""));
-    if (aij) {
-      PetscCall(MatGetInfo(A_, MAT_GLOBAL_SUM, &ia));
-      PetscCall(MatGetInfo(J, MAT_GLOBAL_SUM, &ij));
-    }
-    if (aij && ij.assemblies > 0 && ia.nz_used == ij.nz_used) PetscCall(MatCopy(A_, J, SAME_NONZERO_PATTERN));
-    else PetscCall(assemble(J));
-    PetscFunctionReturn(0);
-  }
-  PetscErrorCode create_jacobian(Mat *J) override {
-    PetscFunctionBeginUser;
-    PetscCall(DMCreateMatrix(operator_dm_, J));
-    PetscCall(MatSetOption(*J, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_FALSE));
-    PetscFunctionReturn(0);
-  }
-
-protected:
-  virtual PetscErrorCode assemble(Mat A) = 0;
-  // Creates A_ on the state DM. Preallocate only: DMDA would otherwise store explicit zeros for
-  // the whole dof-coupled stencil, and every MatMult would pay for them.
-  PetscErrorCode create_operator(DM state_dm) {
-    PetscFunctionBeginUser;
-    operator_dm_ = state_dm;
-    PetscCall(DMSetMatrixPreallocateOnly(state_dm, PETSC_TRUE));
-    PetscCall(create_jacobian(A_.out()));
-    PetscFunctionReturn(0);
-  }
-  // A model whose G and products are matrix-free marks A stale when the parameters change instead
-  // of assembling it; it is assembled on first use (implicit integrators, PETSc's adjoints with the
-  // assembled Jacobian), and never by a solve that does not need it.
-  void mark_operator_stale() { operator_stale_ = true; }
-  PetscErrorCode assembled_operator() {
-    PetscFunctionBeginUser;
-    if (operator_stale_) PetscCall(assemble(A_));
-    operator_stale_ = false;
-    PetscFunctionReturn(0);
-  }
-  DM operator_dm_ = nullptr;
-  OwnedMat A_; // A(p) for the current parameters (when not stale)
-  bool operator_stale_ = false;
 };
 
 using ModelFactory = std::function<std::unique_ptr<Model>()>;

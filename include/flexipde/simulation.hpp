@@ -20,6 +20,7 @@
 #pragma once
 #include "flexipde/checkpoint.hpp"
 #include "flexipde/model.hpp"
+#include "flexipde/rk_adjoint.hpp"
 #include "flexipde/objective.hpp"
 
 namespace flexipde {

@@ -230,7 +230,8 @@ PetscErrorCode Simulation::stage_adjoint_cb(void *ctx, PetscReal t, Vec U, const
                                             const StageCombination &x, Vec y, Vec mu) {
   auto *sim = static_cast<Simulation *>(ctx);
   PetscFunctionBeginUser;
-  PetscCall(sim->model_->stage_adjoint_combination(t, U, record, x, y, mu));
+  PetscCall(x.form(x.scratch));
+  PetscCall(sim->model_->stage_adjoint(t, U, record, x.scratch, y, mu));
   PetscFunctionReturn(0);
 }
 

@@ -21,7 +21,6 @@
 #include "flexipde/checkpoint.hpp"
 #include "flexipde/leapfrog.hpp"
 #include "flexipde/rk_adjoint.hpp"
-#include "flexipde/sweep_support.hpp"
 #include <algorithm>
 #include <cstdint>
 #include <cstring>
@@ -32,6 +31,29 @@
 
 namespace flexipde {
 namespace {
+
+// b[0, n) = x[0, n) with non-temporal stores (8 or 16 bytes at a time past the caches: the adjoint
+// reads the slot much later); stream_fence() after the last of them.
+void stream_copy(PetscScalar *b, const PetscScalar *x, PetscInt n) {
+#if defined(__SSE2__) && !defined(PETSC_USE_COMPLEX) && defined(PETSC_USE_REAL_DOUBLE)
+  auto store8 = [](PetscScalar *p, PetscReal v) {
+    long long bits;
+    std::memcpy(&bits, &v, sizeof bits);
+    _mm_stream_si64(reinterpret_cast<long long *>(p), bits);
+  };
+  PetscInt i = 0;
+  if (n > 0 && reinterpret_cast<uintptr_t>(b) % 16) store8(b, x[0]), i = 1;
+  for (; i + 1 < n; i += 2) _mm_stream_pd(b + i, _mm_loadu_pd(x + i));
+  for (; i < n; ++i) store8(b + i, x[i]);
+#else
+  std::copy(x, x + n, b);
+#endif
+}
+void stream_fence() {
+#if defined(__SSE2__)
+  _mm_sfence();
+#endif
+}
 
 struct StoreTrajectory {
   StateBuffer own;
