@@ -60,7 +60,7 @@
 #include <complex>
 
 namespace flexipde {
-namespace {
+namespace advection {
 
 const char *const schemes[] = {"fd2", "fd4", "upwind", "spectral"};
 enum Scheme : int { FD2, FD4, UPWIND, SPECTRAL };
@@ -82,7 +82,7 @@ struct Choice {
     return order == 4 ? FACES4 : FACES2;
   }
 };
-PetscErrorCode read_choice(Choice &c) {
+inline PetscErrorCode read_choice(Choice &c) {
   PetscBool given[3];
   PetscFunctionBeginUser;
   PetscCall(PetscOptionsGetInt(nullptr, nullptr, "-advection_dim", &c.dim, nullptr));
@@ -390,6 +390,13 @@ template <int Dim> std::unique_ptr<Model> make(const Choice &c) {
   return make_scheme<Dim, FD2>(diffusion);
 }
 
+// The 2D instances are compiled in a unit of their own (advection_2d.cpp), so that a build spreads
+// the instances over two cores.
+#ifdef FLEXIPDE_ADVECTION_2D_UNIT
+template std::unique_ptr<Model> make<2>(const Choice &);
+#else
+extern template std::unique_ptr<Model> make<2>(const Choice &);
+
 const ModelRegistration registration("advection", [] {
   Choice c;
   if (!PetscPushErrorHandler(PetscReturnErrorHandler, nullptr)) {
@@ -399,6 +406,7 @@ const ModelRegistration registration("advection", [] {
   if (c.order != 2 && c.order != 4) c.order = 2;
   return c.dim == 2 ? make<2>(c) : make<1>(c);
 });
+#endif
 
-} // namespace
+} // namespace advection
 } // namespace flexipde
