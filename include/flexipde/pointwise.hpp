@@ -408,6 +408,14 @@ struct HasForcedPoints<Eq, std::void_t<decltype(std::declval<const Eq &>().force
 template <class Eq, class = void> struct HasFunctionals : std::false_type {};
 template <class Eq>
 struct HasFunctionals<Eq, std::void_t<decltype(std::declval<const Eq &>().functional_names())>> : std::true_type {};
+// Optional: the non-local maps all at once, for maps that share work (one forward transform for all
+// the auxiliary fields): auxiliary_fields(U, a) (a[k] = L_k U), auxiliary_fields_transpose(z, y)
+// (y += sum_k L_k^T z_k), output_fields(h, G) (G += sum_m B_m h_m) and output_fields_transpose(x, hx)
+// (hx[m] = B_m^T x); each Vec one value per grid point. Without them the layer calls the per-field statements in turn.
+template <class Eq, class = void> struct HasMapsAtOnce : std::false_type {};
+template <class Eq>
+struct HasMapsAtOnce<Eq, std::void_t<decltype(std::declval<const Eq &>().auxiliary_fields(Vec(), (const Vec *)nullptr))>>
+    : std::true_type {};
 
 } // namespace pointwise
 
@@ -510,6 +518,11 @@ public:
         PetscCall(VecDuplicate(dAl_, s->a.out()));
         PetscCall(VecSet(s->a, 0.0));
       }
+    }
+    if constexpr (pointwise::HasMapsAtOnce<Eq>::value) {
+      map_fields_.resize(std::max(K, H));
+      for (auto &v : map_fields_) PetscCall(DMCreateGlobalVector(grid.dm(), v.out()));
+      for (auto &v : map_fields_) map_vecs_.push_back(v);
     }
     if constexpr (H > 0) {
       PetscCall(grid.create_dm(H, out_dm_.out()));
@@ -734,10 +747,14 @@ public:
     PetscFunctionBeginUser;
     if (!x_ghosts) PetscCall(fill_ghosts(x, Xl_, true));
     if constexpr (H > 0) {
-      for (int m = 0; m < H; ++m) {
-        PetscCall(eq_.output_transpose(m, x, field_));
-        PetscCall(VecStrideScatter(field_, m, Hg_, INSERT_VALUES));
-      }
+      if constexpr (pointwise::HasMapsAtOnce<Eq>::value) {
+        PetscCall(eq_.output_fields_transpose(x, map_vecs_.data()));
+        PetscCall(VecStrideScatterAll(map_vecs_.data(), Hg_, INSERT_VALUES));
+      } else
+        for (int m = 0; m < H; ++m) {
+          PetscCall(eq_.output_transpose(m, x, field_));
+          PetscCall(VecStrideScatter(field_, m, Hg_, INSERT_VALUES));
+        }
       PetscCall(DMGlobalToLocal(out_dm_, Hg_, INSERT_VALUES, XHl_));
     }
     {
@@ -778,10 +795,14 @@ public:
     } else if constexpr (K > 0)
       if (y) {
         PetscCall(VecSet(Yt_, 0.0));
-        for (int k = 0; k < K; ++k) {
-          PetscCall(VecStrideGather(Zg_, k, field_, INSERT_VALUES));
-          PetscCall(eq_.auxiliary_transpose(k, field_, Yt_));
-        }
+        if constexpr (pointwise::HasMapsAtOnce<Eq>::value) {
+          PetscCall(VecStrideGatherAll(Zg_, map_vecs_.data(), INSERT_VALUES));
+          PetscCall(eq_.auxiliary_fields_transpose(map_vecs_.data(), Yt_));
+        } else
+          for (int k = 0; k < K; ++k) {
+            PetscCall(VecStrideGather(Zg_, k, field_, INSERT_VALUES));
+            PetscCall(eq_.auxiliary_transpose(k, field_, Yt_));
+          }
         PetscCall(VecAXPY(y, ADDY ? w : 1.0, Yt_));
       }
     if (mu && !defer) PetscCall(flush_scratch_scalars(mu));
@@ -1463,10 +1484,14 @@ private:
   PetscErrorCode auxiliaries(Vec U, Vec local) {
     PetscFunctionBeginUser;
     if constexpr (K > 0 && !KL) {
-      for (int k = 0; k < K; ++k) {
-        PetscCall(eq_.auxiliary(k, U, field_));
-        PetscCall(VecStrideScatter(field_, k, Ag_, INSERT_VALUES));
-      }
+      if constexpr (pointwise::HasMapsAtOnce<Eq>::value) {
+        PetscCall(eq_.auxiliary_fields(U, map_vecs_.data()));
+        PetscCall(VecStrideScatterAll(map_vecs_.data(), Ag_, INSERT_VALUES));
+      } else
+        for (int k = 0; k < K; ++k) {
+          PetscCall(eq_.auxiliary(k, U, field_));
+          PetscCall(VecStrideScatter(field_, k, Ag_, INSERT_VALUES));
+        }
       PetscCall(DMGlobalToLocal(aux_dm_, Ag_, INSERT_VALUES, local));
     }
     PetscFunctionReturn(0);
@@ -1474,7 +1499,10 @@ private:
   // G += sum_m B_m h_m, the outputs h the last sweep left in Hg_.
   PetscErrorCode add_outputs(Vec G) {
     PetscFunctionBeginUser;
-    if constexpr (H > 0)
+    if constexpr (H > 0 && pointwise::HasMapsAtOnce<Eq>::value) {
+      PetscCall(VecStrideGatherAll(Hg_, map_vecs_.data(), INSERT_VALUES));
+      PetscCall(eq_.output_fields(map_vecs_.data(), G));
+    } else if constexpr (H > 0)
       for (int m = 0; m < H; ++m) {
         PetscCall(VecStrideGather(Hg_, m, field_, INSERT_VALUES));
         PetscCall(eq_.output(m, field_, G));
@@ -1790,6 +1818,8 @@ private:
   // of (dG/da)^T x, L^T of them, one line.
   static constexpr PetscInt line_pad = 2 * R;
   std::vector<PetscReal> dline_, sums_, zline_, wline_, aline_;
+  std::vector<OwnedVec> map_fields_; // the maps at once (HasMapsAtOnce): max(K, H) fields, one value per point
+  std::vector<Vec> map_vecs_;
   PetscReal jp_t_ = 0;
   ParameterBounds bounds_;
   const PointSource *source_ = nullptr;

@@ -102,6 +102,9 @@ inline PetscErrorCode read_choice(Choice &c) {
 struct SpectralMaps {
   SpectralDifferentiator fft;
   SpectralDifferentiator::Symbol derivative[2], dealiased[2], laplacian;
+  std::vector<const SpectralDifferentiator::Symbol *> aux;     // the auxiliary fields' symbols, in order
+  std::vector<SpectralDifferentiator::Symbol> aux_t, dealiased_t; // their transposes: conj(s)
+  mutable std::vector<SpectralDifferentiator::Spectrum> spectra;  // one per auxiliary field or output
   OwnedVec work;
 };
 struct NoMaps {};
@@ -217,21 +220,26 @@ public:
   }
 
   // The spectral maps: a_k = L_k U (k < Dim: d/dx_k; then the Laplacian or E_d) and G += E_m h_m, with
-  // their transposes; a field D is read as P D.
-  PetscErrorCode auxiliary(int k, Vec U, Vec a) const { return maps_.fft.apply(aux_symbol(k), U, a); }
-  PetscErrorCode auxiliary_transpose(int k, Vec z, Vec y) const {
+  // their transposes, all fields at once (one forward transform of u for every auxiliary field, one
+  // backward transform for a sum of several fields' terms); a field D is read as P D.
+  PetscErrorCode auxiliary_fields(Vec U, const Vec *a) const { return maps_.fft.apply_many(maps_.aux, U, {a, a + auxiliaries}); }
+  PetscErrorCode auxiliary_fields_transpose(const Vec *z, Vec y) const {
     PetscFunctionBeginUser;
-    PetscCall(maps_.fft.apply(aux_symbol(k), z, maps_.work, true));
+    PetscCall(backward_sum(maps_.aux_t.data(), z, auxiliaries, maps_.work));
     PetscCall(VecAXPY(y, 1.0, maps_.work));
     PetscFunctionReturn(0);
   }
-  PetscErrorCode output(int m, Vec h, Vec G) const {
+  PetscErrorCode output_fields(const Vec *h, Vec G) const {
     PetscFunctionBeginUser;
-    PetscCall(maps_.fft.apply(maps_.dealiased[m], h, maps_.work));
+    PetscCall(backward_sum(maps_.dealiased, h, outputs, maps_.work));
     PetscCall(VecAXPY(G, 1.0, maps_.work));
     PetscFunctionReturn(0);
   }
-  PetscErrorCode output_transpose(int m, Vec x, Vec hx) const { return maps_.fft.apply(maps_.dealiased[m], x, hx, true); }
+  PetscErrorCode output_fields_transpose(Vec x, const Vec *hx) const {
+    std::vector<const SpectralDifferentiator::Symbol *> t;
+    for (const auto &q : maps_.dealiased_t) t.push_back(&q);
+    return maps_.fft.apply_many(t, x, {hx, hx + outputs});
+  }
   bool maps_parameter(int k) const { return Df == FIELD_D && k == DIFF; }
   PetscErrorCode map_parameter(int, Vec f) const {
     if constexpr (spectral) return maps_.fft.dealias(f, f);
@@ -355,7 +363,25 @@ private:
         maps_.dealiased[d] = maps_.fft.symbol([d](const FourierMode &k) { return k.kept ? SD::derivative_symbol(k, d, 1) : cplx(0); });
       }
       maps_.laplacian = maps_.fft.symbol([](const FourierMode &k) { return cplx(-(k.wx * k.wx + k.wy * k.wy)); });
+      auto conj = [](SpectralDifferentiator::Symbol q) {
+        for (auto &v : q) v = std::conj(v);
+        return q;
+      };
+      for (int k = 0; k < auxiliaries; ++k) maps_.aux.push_back(&aux_symbol(k)), maps_.aux_t.push_back(conj(aux_symbol(k)));
+      for (int d = 0; d < Dim; ++d) maps_.dealiased_t.push_back(conj(maps_.dealiased[d]));
     }
+    PetscFunctionReturn(0);
+  }
+  // y = sum_j sym_j v_j from the transforms of the v_j and one backward transform.
+  PetscErrorCode backward_sum(const SpectralDifferentiator::Symbol *sym, const Vec *v, int n, Vec y) const {
+    std::vector<std::pair<const SpectralDifferentiator::Symbol *, const SpectralDifferentiator::Spectrum *>> terms;
+    PetscFunctionBeginUser;
+    maps_.spectra.resize(n);
+    for (int j = 0; j < n; ++j) {
+      PetscCall(maps_.fft.transform(v[j], maps_.spectra[j]));
+      terms.emplace_back(&sym[j], &maps_.spectra[j]);
+    }
+    PetscCall(maps_.fft.backward(terms, y));
     PetscFunctionReturn(0);
   }
   const SpectralDifferentiator::Symbol &aux_symbol(int k) const {
