@@ -104,6 +104,7 @@ struct SpectralMaps {
   SpectralDifferentiator::Symbol derivative[2], dealiased[2], laplacian;
   std::vector<const SpectralDifferentiator::Symbol *> aux;     // the auxiliary fields' symbols, in order
   std::vector<SpectralDifferentiator::Symbol> aux_t, dealiased_t; // their transposes: conj(s)
+  std::vector<const SpectralDifferentiator::Symbol *> outputs_t;  // the outputs' transposes, in order
   mutable std::vector<SpectralDifferentiator::Spectrum> spectra;  // one per auxiliary field or output
   OwnedVec work;
 };
@@ -236,9 +237,7 @@ public:
     PetscFunctionReturn(0);
   }
   PetscErrorCode output_fields_transpose(Vec x, const Vec *hx) const {
-    std::vector<const SpectralDifferentiator::Symbol *> t;
-    for (const auto &q : maps_.dealiased_t) t.push_back(&q);
-    return maps_.fft.apply_many(t, x, {hx, hx + outputs});
+    return maps_.fft.apply_many(maps_.outputs_t, x, {hx, hx + outputs});
   }
   bool maps_parameter(int k) const { return Df == FIELD_D && k == DIFF; }
   PetscErrorCode map_parameter(int, Vec f) const {
@@ -369,6 +368,7 @@ private:
       };
       for (int k = 0; k < auxiliaries; ++k) maps_.aux.push_back(&aux_symbol(k)), maps_.aux_t.push_back(conj(aux_symbol(k)));
       for (int d = 0; d < Dim; ++d) maps_.dealiased_t.push_back(conj(maps_.dealiased[d]));
+      for (int m = 0; m < outputs; ++m) maps_.outputs_t.push_back(&maps_.dealiased_t[m]);
     }
     PetscFunctionReturn(0);
   }
