@@ -135,6 +135,7 @@ struct Frame {
   // K per grid column, indexed by the global i + line_pad.
   PetscInt line_pad = 0;
   const PetscReal *theta = nullptr, *dtheta = nullptr; // parameter vectors' entries, and their direction
+  const PetscReal *pconst = nullptr; // the parameters' values when every one G reads is a constant (Point's SC)
   PetscInt np = 0, na = 0, sy = 0, syo = 0;
   PetscInt xs = 0, ys = 0, xm = 0, ym = 1; // the owned block
   PetscReal t = 0;
@@ -167,8 +168,12 @@ struct Frame {
 // KL: the auxiliary fields are lines (Frame::line_pad).
 // WL: the point may lie on a wall (wall() is tested; else a compile-time false): every checked point,
 // and the neighbours a gather evaluates G at from a point within R of a wall.
+// SC: every parameter G reads is a scalar (or fixed): its value is a constant of the sweep (Frame::pconst),
+// which the compiler keeps in a register and shares between the evaluations of a gather, and a gather
+// differentiates it in the evaluation at the target point alone, with respect to its reads at every
+// offset (the sum over the points of a scalar's gradient is all that is wanted).
 template <int C, int K, int NP, class Sten, Mode M, int SX = 0, int SY = 0, bool CK = false, int CS = C, bool WL = CK,
-          bool KL = false>
+          bool KL = false, bool SC = false>
 class Point {
 public:
   using Number = std::conditional_t<
@@ -194,7 +199,13 @@ public:
     else return dx == SX && dy == SY ? Number::seeded(v, c) : Number(v);
   }
   // Parameter k (a field's value at the offset; a scalar's value anywhere).
-  Number param(int k, int dx = 0, int dy = 0) const { return field(f_.P, f_.dP, f_.np, k, k < NP ? C + K + k : -1, dx, dy); }
+  Number param(int k, int dx = 0, int dy = 0) const {
+    if constexpr (SC && M == Mode::Value) return f_.pconst[k];
+    else if constexpr (SC && M == Mode::Gather) {
+      const bool seed = k < NP && (CK ? i_ == ti_ && j_ == tj_ : SX == 0 && SY == 0);
+      return seed ? Number::seeded(f_.pconst[k], C + K + k) : Number(f_.pconst[k]);
+    } else return field(f_.P, f_.dP, f_.np, k, k < NP ? C + K + k : -1, dx, dy);
+  }
   // Coefficient field k (Eq::coefficients: fixed by the geometry, computed once) at the offset: a constant.
   Number coefficient(int k, int dx = 0, int dy = 0) const { return field(f_.P, nullptr, f_.np, f_.coef0 + k, -1, dx, dy); }
   // Auxiliary field k (Eq::auxiliaries: a = L U from the model's non-local linear maps) at the offset.
@@ -436,8 +447,8 @@ class PointwiseModel final : public Model {
   static constexpr StencilShape Shape = pointwise::ShapeOf<Eq>::value;
   using Sten = pointwise::Stencil<D, R, Shape>;
   using Mode = pointwise::Mode;
-  template <Mode M, int SX = 0, int SY = 0, bool CK = false, int CS = C, bool WL = CK>
-  using Pt = pointwise::Point<C, K, NG, Sten, M, SX, SY, CK, CS, WL, KL>;
+  template <Mode M, int SX = 0, int SY = 0, bool CK = false, int CS = C, bool WL = CK, bool SC = false>
+  using Pt = pointwise::Point<C, K, NG, Sten, M, SX, SY, CK, CS, WL, KL, SC>;
   template <bool CK> using PtInitial = pointwise::Point<C, 0, NP, Sten, Mode::Gather, 0, 0, CK>;
   template <bool CK> using Check = std::integral_constant<bool, CK>;
   // How a point of a sweep reads (for_points<true>): in place from the owned block (0, Check<false>),
@@ -597,6 +608,23 @@ public:
       PetscCall(VecStrideMin(Pg_, k, nullptr, &bounds_.min[k]));
       PetscCall(VecStrideMax(Pg_, k, nullptr, &bounds_.max[k]));
     }
+    // a scalar or fixed parameter reads its value everywhere, beyond walls too; when every one G reads
+    // is such, the sweeps take them as constants
+    constants_ = true;
+    {
+      Array pl(P_);
+      PetscCall(pl.error());
+      PetscInt n;
+      PetscCall(VecGetLocalSize(P_, &n));
+      for (int k = 0; k < NP; ++k) {
+        const bool constant = index_[k] < 0 || (params_->info(index_[k]).kind == ParamKind::Scalar && !mapped_[k]);
+        if (k < NG) constants_ = constants_ && constant;
+        pconst_[k] = bounds_.min[k];
+        if (constant)
+          for (PetscInt q = 0; q < n / (NP + NF); ++q) pl.data()[q * (NP + NF) + k] = pconst_[k];
+      }
+    }
+    frame_.pconst = pconst_;
     if constexpr (HasCheck<Eq>::value) PetscCall(eq_.check_parameters(bounds_, grid_->comm()));
     PetscFunctionReturn(0);
   }
@@ -615,13 +643,17 @@ public:
       PetscScalar *out = g.data();
       PetscScalar *hout = nullptr;
       if constexpr (H > 0) PetscCall(VecGetArray(Hg_, &hout));
-      with_model([&](const auto &eq) {
-        for_points<true>(R, [=](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
-          constexpr int where = decltype(ck)::value;
-          double gv[C + H];
-          eq.rhs(Pt<Mode::Value, 0, 0, where == 1>(where >= 2 ? fe : f, at, where >= 2 ? at : own, i, j), gv);
-          for (int c = 0; c < C; ++c) out[own * C + c] = gv[c];
-          for (int m = 0; m < H; ++m) hout[own * H + m] = gv[C + m];
+      with_constants([&](auto sc) {
+        with_model([&](const auto &eq) {
+          for_points<true>(R, [=](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+            constexpr int where = decltype(ck)::value;
+            double gv[C + H];
+            eq.rhs(Pt<Mode::Value, 0, 0, where == 1, C, where == 1, decltype(sc)::value>(where >= 2 ? fe : f, at,
+                                                                                         where >= 2 ? at : own, i, j),
+                   gv);
+            for (int c = 0; c < C; ++c) out[own * C + c] = gv[c];
+            for (int m = 0; m < H; ++m) hout[own * H + m] = gv[C + m];
+          });
         });
       });
       if constexpr (H > 0) PetscCall(VecRestoreArray(Hg_, &hout));
@@ -684,7 +716,7 @@ public:
   // components in [ylo, yhi) are written (added, times w, if add_y): the leapfrog's kick is this with
   // x = lambda_p, y = lambda_q. z (auxiliary fields; null: none) gets the gather of (dG/da)^T x.
   // What is written is known at compile time (WY: y, ADDY: added, WG: gk), so the loop has no branch.
-  template <int CLO, int CHI, int YLO, int YHI, int CS, bool WY, bool ADDY, bool WG>
+  template <int CLO, int CHI, int YLO, int YHI, int CS, bool WY, bool ADDY, bool WG, bool SC>
   FLEXIPDE_SWEEP PetscErrorCode gather(PetscReal t, const LocalState &s, const PetscScalar *xo, const PetscScalar *xl,
                                        const PetscScalar *xh, PetscScalar *y, PetscReal w, PetscReal *const *gk,
                                        PetscScalar *z) {
@@ -706,7 +738,7 @@ public:
         double yv[C] = {};
         double zv[K > 0 ? K : 1] = {};
         double gv[NG > 0 ? NG : 1] = {};
-        gather_offsets<CLO, CHI, where, CS>(eq, where >= 2 ? fe : f, xh, at, where >= 2 ? at : own, i, j, nx, ny, px, py,
+        gather_offsets<CLO, CHI, where, CS, SC>(eq, where >= 2 ? fe : f, xh, at, where >= 2 ? at : own, i, j, nx, ny, px, py,
                                             yv, zv, gv, Offsets());
         if constexpr (WY)
           for (int c = YLO; c < YHI; ++c) {
@@ -725,7 +757,7 @@ public:
       if constexpr (WY)
         for (const auto &v : images_) {
           double yv[C] = {}, zv[K > 0 ? K : 1] = {}, gv[NG > 0 ? NG : 1] = {};
-          gather_offsets<CLO, CHI, 3, CS>(eq, fe, xh, v.at, v.at, v.i, v.j, nx, ny, px, py, yv, zv, gv, Offsets());
+          gather_offsets<CLO, CHI, 3, CS, SC>(eq, fe, xh, v.at, v.at, v.i, v.j, nx, ny, px, py, yv, zv, gv, Offsets());
           for (int c = YLO; c < YHI; ++c) y[v.own * C + c] += (ADDY ? w : 1.0) * v.sign * yv[c];
         }
       });
@@ -771,8 +803,12 @@ public:
       if (mu) fill_gradient_targets(m, defer, gk, true);
       else if (GRAD) scratch_targets(gk);
       auto run = [&](auto wy, auto wg) {
-        return gather<CLO, CHI, YLO, YHI, CS, decltype(wy)::value, ADDY, decltype(wg)::value>(t, s, xo, xg.data(),
-                                                                                             xha.data(), ya, w, gk, za);
+        PetscErrorCode ierr = 0;
+        with_constants([&](auto sc) {
+          ierr = gather<CLO, CHI, YLO, YHI, CS, decltype(wy)::value, ADDY, decltype(wg)::value, decltype(sc)::value>(
+              t, s, xo, xg.data(), xha.data(), ya, w, gk, za);
+        });
+        return ierr;
       };
       using T = std::true_type;
       using F = std::false_type;
@@ -1202,6 +1238,12 @@ private:
   // the rest of what they capture), so that the compiler knows no store of a sweep changes its
   // members: it keeps them in registers, hoists the branches on them out of the loop over points, and
   // vectorises. (A model holds what is costly to copy, such as FFT plans, through a shared pointer.)
+  // f(std::true_type) when every parameter G reads is a constant (Point's SC), else f(std::false_type).
+  template <class F> void with_constants(F &&f) const {
+    if constexpr (NG > 0)
+      if (constants_) return f(std::true_type());
+    f(std::false_type());
+  }
   template <class F> void with_model(F &&f) const {
     if constexpr (std::is_copy_constructible_v<Eq>) {
       const Eq eq = eq_;
@@ -1604,16 +1646,16 @@ private:
 
   // The gather at owned point (i, j): for each stencil offset o, G at the point j - o (when it exists)
   // differentiated with respect to the inputs at j, contracted with x there.
-  template <int CLO, int CHI, int W, int CS, class M, int... E>
+  template <int CLO, int CHI, int W, int CS, bool SC, class M, int... E>
   static void gather_offsets(const M &eq, const pointwise::Frame &f, const PetscScalar *xh, PetscInt at, PetscInt own, PetscInt i, PetscInt j,
                       PetscInt nx, PetscInt ny, bool px, bool py, double *yv, double *zv, double *gv,
                       std::integer_sequence<int, E...>) {
-    (gather_one<Sten::offset(E)[0], Sten::offset(E)[1], CLO, CHI, W, CS>(eq, f, xh, at, own, i, j, nx, ny, px, py, yv, zv, gv), ...);
+    (gather_one<Sten::offset(E)[0], Sten::offset(E)[1], CLO, CHI, W, CS, SC>(eq, f, xh, at, own, i, j, nx, ny, px, py, yv, zv, gv), ...);
   }
   // W: how the point reads (for_points<true>); G exists at real points alone: near a wall (W = 1, 3) the
   // gather skips the others. (Beyond it the transpose's x reads 0, so that an Edge point's neighbours
   // there would add nothing; but their stencils would reach beyond the ghosted box.)
-  template <int OX, int OY, int CLO, int CHI, int W, int CS, class M>
+  template <int OX, int OY, int CLO, int CHI, int W, int CS, bool SC, class M>
   static void gather_one(const M &eq, const pointwise::Frame &f, const PetscScalar *xh, PetscInt at, PetscInt own,
                          PetscInt i, PetscInt j, PetscInt nx, PetscInt ny, bool px, bool py, double *yv, double *zv,
                          double *gv) {
@@ -1624,7 +1666,7 @@ private:
       if (D == 2 && !py && (sj < 0 || sj >= ny)) return;
     }
     const PetscInt sat = at - OX - OY * f.sy, sown = own - OX - OY * f.syo;
-    using P = Pt<Mode::Gather, OX, OY, CK, CS, W == 1 || W == 3>; // (an Edge point's neighbours are never on a wall)
+    using P = Pt<Mode::Gather, OX, OY, CK, CS, W == 1 || W == 3, SC>; // (an Edge point's neighbours are never on a wall)
     typename P::Number gd[C + H];
     eq.rhs(P(f, sat, sown, si, sj, i, j), gd);
     auto contract = [&](const auto &g, double xc) {
@@ -1788,6 +1830,8 @@ private:
   PetscInt index_[NP > 0 ? NP : 1] = {};
   PetscReal fixed_[NP > 0 ? NP : 1] = {};
   bool mapped_[NP > 0 ? NP : 1] = {}; // field parameters read through the model's map (HasParameterMap)
+  PetscReal pconst_[NP > 0 ? NP : 1] = {}; // the parameters' values, where they are constants (Frame::pconst)
+  bool constants_ = false;                  // every parameter G reads is a constant
   OwnedDM param_dm_, matrix_dm_, aux_dm_, out_dm_;
   OwnedVec P_, dP_, Pg_, Xl_;
   LocalState st_, jac_, jp_; // the state of rhs and the adjoint sweeps, of the Jacobian, of dG/dp
