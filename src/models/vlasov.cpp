@@ -150,7 +150,7 @@ public:
     auto K = std::make_shared<Antiderivative>();
     K->setup(grid.n(), grid.x1() - grid.x0());
     K_ = K;
-    column_.assign(grid.n(), 0.0);
+    column_ = std::make_shared<std::vector<PetscReal>>(grid.n(), 0.0);
     PetscFunctionReturn(0);
   }
 
@@ -172,15 +172,15 @@ public:
   // E = -hv K s from the column sums s = S f (the layer sums f over v and reads E(x) at every v), and
   // the transpose's w += (-hv K)^T z = hv K z.
   PetscErrorCode auxiliary(int, const PetscReal *s, PetscReal *E) const {
-    std::transform(s, s + grid_->n(), column_.begin(), [&](PetscReal r) { return -grid_->hy() * r; });
-    K_->apply(column_);
-    std::copy(column_.begin(), column_.end(), E);
+    std::transform(s, s + grid_->n(), column_->begin(), [&](PetscReal r) { return -grid_->hy() * r; });
+    K_->apply(*column_);
+    std::copy(column_->begin(), column_->end(), E);
     return 0;
   }
   PetscErrorCode auxiliary_transpose(int, const PetscReal *z, PetscReal *w) const {
-    std::transform(z, z + grid_->n(), column_.begin(), [&](PetscReal r) { return grid_->hy() * r; });
-    K_->apply(column_);
-    for (PetscInt i = 0; i < grid_->n(); ++i) w[i] += column_[i];
+    std::transform(z, z + grid_->n(), column_->begin(), [&](PetscReal r) { return grid_->hy() * r; });
+    K_->apply(*column_);
+    for (PetscInt i = 0; i < grid_->n(); ++i) w[i] += (*column_)[i];
     return 0;
   }
 
@@ -201,8 +201,8 @@ public:
     PetscReal W = 0, local[2] = {0, 0}; // cell sum m(v) f, cell sum f^2
     if (with_field) {
       PetscCall(field(f));
-      for (PetscReal e : column_) W += 0.5 * g.h() * e * e;
-      K_->apply(column_); // K E
+      for (PetscReal e : (*column_)) W += 0.5 * g.h() * e * e;
+      K_->apply(*column_); // K E
     }
     auto moment = [&](PetscReal v) { return which == mass ? 1.0 : which == momentum ? v : which == field_energy ? 0.0 : 0.5 * v * v; };
     const PetscScalar *u;
@@ -213,7 +213,7 @@ public:
       for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i, ++n) {
         const PetscReal m = moment(g.y(g.ys() + jl)), fv = PetscRealPart(u[n]);
         local[0] += cell * m * fv, local[1] += cell * fv * fv;
-        if (d) d[n] = cell * m + (with_field ? cell * column_[i] : 0.0);
+        if (d) d[n] = cell * m + (with_field ? cell * (*column_)[i] : 0.0);
       }
     PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, local, 2, MPIU_REAL, MPI_SUM, g.comm()));
     const PetscReal norm = std::sqrt(local[1]);
@@ -230,10 +230,10 @@ public:
     PetscFunctionBeginUser;
     PetscReal F = 0; // S f0 = (1 + alpha cos k x) sum_j F(v_j)
     for (PetscInt j = 0; j < g.ny(); ++j) F += profile(g.y(j), b.min[vt], b.min[v0], b.min[ratio]);
-    for (PetscInt i = 0; i < g.n(); ++i) column_[i] = -g.hy() * (1 + b.min[alpha] * std::cos(k_ * g.x(i))) * F;
-    K_->apply(column_); // E(f0) = -hv K S f0
+    for (PetscInt i = 0; i < g.n(); ++i) (*column_)[i] = -g.hy() * (1 + b.min[alpha] * std::cos(k_ * g.x(i))) * F;
+    K_->apply(*column_); // E(f0) = -hv K S f0
     PetscReal Emax = E_cfl_, symbol = 0;
-    for (PetscReal e : column_) Emax = std::max(Emax, std::fabs(e));
+    for (PetscReal e : (*column_)) Emax = std::max(Emax, std::fabs(e));
     for (PetscInt q = 0; q <= 1000; ++q) symbol = std::max(symbol, sym(PETSC_PI * q / 1000));
     const PetscReal vmax = std::max(std::fabs(g.y0()), std::fabs(g.y1())), ax = vmax / g.h(), av = Emax / g.hy();
     s->imag_radius = symbol * (ax + av), s->real_radius = 0;
@@ -284,19 +284,19 @@ private:
     const Grid &g = *grid_;
     const PetscScalar *u;
     PetscFunctionBeginUser;
-    std::fill(column_.begin(), column_.end(), 0.0);
+    std::fill(column_->begin(), column_->end(), 0.0);
     PetscCall(VecGetArrayRead(in, &u));
     for (PetscInt jl = 0, n = 0; jl < g.ym(); ++jl)
-      for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i) column_[i] += PetscRealPart(u[n++]);
+      for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i) (*column_)[i] += PetscRealPart(u[n++]);
     PetscCall(VecRestoreArrayRead(in, &u));
-    PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, column_.data(), (PetscMPIInt)g.n(), MPIU_REAL, MPI_SUM, g.comm()));
+    PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, column_->data(), (PetscMPIInt)g.n(), MPIU_REAL, MPI_SUM, g.comm()));
     PetscFunctionReturn(0);
   }
   PetscErrorCode field(Vec f) const { // column_ = E(f) = -hv K S f
     PetscFunctionBeginUser;
     PetscCall(column_sums(f));
-    for (PetscReal &r : column_) r *= -grid_->hy();
-    K_->apply(column_);
+    for (PetscReal &r : (*column_)) r *= -grid_->hy();
+    K_->apply(*column_);
     PetscFunctionReturn(0);
   }
 
@@ -304,7 +304,8 @@ private:
   PetscInt ic_ = landau, mode_ = 1;
   PetscReal k_ = 0.5, cx_ = 1, cv_ = 1, dissipation_ = 0, E_cfl_ = 1;
   std::shared_ptr<const Antiderivative> K_; // shared by the copies of the model the sweeps make
-  mutable std::vector<PetscReal> column_; // a length-N_x work array: S f, E, K E
+  // a length-N_x work array (S f, E, K E), shared by the copies of the model the sweeps make
+  std::shared_ptr<std::vector<PetscReal>> column_;
 };
 
 std::unique_ptr<Model> make_vlasov() {
