@@ -135,10 +135,7 @@ struct Frame {
   // K per grid column, indexed by the global i + line_pad.
   PetscInt line_pad = 0;
   const PetscReal *theta = nullptr, *dtheta = nullptr; // parameter vectors' entries, and their direction
-  // The parameters' values when every one G reads is a constant (Point's SC), held in the frame itself:
-  // a sweep's copy of it is known to no store, so the values stay in registers.
-  static constexpr int max_constants = 8;
-  PetscReal pconst[max_constants] = {};
+  const PetscReal *pconst = nullptr; // the parameters' values when every one G reads is a constant (Point's SC)
   PetscInt np = 0, na = 0, sy = 0, syo = 0;
   PetscInt xs = 0, ys = 0, xm = 0, ym = 1; // the owned block
   PetscReal t = 0;
@@ -445,7 +442,6 @@ class PointwiseModel final : public Model {
   // The parameters G reads (the first NG; the others enter U0 alone): the transposes carry lanes for those.
   static constexpr int NG = pointwise::RhsParametersOf<Eq>::value;
   static_assert(NG <= NP, "rhs_parameters: at most parameters");
-  static_assert(NG <= pointwise::Frame::max_constants, "more parameters read by G than the sweeps hold as constants");
   static constexpr bool Local = K == 0 && H == 0; // else dG/dU is applied, never assembled
   static constexpr int NF = pointwise::CoefficientsOf<Eq>::value; // held after the parameters in P_
   static constexpr StencilShape Shape = pointwise::ShapeOf<Eq>::value;
@@ -628,7 +624,7 @@ public:
           for (PetscInt q = 0; q < n / (NP + NF); ++q) pl.data()[q * (NP + NF) + k] = pconst_[k];
       }
     }
-    for (int k = 0; k < NG; ++k) frame_.pconst[k] = pconst_[k];
+    frame_.pconst = pconst_;
     if constexpr (HasCheck<Eq>::value) PetscCall(eq_.check_parameters(bounds_, grid_->comm()));
     PetscFunctionReturn(0);
   }
