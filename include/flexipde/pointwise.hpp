@@ -619,12 +619,11 @@ public:
       for (int k = 0; k < NP; ++k) {
         const bool constant = index_[k] < 0 || (params_->info(index_[k]).kind == ParamKind::Scalar && !mapped_[k]);
         if (k < NG) constants_ = constants_ && constant;
-        pconst_[k] = bounds_.min[k];
         if (constant)
-          for (PetscInt q = 0; q < n / (NP + NF); ++q) pl.data()[q * (NP + NF) + k] = pconst_[k];
+          for (PetscInt q = 0; q < n / (NP + NF); ++q) pl.data()[q * (NP + NF) + k] = bounds_.min[k];
       }
     }
-    frame_.pconst = pconst_;
+    frame_.pconst = bounds_.min.data(); // a constant's value is its minimum
     if constexpr (HasCheck<Eq>::value) PetscCall(eq_.check_parameters(bounds_, grid_->comm()));
     PetscFunctionReturn(0);
   }
@@ -1234,16 +1233,16 @@ private:
     DMDAGetGhostCorners(dm_, nullptr, nullptr, nullptr, &gxm, nullptr, nullptr);
     return gxm;
   }
-  // The model as the sweeps read it: a copy when it can be copied (the point loops copy it again with
-  // the rest of what they capture), so that the compiler knows no store of a sweep changes its
-  // members: it keeps them in registers, hoists the branches on them out of the loop over points, and
-  // vectorises. (A model holds what is costly to copy, such as FFT plans, through a shared pointer.)
   // f(std::true_type) when every parameter G reads is a constant (Point's SC), else f(std::false_type).
   template <class F> void with_constants(F &&f) const {
     if constexpr (NG > 0)
       if (constants_) return f(std::true_type());
     f(std::false_type());
   }
+  // The model as the sweeps read it: a copy when it can be copied (the point loops copy it again with
+  // the rest of what they capture), so that the compiler knows no store of a sweep changes its
+  // members: it keeps them in registers, hoists the branches on them out of the loop over points, and
+  // vectorises. (A model holds what is costly to copy, such as FFT plans, through a shared pointer.)
   template <class F> void with_model(F &&f) const {
     if constexpr (std::is_copy_constructible_v<Eq>) {
       const Eq eq = eq_;
@@ -1830,8 +1829,7 @@ private:
   PetscInt index_[NP > 0 ? NP : 1] = {};
   PetscReal fixed_[NP > 0 ? NP : 1] = {};
   bool mapped_[NP > 0 ? NP : 1] = {}; // field parameters read through the model's map (HasParameterMap)
-  PetscReal pconst_[NP > 0 ? NP : 1] = {}; // the parameters' values, where they are constants (Frame::pconst)
-  bool constants_ = false;                  // every parameter G reads is a constant
+  bool constants_ = false; // every parameter G reads is a constant (its value: bounds_.min)
   OwnedDM param_dm_, matrix_dm_, aux_dm_, out_dm_;
   OwnedVec P_, dP_, Pg_, Xl_;
   LocalState st_, jac_, jp_; // the state of rhs and the adjoint sweeps, of the Jacobian, of dG/dp
