@@ -7,6 +7,7 @@
 #   NP=2 run/bench_models.sh         # on 2 ranks
 #   PROCS=3 run/bench_models.sh      # each case in 3 processes: medians, and the ratios' range
 #   MODELS=wave,wave2d run/bench_models.sh                    # these models' rows only
+#   CASES=spectral run/bench_models.sh                          # the rows whose case names contain this
 #   BASELINE=/other/build/flexipde PROCS=3 run/bench_models.sh # against another build, side by side
 #
 # Each line is one process, `flexipde -task gradient -timing_repeats REPS`: one gradient, then REPS
@@ -19,7 +20,7 @@
 # the last column gives the range of the per-process ratios.
 # With BASELINE, each case runs PROCS processes of each build, alternating, and the table gives both
 # builds' medians and this build's time over the baseline's (forward and gradient).
-# Environment: FLEXIPDE (build/flexipde), REPS (7), NP (1), PROCS (1), MODELS (all), BASELINE (none),
+# Environment: FLEXIPDE (build/flexipde), REPS (7), NP (1), PROCS (1), MODELS (all), CASES (all), BASELINE (none),
 # MPIEXEC (mpiexec, --allow-run-as-root as root).
 set -euo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
@@ -31,6 +32,7 @@ MPIEXEC=${MPIEXEC:-mpiexec}
 
 PROCS=${PROCS:-1}
 MODELS=${MODELS:-}
+CASES=${CASES:-}
 BASELINE=${BASELINE:-}
 [ -z "$BASELINE" ] || [ -x "$BASELINE" ] || { echo "bench_models: BASELINE=$BASELINE is not an executable" >&2; exit 1; }
 if [ -n "$BASELINE" ]; then
@@ -54,6 +56,7 @@ run() {
   local model=$1 ts=$2 label=$3
   shift 3
   if [ -n "$MODELS" ] && [[ ",$MODELS," != *",$model,"* ]]; then return; fi
+  if [ -n "$CASES" ] && [[ "$label" != *"$CASES"* ]]; then return; fi
   local line lines=""
   if [ -n "$BASELINE" ]; then # this build and the baseline alternately, PROCS processes each
     for _ in $(seq "$PROCS"); do

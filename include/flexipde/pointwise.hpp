@@ -427,6 +427,24 @@ template <class Eq, class = void> struct HasMapsAtOnce : std::false_type {};
 template <class Eq>
 struct HasMapsAtOnce<Eq, std::void_t<decltype(std::declval<const Eq &>().auxiliary_fields(Vec(), (const Vec *)nullptr))>>
     : std::true_type {};
+// Optional, with the maps at once: the transposes of every auxiliary field's map applied to one x,
+// auxiliary_fields_adjoint(x, w) (w[k] = L_k^T x, every k). When G is linear, its parameters are
+// constants and it reads the auxiliary fields with coefficients that are the same at every point
+// (G = g(U) + sum_k c_k a_k, found at run time), the layer applies sum_k c_k L_k^T x from these and
+// forms the parameters' gradients from the pairings <L_k^T x, U>: the fields of U are then never
+// formed in an adjoint, and x's transposes share one forward transform.
+// Optional besides: a combination of the maps as one map, auxiliary_combination(r, x, y, transpose)
+// (y = sum_k r_k L_k x, or sum_k r_k L_k^T x): one symbol for a spectral model, one forward and one
+// backward transform, with the round-off of one map. The layer then applies G's coupling, its tangent
+// and a transpose without gradient through it.
+template <class Eq, class = void> struct HasAuxCombination : std::false_type {};
+template <class Eq>
+struct HasAuxCombination<Eq, std::void_t<decltype(std::declval<const Eq &>().auxiliary_combination(
+                                  (const PetscScalar *)nullptr, Vec(), Vec(), false))>> : std::true_type {};
+template <class Eq, class = void> struct HasAuxAdjoint : std::false_type {};
+template <class Eq>
+struct HasAuxAdjoint<Eq, std::void_t<decltype(std::declval<const Eq &>().auxiliary_fields_adjoint(Vec(), (const Vec *)nullptr))>>
+    : std::true_type {};
 
 } // namespace pointwise
 
@@ -443,6 +461,10 @@ class PointwiseModel final : public Model {
   static constexpr int NG = pointwise::RhsParametersOf<Eq>::value;
   static_assert(NG <= NP, "rhs_parameters: at most parameters");
   static constexpr bool Local = K == 0 && H == 0; // else dG/dU is applied, never assembled
+  // G may be g(U) + sum_k c_k a_k with coefficients the same at every point (found when the parameters
+  // are set: uniform_): pointwise::HasAuxAdjoint.
+  static constexpr bool Coupling = C == 1 && K > 0 && !KL && H == 0 && pointwise::LinearOf<Eq>::value &&
+                                   pointwise::HasMapsAtOnce<Eq>::value && pointwise::HasAuxAdjoint<Eq>::value;
   static constexpr int NF = pointwise::CoefficientsOf<Eq>::value; // held after the parameters in P_
   static constexpr StencilShape Shape = pointwise::ShapeOf<Eq>::value;
   using Sten = pointwise::Stencil<D, R, Shape>;
@@ -535,6 +557,11 @@ public:
       for (auto &v : map_fields_) PetscCall(DMCreateGlobalVector(grid.dm(), v.out()));
       for (auto &v : map_fields_) map_vecs_.push_back(v);
     }
+    if constexpr (Coupling) {
+      PetscInt n;
+      PetscCall(VecGetLocalSize(dAl_, &n));
+      zero_aux_.assign((size_t)n, 0.0);
+    }
     if constexpr (H > 0) {
       PetscCall(grid.create_dm(H, out_dm_.out()));
       PetscCall(DMCreateGlobalVector(out_dm_, Hg_.out()));
@@ -625,12 +652,17 @@ public:
     }
     frame_.pconst = bounds_.min.data(); // a constant's value is its minimum
     if constexpr (HasCheck<Eq>::value) PetscCall(eq_.check_parameters(bounds_, grid_->comm()));
+    PetscCall(find_uniform_coupling());
     PetscFunctionReturn(0);
   }
 
   FLEXIPDE_SWEEP PetscErrorCode rhs(PetscReal t, Vec U, Vec G) override {
     PetscFunctionBeginUser;
-    PetscCall(load(U, st_));
+    const bool coupled_only = uniform_ && !local_part_; // G = sum_k c_k L_k U (+ forcing)
+    if (coupled_only) {
+      PetscCall(apply_coupling(coupling_, U, G, 1.0, false, false));
+      st_.ref = U; // (no ghosts or fields of U are read)
+    } else PetscCall(load(U, st_));
     {
       StateView sv(st_);
       ConstArray p(P_);
@@ -638,11 +670,13 @@ public:
       PetscCall(sv.error());
       PetscCall(p.error());
       PetscCall(g.error());
-      const pointwise::Frame f = frame(t, sv, p.data()), fe = edge_frame(f);
+      pointwise::Frame f = frame(t, sv, p.data());
+      uncoupled(f);
+      const pointwise::Frame fe = edge_frame(f);
       PetscScalar *out = g.data();
       PetscScalar *hout = nullptr;
       if constexpr (H > 0) PetscCall(VecGetArray(Hg_, &hout));
-      with_constants([&](auto sc) {
+      if (!coupled_only) with_constants([&](auto sc) {
         with_model([&](const auto &eq) {
           for_points<true>(R, [=](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
             constexpr int where = decltype(ck)::value;
@@ -664,6 +698,7 @@ public:
           }
     }
     PetscCall(add_outputs(G));
+    if (uniform_ && !coupled_only) PetscCall(apply_coupling(coupling_, U, G, 1.0, true, false));
     PetscFunctionReturn(0);
   }
 
@@ -675,7 +710,7 @@ public:
     if constexpr (KL) {
       if (x) PetscCall(auxiliary_lines(x, dline_));
     } else if constexpr (K > 0)
-      if (x) PetscCall(auxiliaries(x, dAl_));
+      if (x && !uniform_) PetscCall(auxiliaries(x, dAl_));
     if (dp) PetscCall(vectors_from(dp, dtheta_));
     {
       StateView sv(s);
@@ -690,11 +725,13 @@ public:
       f.dP = dpa.data();
       f.dA = KL ? (x ? dline_.data() : nullptr) : da.data();
       f.dtheta = dp && !dtheta_.empty() ? dtheta_.data() : nullptr;
+      uncoupled(f);
       const pointwise::Frame fe = edge_frame(f);
       PetscScalar *out = ya.data();
       PetscScalar *hout = nullptr;
       if constexpr (H > 0) PetscCall(VecGetArray(Hg_, &hout));
-      with_model([&](const auto &eq) {
+      if (uniform_ && !local_part_) std::fill(out, out + grid_->local_points() * C, 0.0);
+      else with_model([&](const auto &eq) {
         for_points<true>(R, [=](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
           constexpr int where = decltype(ck)::value;
           typename Pt<Mode::Tangent>::Number gv[C + H];
@@ -706,6 +743,17 @@ public:
       if constexpr (H > 0) PetscCall(VecRestoreArray(Hg_, &hout));
     }
     PetscCall(add_outputs(y));
+    if (uniform_ && x) PetscCall(apply_coupling(coupling_, x, y, 1.0, true, false)); // y += sum_k c_k L_k x
+    if (uniform_ && dp) { // y += sum_k (sum_q dp_q dc_k/dp_q) L_k U
+      PetscScalar r[K > 0 ? K : 1] = {};
+      {
+        ConstArray d(dP_);
+        PetscCall(d.error());
+        for (int k = 0; k < K; ++k)
+          for (int q = 0; q < NG; ++q) r[k] += coupling_p_[k][q] * PetscRealPart(d.data()[q]);
+      }
+      PetscCall(apply_coupling(r, s.ref, y, 1.0, true, false));
+    }
     PetscFunctionReturn(0);
   }
 
@@ -727,6 +775,7 @@ public:
       PetscCall(p.error());
       pointwise::Frame f = frame(t, sv, p.data());
       f.X = xo, f.Xg = xl;
+      uncoupled(f);
       const pointwise::Frame fe = edge_frame(f);
       const PetscInt nx = grid_->n(), ny = grid_->ny();
       const bool px = grid_->periodic(), py = grid_->periodic_y();
@@ -777,6 +826,8 @@ public:
                            bool x_ghosts = false) {
     PetscFunctionBeginUser;
     if (!x_ghosts) PetscCall(fill_ghosts(x, Xl_, true));
+    if constexpr (Coupling)
+      if (uniform_ && mu) PetscCall(eq_.auxiliary_fields_adjoint(x, map_vecs_.data())); // L_k^T x
     if constexpr (H > 0) {
       if constexpr (pointwise::HasMapsAtOnce<Eq>::value) {
         PetscCall(eq_.output_fields_transpose(x, map_vecs_.data()));
@@ -815,7 +866,8 @@ public:
         PetscCheck(y, grid_->comm(), PETSC_ERR_PLIB, "transpose: y is formed");
         PetscCall(run(T(), T()));
       } else if (!y) PetscCall(mu ? run(F(), T()) : 0);
-      else PetscCall(mu ? run(T(), T()) : run(T(), F()));
+      else if (!(uniform_ && !local_part_)) PetscCall(mu ? run(T(), T()) : run(T(), F()));
+      if (uniform_ && mu) PetscCall(coupled_adjoint(s, w, gk, ya, ADDY ? w : 1.0, ADDY || local_part_));
       if (mu && !theta_.empty()) {
         if (!defer) std::fill(dtheta_.begin(), dtheta_.end(), 0.0);
         PetscCall((theta_gather<CLO, CHI, CS>(t, s, xo, w, defer ? theta_acc_.data() : dtheta_.data())));
@@ -827,21 +879,30 @@ public:
     }
     if constexpr (KL) {
       if (y) PetscCall(add_auxiliary_lines_transpose(y, ADDY ? w : 1.0));
-    } else if constexpr (K > 0)
-      if (y) {
-        PetscCall(VecSet(Yt_, 0.0));
-        if constexpr (pointwise::HasMapsAtOnce<Eq>::value) {
-          PetscCall(VecStrideGatherAll(Zg_, map_vecs_.data(), INSERT_VALUES));
-          PetscCall(eq_.auxiliary_fields_transpose(map_vecs_.data(), Yt_));
-        } else
-          for (int k = 0; k < K; ++k) {
-            PetscCall(VecStrideGather(Zg_, k, field_, INSERT_VALUES));
-            PetscCall(eq_.auxiliary_transpose(k, field_, Yt_));
-          }
-        PetscCall(VecAXPY(y, ADDY ? w : 1.0, Yt_));
-      }
+    } else if constexpr (K > 0) {
+      if (y && uniform_) { // y (+)= w sum_k c_k L_k^T x (with mu: formed with the gradient)
+        if (!mu) PetscCall(apply_coupling(coupling_, x, y, ADDY ? w : 1.0, ADDY || local_part_, true));
+      } else if (y) PetscCall(add_auxiliary_transposes(y, ADDY ? w : 1.0));
+    }
     if (mu && !defer) PetscCall(flush_scratch_scalars(mu));
     if (mu && !defer) PetscCall(add_vector_sums(mu, dtheta_));
+    PetscFunctionReturn(0);
+  }
+  // y += w sum_k L_k^T z_k, z the gather's (dG/da)^T x (in Zg_).
+  PetscErrorCode add_auxiliary_transposes(Vec y, PetscReal w) {
+    PetscFunctionBeginUser;
+    if constexpr (K > 0 && !KL) {
+      PetscCall(VecSet(Yt_, 0.0));
+      if constexpr (pointwise::HasMapsAtOnce<Eq>::value) {
+        PetscCall(VecStrideGatherAll(Zg_, map_vecs_.data(), INSERT_VALUES));
+        PetscCall(eq_.auxiliary_fields_transpose(map_vecs_.data(), Yt_));
+      } else
+        for (int k = 0; k < K; ++k) {
+          PetscCall(VecStrideGather(Zg_, k, field_, INSERT_VALUES));
+          PetscCall(eq_.auxiliary_transpose(k, field_, Yt_));
+        }
+      PetscCall(VecAXPY(y, w, Yt_));
+    }
     PetscFunctionReturn(0);
   }
 
@@ -1233,6 +1294,170 @@ private:
     DMDAGetGhostCorners(dm_, nullptr, nullptr, nullptr, &gxm, nullptr, nullptr);
     return gxm;
   }
+  // A frame of the uniform coupling's sweeps: they read the auxiliary fields as 0 (g(U) alone).
+  void uncoupled(pointwise::Frame &f) const {
+    if constexpr (Coupling)
+      if (uniform_) f.A = zero_aux_.data();
+  }
+  // y = (add ? y : 0) + w sum_k r_k L_k x (or L_k^T): the model's combination of its maps, else its
+  // fields of x combined.
+  PetscErrorCode apply_coupling(const PetscScalar *r, Vec x, Vec y, PetscReal w, bool add, bool transpose) {
+    PetscFunctionBeginUser;
+    if constexpr (Coupling) {
+      if constexpr (pointwise::HasAuxCombination<Eq>::value) {
+        if (!add && w == 1.0) PetscCall(eq_.auxiliary_combination(r, x, y, transpose));
+        else {
+          PetscCall(eq_.auxiliary_combination(r, x, field_, transpose));
+          if (add) PetscCall(VecAXPY(y, w, field_));
+          else PetscCall(VecAXPBY(y, w, 0.0, field_));
+        }
+      } else {
+        if (transpose) PetscCall(eq_.auxiliary_fields_adjoint(x, map_vecs_.data()));
+        else PetscCall(eq_.auxiliary_fields(x, map_vecs_.data()));
+        PetscCall(add_combination(y, r, w, add));
+      }
+    }
+    PetscFunctionReturn(0);
+  }
+  // y = (add ? y : 0) + w sum_k r_k f_k, f the fields in map_vecs_: one pass.
+  PetscErrorCode add_combination(Vec y, const PetscScalar *r, PetscReal w, bool add) {
+    PetscFunctionBeginUser;
+    if constexpr (Coupling) {
+      const PetscScalar *f[K];
+      PetscScalar wr[K];
+      for (int k = 0; k < K; ++k) {
+        PetscCall(VecGetArrayRead(map_vecs_[k], &f[k]));
+        wr[k] = w * r[k];
+      }
+      {
+        Array ya(y);
+        PetscCall(ya.error());
+        PetscScalar *o = ya.data();
+        const PetscInt n = grid_->local_points();
+        for (PetscInt i = 0; i < n; ++i) {
+          PetscScalar v = add ? o[i] : 0.0;
+          for (int k = 0; k < K; ++k) v += wr[k] * f[k][i];
+          o[i] = v;
+        }
+      }
+      for (int k = 0; k < K; ++k) PetscCall(VecRestoreArrayRead(map_vecs_[k], &f[k]));
+    }
+    PetscFunctionReturn(0);
+  }
+  // From the L_k^T x in map_vecs_, in one pass: gk[q] += w sum_k (dc_k/dp_q) <L_k^T x, U>, a constant's
+  // gradient, this rank's part (the targets are summed over the points and ranks), and, unless y is
+  // null, y = (add ? y : 0) + wy sum_k c_k L_k^T x.
+  PetscErrorCode coupled_adjoint(const LocalState &s, PetscReal w, PetscReal *const *gk, PetscScalar *y, PetscReal wy, bool add) {
+    PetscFunctionBeginUser;
+    if constexpr (Coupling) {
+      const PetscScalar *f[K];
+      PetscReal pair[K] = {};
+      PetscScalar wc[K];
+      ConstArray u(s.ref);
+      PetscCall(u.error());
+      for (int k = 0; k < K; ++k) {
+        PetscCall(VecGetArrayRead(map_vecs_[k], &f[k]));
+        wc[k] = wy * coupling_[k];
+      }
+      const PetscScalar *ua = u.data();
+      const PetscInt n = grid_->local_points();
+      if (y)
+        for (PetscInt i = 0; i < n; ++i) {
+          PetscScalar v = add ? y[i] : 0.0;
+          for (int k = 0; k < K; ++k) {
+            pair[k] += PetscRealPart(f[k][i]) * PetscRealPart(ua[i]);
+            v += wc[k] * f[k][i];
+          }
+          y[i] = v;
+        }
+      else
+        for (PetscInt i = 0; i < n; ++i)
+          for (int k = 0; k < K; ++k) pair[k] += PetscRealPart(f[k][i]) * PetscRealPart(ua[i]);
+      for (int k = 0; k < K; ++k) PetscCall(VecRestoreArrayRead(map_vecs_[k], &f[k]));
+      for (int q = 0; q < NG; ++q) {
+        PetscReal g = 0;
+        for (int k = 0; k < K; ++k) g += coupling_p_[k][q] * pair[k];
+        if (gk[q]) gk[q][0] += w * g;
+      }
+    }
+    PetscFunctionReturn(0);
+  }
+  // Whether G = g(U) + sum_k c_k a_k with c_k and dc_k/dp_q the same at every point (a linear G whose
+  // parameters are constants, no parameter vectors), and their values: Tangent evaluations at U = 0 in
+  // the direction a = e_k (c_k), and in the direction p_q at a = e_k less the same at a = 0. Collective.
+  PetscErrorCode find_uniform_coupling() {
+    PetscFunctionBeginUser;
+    uniform_ = false;
+    if constexpr (Coupling) {
+      if (!constants_ || !theta_.empty()) PetscFunctionReturn(0);
+      constexpr int nq = K + K * NG; // c_k, then dc_k/dp_q at K + k NG + q
+      const PetscInt na = (PetscInt)zero_aux_.size(), ng = na / K, n = grid_->local_points(), npp = NP + NF;
+      std::vector<PetscScalar> ek((size_t)na), dq((size_t)(ng * npp)), zu((size_t)(ng * C), 0.0);
+      std::vector<double> v0((size_t)n), v1((size_t)n), lo(nq, PETSC_MAX_REAL), hi(nq, PETSC_MIN_REAL);
+      ConstArray p(P_);
+      PetscCall(p.error());
+      pointwise::Frame f = frame_;
+      f.U = f.Ug = zu.data(), f.X = f.Xg = nullptr, f.P = p.data();
+      PetscInt local_part = 0; // g(U) is not 0: found by the evaluations at a = 0 below
+      auto sweep = [&](std::vector<double> &v, bool at_zero = false) {
+        const pointwise::Frame fe = edge_frame(f);
+        for_points<true>(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+          constexpr int where = decltype(ck)::value;
+          typename Pt<Mode::Tangent>::Number gv[C];
+          eq_.rhs(Pt<Mode::Tangent, 0, 0, where == 1>(where >= 2 ? fe : f, at, where >= 2 ? at : own, i, j), gv);
+          v[own] = gv[0].d[0];
+          if (at_zero) local_part = local_part || gv[0].v != 0.0 || gv[0].d[0] != 0.0;
+        });
+      };
+      auto range = [&](int slot, const std::vector<double> &v) {
+        for (double x : v) lo[slot] = std::min(lo[slot], x), hi[slot] = std::max(hi[slot], x);
+      };
+      auto unit = [&](std::vector<PetscScalar> &a, int stride, int k) {
+        for (size_t q = 0; q < a.size(); ++q) a[q] = (int)(q % stride) == k ? 1.0 : 0.0;
+      };
+      for (int k = 0; k < K; ++k) {
+        unit(ek, K, k);
+        f.A = zero_aux_.data(), f.dA = ek.data(), f.dP = nullptr;
+        sweep(v0);
+        range(k, v0);
+      }
+      for (int q = 0; q < NG; ++q) {
+        unit(dq, npp, q);
+        f.dA = nullptr, f.dP = dq.data(), f.A = zero_aux_.data();
+        sweep(v0, true);
+        for (int k = 0; k < K; ++k) {
+          unit(ek, K, k);
+          f.A = ek.data();
+          sweep(v1);
+          for (PetscInt i = 0; i < n; ++i) v1[i] -= v0[i];
+          range(K + k * NG + q, v1);
+        }
+      }
+      PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, lo.data(), nq, MPI_DOUBLE, MPI_MIN, grid_->comm()));
+      PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, hi.data(), nq, MPI_DOUBLE, MPI_MAX, grid_->comm()));
+      { // ... and in a random direction of U
+        std::vector<PetscScalar> xr((size_t)(ng * C));
+        PetscRandom rnd;
+        PetscCall(PetscRandomCreate(PETSC_COMM_SELF, &rnd));
+        PetscCall(PetscRandomSetInterval(rnd, 0.5, 1.5));
+        for (auto &v : xr) PetscCall(PetscRandomGetValue(rnd, &v));
+        PetscCall(PetscRandomDestroy(&rnd));
+        f.A = zero_aux_.data(), f.dA = nullptr, f.dP = nullptr, f.X = f.Xg = xr.data();
+        sweep(v0, true);
+      }
+      PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &local_part, 1, MPIU_INT, MPI_MAX, grid_->comm()));
+      bool same = true;
+      for (int q = 0; q < nq; ++q) same = same && lo[q] == hi[q];
+      if (!same) PetscFunctionReturn(0);
+      local_part_ = local_part != 0;
+      for (int k = 0; k < K; ++k) {
+        coupling_[k] = lo[k];
+        for (int q = 0; q < NG; ++q) coupling_p_[k][q] = lo[K + k * NG + q];
+      }
+      uniform_ = true;
+    }
+    PetscFunctionReturn(0);
+  }
   // f(std::true_type) when every parameter G reads is a constant (Point's SC), else f(std::false_type).
   template <class F> void with_constants(F &&f) const {
     if constexpr (NG > 0)
@@ -1461,7 +1686,8 @@ private:
     s.ref = keep ? s.copy.get() : U;
     PetscCall(fill_ghosts(s.ref, s.g));
     if constexpr (KL) PetscCall(auxiliary_lines(s.ref, s.line));
-    else if constexpr (K > 0) PetscCall(auxiliaries(s.ref, s.a));
+    else if constexpr (K > 0)
+      if (!uniform_) PetscCall(auxiliaries(s.ref, s.a)); // (uniform coupling: the sweeps read a = 0)
     PetscFunctionReturn(0);
   }
   // The auxiliary lines a_k = L_k s of U, s its column sums (over all ranks; collective), K per column,
@@ -1830,6 +2056,13 @@ private:
   PetscReal fixed_[NP > 0 ? NP : 1] = {};
   bool mapped_[NP > 0 ? NP : 1] = {}; // field parameters read through the model's map (HasParameterMap)
   bool constants_ = false; // every parameter G reads is a constant (its value: bounds_.min)
+  // G = g(U) + sum_k c_k a_k with c_k = coupling_[k] and dc_k/dp_q = coupling_p_[k][q] the same at every
+  // point (Coupling); the sweeps then read a = 0 (zero_aux_) and the maps are applied whole.
+  bool uniform_ = false;
+  bool local_part_ = true; // g(U) is not 0
+  PetscScalar coupling_[K > 0 ? K : 1] = {};
+  PetscReal coupling_p_[K > 0 ? K : 1][NG > 0 ? NG : 1] = {};
+  std::vector<PetscScalar> zero_aux_;
   OwnedDM param_dm_, matrix_dm_, aux_dm_, out_dm_;
   OwnedVec P_, dP_, Pg_, Xl_;
   LocalState st_, jac_, jp_; // the state of rhs and the adjoint sweeps, of the Jacobian, of dG/dp

@@ -473,6 +473,15 @@ void SpectralDifferentiator::Impl::sum_products(const std::vector<std::pair<cons
 void SpectralDifferentiator::Impl::pair_products(const PetscReal *f, const PetscReal *u, const PetscReal *g, const PetscReal *v) {
   const size_t n = modes.size();
   PetscReal *o = &a_out[0][0];
+  if (u == v) { // one spectrum: (f + i g) u, one product per mode
+    for (size_t p = 0; p < n; ++p) {
+      PetscReal re, im;
+      cmul(f[2 * p] - g[2 * p + 1], f[2 * p + 1] + g[2 * p], u[2 * p], u[2 * p + 1], re, im);
+      o[2 * p] = re;
+      o[2 * p + 1] = im;
+    }
+    return;
+  }
   for (size_t p = 0; p < n; ++p) {
     PetscReal re0, im0, re1, im1;
     cmul(f[2 * p], f[2 * p + 1], u[2 * p], u[2 * p + 1], re0, im0);

@@ -104,8 +104,11 @@ struct SpectralMaps {
   SpectralDifferentiator::Symbol derivative[2], dealiased[2], laplacian;
   std::vector<const SpectralDifferentiator::Symbol *> aux;     // the auxiliary fields' symbols, in order
   std::vector<SpectralDifferentiator::Symbol> aux_t, dealiased_t; // their transposes: conj(s)
+  std::vector<const SpectralDifferentiator::Symbol *> aux_adjoint; // aux_t, in order
   std::vector<const SpectralDifferentiator::Symbol *> outputs_t;  // the outputs' transposes, in order
   mutable std::vector<SpectralDifferentiator::Spectrum> spectra;  // one per auxiliary field or output
+  mutable SpectralDifferentiator::Symbol combined;                // sum_k r_k (the auxiliary fields' symbols)
+  mutable std::vector<PetscScalar> combined_r;                    // ... for these r
   OwnedVec work;
 };
 struct NoMaps {};
@@ -222,13 +225,26 @@ public:
 
   // The spectral maps: a_k = L_k U (k < Dim: d/dx_k; then the Laplacian or E_d) and G += E_m h_m, with
   // their transposes, all fields at once (one forward transform of u for every auxiliary field, one
-  // backward transform for a sum of several fields' terms); a field D is read as P D.
+  // backward transform for a sum of several fields' terms), and sum_k r_k L_k as the one symbol
+  // sum_k r_k s_k; a field D is read as P D.
   PetscErrorCode auxiliary_fields(Vec U, const Vec *a) const { return maps_.fft.apply_many(maps_.aux, U, {a, a + auxiliaries}); }
   PetscErrorCode auxiliary_fields_transpose(const Vec *z, Vec y) const {
     PetscFunctionBeginUser;
     PetscCall(backward_sum(maps_.aux_t.data(), z, auxiliaries, maps_.work));
     PetscCall(VecAXPY(y, 1.0, maps_.work));
     PetscFunctionReturn(0);
+  }
+  PetscErrorCode auxiliary_fields_adjoint(Vec x, const Vec *w) const {
+    return maps_.fft.apply_many(maps_.aux_adjoint, x, {w, w + auxiliaries});
+  }
+  PetscErrorCode auxiliary_combination(const PetscScalar *r, Vec x, Vec y, bool transpose) const {
+    if (maps_.combined_r.size() != (size_t)auxiliaries || !std::equal(r, r + auxiliaries, maps_.combined_r.begin())) {
+      maps_.combined_r.assign(r, r + auxiliaries);
+      maps_.combined.assign(maps_.aux[0]->size(), 0.0);
+      for (int k = 0; k < auxiliaries; ++k)
+        for (size_t m = 0; m < maps_.combined.size(); ++m) maps_.combined[m] += r[k] * (*maps_.aux[k])[m];
+    }
+    return maps_.fft.apply(maps_.combined, x, y, transpose);
   }
   PetscErrorCode output_fields(const Vec *h, Vec G) const {
     PetscFunctionBeginUser;
@@ -367,6 +383,7 @@ private:
         return q;
       };
       for (int k = 0; k < auxiliaries; ++k) maps_.aux.push_back(&aux_symbol(k)), maps_.aux_t.push_back(conj(aux_symbol(k)));
+      for (const auto &s : maps_.aux_t) maps_.aux_adjoint.push_back(&s);
       for (int d = 0; d < Dim; ++d) maps_.dealiased_t.push_back(conj(maps_.dealiased[d]));
       for (int m = 0; m < outputs; ++m) maps_.outputs_t.push_back(&maps_.dealiased_t[m]);
     }
