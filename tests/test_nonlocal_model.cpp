@@ -12,6 +12,40 @@
 
 namespace flexipde {
 
+// The cyclic shift (S u)_i = u_{(i + N/3) mod N} of a periodic 1D grid, across ranks.
+class CyclicShift {
+public:
+  static void grid_defaults(GridOptions &o) { // a small periodic grid
+    o.n = 24;
+    o.periodic = PETSC_TRUE;
+  }
+  PetscErrorCode setup(const Grid &grid) {
+    OwnedVec v;
+    OwnedIS from, to;
+    PetscFunctionBeginUser;
+    const PetscInt n = grid.n(), xs = grid.xs(), xm = grid.xm();
+    std::vector<PetscInt> src(xm), dst(xm);
+    for (PetscInt i = 0; i < xm; ++i) src[i] = (xs + i + n / 3) % n, dst[i] = xs + i;
+    PetscCall(DMCreateGlobalVector(grid.dm(), v.out()));
+    PetscCall(ISCreateGeneral(grid.comm(), xm, src.data(), PETSC_COPY_VALUES, from.out()));
+    PetscCall(ISCreateGeneral(grid.comm(), xm, dst.data(), PETSC_COPY_VALUES, to.out()));
+    PetscCall(VecScatterCreate(v, from, v, to, scatter_.out()));
+    PetscFunctionReturn(0);
+  }
+  // out (+)= S in, or S^T in if reverse.
+  PetscErrorCode apply(Vec in, Vec out, bool reverse, bool add) const {
+    PetscFunctionBeginUser;
+    if (!add) PetscCall(VecSet(out, 0.0));
+    const ScatterMode mode = reverse ? SCATTER_REVERSE : SCATTER_FORWARD;
+    PetscCall(VecScatterBegin(scatter_, in, out, ADD_VALUES, mode));
+    PetscCall(VecScatterEnd(scatter_, in, out, ADD_VALUES, mode));
+    PetscFunctionReturn(0);
+  }
+
+private:
+  OwnedScatter scatter_;
+};
+
 class NonlocalTestModel {
 public:
   static constexpr int dim = 1, components = 1, radius = 1, parameters = 1;
@@ -19,26 +53,15 @@ public:
 
   const char *name() const { return "nonlocal_test"; }
   const char *component_name(int) const { return "u"; }
-  void grid_defaults(GridOptions &o) const {
-    o.n = 24;
-    o.periodic = PETSC_TRUE;
-  }
+  void grid_defaults(GridOptions &o) const { CyclicShift::grid_defaults(o); }
 
   PetscErrorCode setup(const Grid &grid, Declarations &decl) {
     PetscBool field = PETSC_FALSE;
-    OwnedVec v;
-    OwnedIS from, to;
     PetscFunctionBeginUser;
     PetscCall(PetscOptionsGetBool(nullptr, nullptr, "-nonlocal_test_k_field", &field, nullptr));
     PetscCheck(grid.periodic(), grid.comm(), PETSC_ERR_ARG_WRONG, "nonlocal_test: the grid must be periodic");
     decl.parameter(0, "nonlocal_test_k", field, PETSC_NINFINITY, 0.5);
-    const PetscInt n = grid.n(), xs = grid.xs(), xm = grid.xm();
-    std::vector<PetscInt> src(xm), dst(xm);
-    for (PetscInt i = 0; i < xm; ++i) src[i] = (xs + i + n / 3) % n, dst[i] = xs + i;
-    PetscCall(DMCreateGlobalVector(grid.dm(), v.out()));
-    PetscCall(ISCreateGeneral(grid.comm(), xm, src.data(), PETSC_COPY_VALUES, from.out()));
-    PetscCall(ISCreateGeneral(grid.comm(), xm, dst.data(), PETSC_COPY_VALUES, to.out()));
-    PetscCall(VecScatterCreate(v, from, v, to, shift_.out()));
+    PetscCall(shift_.setup(grid));
     PetscFunctionReturn(0);
   }
 
@@ -49,10 +72,10 @@ public:
   template <class P> void initial(const P &pt, typename P::Number *u) const { u[0] = std::sin(2 * PETSC_PI * pt.x()) + 0.5; }
 
   // a = L u, the transpose's y += L^T z; G += B h, B^T x.
-  PetscErrorCode auxiliary(int, Vec U, Vec a) const { return shift(U, a, false); }
-  PetscErrorCode auxiliary_transpose(int, Vec z, Vec y) const { return shift(z, y, true); }
-  PetscErrorCode output(int, Vec h, Vec G) const { return shift_add(h, G); }
-  PetscErrorCode output_transpose(int, Vec x, Vec hx) const { return shift(x, hx, true, false); }
+  PetscErrorCode auxiliary(int, Vec U, Vec a) const { return shift_.apply(U, a, false, false); }
+  PetscErrorCode auxiliary_transpose(int, Vec z, Vec y) const { return shift_.apply(z, y, true, true); }
+  PetscErrorCode output(int, Vec h, Vec G) const { return shift_.apply(h, G, false, true); }
+  PetscErrorCode output_transpose(int, Vec x, Vec hx) const { return shift_.apply(x, hx, true, false); }
 
   PetscErrorCode spectrum(const ParameterBounds &, Spectrum *s) const {
     s->imag_radius = s->real_radius = 100; // the test's steps are far below any limit
@@ -60,23 +83,7 @@ public:
   }
 
 private:
-  // out = S in (reverse: S^T in), added to out if add.
-  PetscErrorCode shift(Vec in, Vec out, bool reverse, bool add = true) const {
-    PetscFunctionBeginUser;
-    if (!reverse) add = false;
-    if (!add) PetscCall(VecSet(out, 0.0));
-    const ScatterMode mode = reverse ? SCATTER_REVERSE : SCATTER_FORWARD;
-    PetscCall(VecScatterBegin(shift_, in, out, ADD_VALUES, mode));
-    PetscCall(VecScatterEnd(shift_, in, out, ADD_VALUES, mode));
-    PetscFunctionReturn(0);
-  }
-  PetscErrorCode shift_add(Vec in, Vec out) const {
-    PetscFunctionBeginUser;
-    PetscCall(VecScatterBegin(shift_, in, out, ADD_VALUES, SCATTER_FORWARD));
-    PetscCall(VecScatterEnd(shift_, in, out, ADD_VALUES, SCATTER_FORWARD));
-    PetscFunctionReturn(0);
-  }
-  OwnedScatter shift_;
+  CyclicShift shift_;
 };
 
 FLEXIPDE_REGISTER_MODEL("nonlocal_test", PointwiseModel<NonlocalTestModel>);
@@ -87,7 +94,7 @@ FLEXIPDE_REGISTER_MODEL("nonlocal_test", PointwiseModel<NonlocalTestModel>);
 //   u_t = -b (u_{i+1} - u_{i-1}) / 2h + k a_0 + w(x) a_1,   a_0 = S u,  a_1 = S^T u,
 //   w = 1, or 1 + sin(2 pi x) / 2 (Varying),
 //
-// S the shift of NonlocalTestModel; b a scalar, k a scalar or a field. The maps are stated at once,
+// S the cyclic shift; b a scalar, k a scalar or a field. The maps are stated at once,
 // with the transposes of both applied to one x (auxiliary_fields_adjoint).
 template <bool Varying>
 class CoupledTestModel {
@@ -98,28 +105,17 @@ public:
 
   const char *name() const { return Varying ? "coupled_test_varying" : "coupled_test"; }
   const char *component_name(int) const { return "u"; }
-  void grid_defaults(GridOptions &o) const {
-    o.n = 24;
-    o.periodic = PETSC_TRUE;
-  }
+  void grid_defaults(GridOptions &o) const { CyclicShift::grid_defaults(o); }
 
   PetscErrorCode setup(const Grid &grid, Declarations &decl) {
     PetscBool field = PETSC_FALSE;
-    OwnedVec v;
-    OwnedIS from, to;
     PetscFunctionBeginUser;
     const std::string prefix = std::string("-") + name();
     PetscCall(PetscOptionsGetBool(nullptr, nullptr, (prefix + "_k_field").c_str(), &field, nullptr));
     PetscCheck(grid.periodic(), grid.comm(), PETSC_ERR_ARG_WRONG, "%s: the grid must be periodic", name());
     decl.parameter(0, std::string(name()) + "_b", false, PETSC_NINFINITY, 0.7);
     decl.parameter(1, std::string(name()) + "_k", field, PETSC_NINFINITY, 0.5);
-    const PetscInt n = grid.n(), xs = grid.xs(), xm = grid.xm();
-    std::vector<PetscInt> src(xm), dst(xm);
-    for (PetscInt i = 0; i < xm; ++i) src[i] = (xs + i + n / 3) % n, dst[i] = xs + i;
-    PetscCall(DMCreateGlobalVector(grid.dm(), v.out()));
-    PetscCall(ISCreateGeneral(grid.comm(), xm, src.data(), PETSC_COPY_VALUES, from.out()));
-    PetscCall(ISCreateGeneral(grid.comm(), xm, dst.data(), PETSC_COPY_VALUES, to.out()));
-    PetscCall(VecScatterCreate(v, from, v, to, shift_.out()));
+    PetscCall(shift_.setup(grid));
     PetscFunctionReturn(0);
   }
 
@@ -132,20 +128,20 @@ public:
   // a_0 = S U, a_1 = S^T U; y += S^T z_0 + S z_1; w_0 = S^T x, w_1 = S x.
   PetscErrorCode auxiliary_fields(Vec U, const Vec *a) const {
     PetscFunctionBeginUser;
-    PetscCall(shift(U, a[0], false));
-    PetscCall(shift(U, a[1], true));
+    PetscCall(shift_.apply(U, a[0], false, false));
+    PetscCall(shift_.apply(U, a[1], true, false));
     PetscFunctionReturn(0);
   }
   PetscErrorCode auxiliary_fields_transpose(const Vec *z, Vec y) const {
     PetscFunctionBeginUser;
-    PetscCall(shift(z[0], y, true, true));
-    PetscCall(shift(z[1], y, false, true));
+    PetscCall(shift_.apply(z[0], y, true, true));
+    PetscCall(shift_.apply(z[1], y, false, true));
     PetscFunctionReturn(0);
   }
   PetscErrorCode auxiliary_fields_adjoint(Vec x, const Vec *w) const {
     PetscFunctionBeginUser;
-    PetscCall(shift(x, w[0], true));
-    PetscCall(shift(x, w[1], false));
+    PetscCall(shift_.apply(x, w[0], true, false));
+    PetscCall(shift_.apply(x, w[1], false, false));
     PetscFunctionReturn(0);
   }
 
@@ -155,16 +151,7 @@ public:
   }
 
 private:
-  // out (+)= S in, or S^T in if reverse.
-  PetscErrorCode shift(Vec in, Vec out, bool reverse, bool add = false) const {
-    PetscFunctionBeginUser;
-    if (!add) PetscCall(VecSet(out, 0.0));
-    const ScatterMode mode = reverse ? SCATTER_REVERSE : SCATTER_FORWARD;
-    PetscCall(VecScatterBegin(shift_, in, out, ADD_VALUES, mode));
-    PetscCall(VecScatterEnd(shift_, in, out, ADD_VALUES, mode));
-    PetscFunctionReturn(0);
-  }
-  OwnedScatter shift_;
+  CyclicShift shift_;
 };
 
 FLEXIPDE_REGISTER_MODEL("coupled_test", PointwiseModel<CoupledTestModel<false>>);
