@@ -867,7 +867,7 @@ public:
         PetscCall(run(T(), T()));
       } else if (!y) PetscCall(mu ? run(F(), T()) : 0);
       else if (!(uniform_ && !local_part_)) PetscCall(mu ? run(T(), T()) : run(T(), F()));
-      if (uniform_ && mu) PetscCall(coupled_adjoint(s, w, gk, ya, ADDY ? w : 1.0, ADDY || local_part_));
+      if (uniform_ && mu) PetscCall(add_coupling_gradient(s, w, gk));
       if (mu && !theta_.empty()) {
         if (!defer) std::fill(dtheta_.begin(), dtheta_.end(), 0.0);
         PetscCall((theta_gather<CLO, CHI, CS>(t, s, xo, w, defer ? theta_acc_.data() : dtheta_.data())));
@@ -880,8 +880,11 @@ public:
     if constexpr (KL) {
       if (y) PetscCall(add_auxiliary_lines_transpose(y, ADDY ? w : 1.0));
     } else if constexpr (K > 0) {
-      if (y && uniform_) { // y (+)= w sum_k c_k L_k^T x (with mu: formed with the gradient)
-        if (!mu) PetscCall(apply_coupling(coupling_, x, y, ADDY ? w : 1.0, ADDY || local_part_, true));
+      if (y && uniform_) { // y (+)= w sum_k c_k L_k^T x (with mu: from the L_k^T x at hand)
+        const PetscReal wy = ADDY ? w : 1.0;
+        const bool add = ADDY || local_part_;
+        if (mu) PetscCall(add_combination(y, coupling_, wy, add));
+        else PetscCall(apply_coupling(coupling_, x, y, wy, add, true));
       } else if (y) PetscCall(add_auxiliary_transposes(y, ADDY ? w : 1.0));
     }
     if (mu && !defer) PetscCall(flush_scratch_scalars(mu));
@@ -1344,36 +1347,20 @@ private:
     }
     PetscFunctionReturn(0);
   }
-  // From the L_k^T x in map_vecs_, in one pass: gk[q] += w sum_k (dc_k/dp_q) <L_k^T x, U>, a constant's
-  // gradient, this rank's part (the targets are summed over the points and ranks), and, unless y is
-  // null, y = (add ? y : 0) + wy sum_k c_k L_k^T x.
-  PetscErrorCode coupled_adjoint(const LocalState &s, PetscReal w, PetscReal *const *gk, PetscScalar *y, PetscReal wy, bool add) {
+  // gk[q] += w sum_k (dc_k/dp_q) <L_k^T x, U> (L_k^T x in map_vecs_): a constant's gradient, this rank's
+  // part (the targets are summed over the points and ranks).
+  PetscErrorCode add_coupling_gradient(const LocalState &s, PetscReal w, PetscReal *const *gk) {
     PetscFunctionBeginUser;
     if constexpr (Coupling) {
-      const PetscScalar *f[K];
       PetscReal pair[K] = {};
-      PetscScalar wc[K];
       ConstArray u(s.ref);
       PetscCall(u.error());
-      for (int k = 0; k < K; ++k) {
-        PetscCall(VecGetArrayRead(map_vecs_[k], &f[k]));
-        wc[k] = wy * coupling_[k];
-      }
-      const PetscScalar *ua = u.data();
       const PetscInt n = grid_->local_points();
-      if (y)
-        for (PetscInt i = 0; i < n; ++i) {
-          PetscScalar v = add ? y[i] : 0.0;
-          for (int k = 0; k < K; ++k) {
-            pair[k] += PetscRealPart(f[k][i]) * PetscRealPart(ua[i]);
-            v += wc[k] * f[k][i];
-          }
-          y[i] = v;
-        }
-      else
-        for (PetscInt i = 0; i < n; ++i)
-          for (int k = 0; k < K; ++k) pair[k] += PetscRealPart(f[k][i]) * PetscRealPart(ua[i]);
-      for (int k = 0; k < K; ++k) PetscCall(VecRestoreArrayRead(map_vecs_[k], &f[k]));
+      for (int k = 0; k < K; ++k) {
+        ConstArray a(map_vecs_[k]);
+        PetscCall(a.error());
+        for (PetscInt i = 0; i < n; ++i) pair[k] += PetscRealPart(a.data()[i]) * PetscRealPart(u.data()[i]);
+      }
       for (int q = 0; q < NG; ++q) {
         PetscReal g = 0;
         for (int k = 0; k < K; ++k) g += coupling_p_[k][q] * pair[k];
