@@ -597,10 +597,10 @@ public:
           coefficients_[own * NF + k] = eq_.coefficient(k, Pt<Mode::Value, 0, 0, decltype(ck)::value>(frame_, at, own, i, j));
       });
     }
-    PetscCall(create_ghost_scatter(dm_, ghost_scatter_.out()));
+    PetscCall(ghosts_.create(dm_));
     if constexpr (pointwise::PairsOf<Eq>::value > 0) {
       PetscCall(grid.create_dm(pointwise::PairsOf<Eq>::value, pos_dm_.out()));
-      PetscCall(create_ghost_scatter(pos_dm_, pos_scatter_.out()));
+      PetscCall(pos_ghosts_.create(pos_dm_));
       PetscCall(DMCreateLocalVector(pos_dm_, pos_.g.out()));
       PetscCall(VecSet(pos_.g, 0.0));
       PetscCall(DMCreateGlobalVector(pos_dm_, pos_rec_.out()));
@@ -978,7 +978,7 @@ public:
       if (record) { // the stage's positions alone
         PetscCall(VecPlaceArray(pos_rec_, record));
         pos_.ref = pos_rec_;
-        PetscCall(fill_ghosts(pos_rec_, pos_.g, pos_scatter_, m));
+        PetscCall(fill_ghosts(pos_rec_, pos_.g, pos_ghosts_, m));
         PetscCall((transpose<0, C, 0, C, m, false, true>(t, pos_, x, y, 1.0, mu, in_adjoint_)));
         PetscCall(VecResetArray(pos_rec_));
         PetscFunctionReturn(0);
@@ -1044,15 +1044,15 @@ public:
         pos_.ref = pos_copy_;
       }
       // the ghosts of the positions and of lambda (after the drift) travel at once
-      if (pos_scatter_) PetscCall(VecScatterBegin(pos_scatter_, pos_.ref, pos_.g, INSERT_VALUES, SCATTER_FORWARD));
+      PetscCall(pos_ghosts_.begin(pos_.ref, pos_.g));
       if (drift != 0) {
         Array l(lambda);
         PetscCall(l.error());
         leapfrog_drift_transpose(l.data(), 0, grid_->local_points(), m, drift);
       }
-      if (ghost_scatter_) PetscCall(VecScatterBegin(ghost_scatter_, lambda, Xl_, INSERT_VALUES, SCATTER_FORWARD));
-      PetscCall(fill_ghosts(pos_.ref, pos_.g, pos_scatter_, m, false, true));
-      PetscCall(fill_ghosts(lambda, Xl_, ghost_scatter_, C, true, true));
+      PetscCall(ghosts_.begin(lambda, Xl_));
+      PetscCall(fill_ghosts(pos_.ref, pos_.g, pos_ghosts_, m, false, true));
+      PetscCall(fill_ghosts(lambda, Xl_, ghosts_, C, true, true));
       PetscCall((transpose<m, 2 * m, 0, m, m, true>(t, pos_, lambda, lambda, w, mu, in_adjoint_, true)));
     }
     PetscFunctionReturn(0);
@@ -1587,10 +1587,10 @@ private:
   // walls and beyond other walls, or, for a cotangent (the x of a transpose, whose entries are per
   // equation), 0 at all of them: beyond a wall and on a held wall there is no equation.
   // begun: the caller has begun the scatter (to have two arrays' ghosts on their way at once).
-  PetscErrorCode fill_ghosts(Vec x, Vec local, VecScatter sc, PetscInt ncomp = C, bool cotangent = false,
+  PetscErrorCode fill_ghosts(Vec x, Vec local, const GhostExchange &ex, PetscInt ncomp = C, bool cotangent = false,
                              bool begun = false) const {
     PetscFunctionBeginUser;
-    if (sc && !begun) PetscCall(VecScatterBegin(sc, x, local, INSERT_VALUES, SCATTER_FORWARD));
+    if (!begun) PetscCall(ex.begin(x, local));
     {
       ConstArray o(x);
       Array g(local);
@@ -1608,8 +1608,9 @@ private:
         if ((D > 1 && (j < ys + w || j >= ys + ym - w)) || xm <= 2 * w) copy(j, xs, xs + xm);
         else copy(j, xs, xs + w), copy(j, xs + xm - w, xs + xm);
       }
+      ex.copy_own(o.data(), g.data());
     }
-    if (sc) PetscCall(VecScatterEnd(sc, x, local, INSERT_VALUES, SCATTER_FORWARD));
+    PetscCall(ex.end(x, local));
     if (!folded_.empty()) {
       Array g(local);
       PetscCall(g.error());
@@ -1620,7 +1621,7 @@ private:
     PetscFunctionReturn(0);
   }
   PetscErrorCode fill_ghosts(Vec x, Vec local, bool cotangent = false) const {
-    return fill_ghosts(x, local, ghost_scatter_, C, cotangent);
+    return fill_ghosts(x, local, ghosts_, C, cotangent);
   }
   // The ghosted box's sources and signs (Frame::src, Frame::sgn).
   void make_fold_table() {
@@ -2053,7 +2054,7 @@ private:
   OwnedDM param_dm_, matrix_dm_, aux_dm_, out_dm_;
   OwnedVec P_, dP_, Pg_, Xl_;
   LocalState st_, jac_, jp_; // the state of rhs and the adjoint sweeps, of the Jacobian, of dG/dp
-  OwnedScatter ghost_scatter_; // global -> the ghost entries of a ghosted Vec (null: no rank has any)
+  GhostExchange ghosts_; // global -> the ghost entries of a ghosted Vec
   std::vector<PetscReal> coefficients_; // Eq::coefficient at the owned points, NF per point
   std::vector<PetscInt> src_;  // Frame::src, Frame::sgn
   struct Folded {
@@ -2071,7 +2072,7 @@ private:
   PetscInt strip_ = 1;         // the owned edge strips fill_ghosts copies into a ghosted array
   OwnedDM pos_dm_;             // second-order models: the positions alone,
   LocalState pos_;             // as the leapfrog's trajectory stores them
-  OwnedScatter pos_scatter_;
+  GhostExchange pos_ghosts_;
   OwnedVec pos_rec_;           // an explicit RK's stored positions of a stage, placed (stage_adjoint)
   OwnedVec pos_copy_;          // the positions copied out of a whole state
   mutable int positions_probe_ = -1; // positions_suffice: unknown, no, yes
