@@ -152,10 +152,19 @@ template <class T, int N> Dual<T, N> tanh(const Dual<T, N> &a) {
   const T t = tanh(a.v);
   return chain(a, [&](const T &) { return t; }, [&](const T &) { return T(1.0) - t * t; });
 }
+// x if pick, else y, lane by lane: a choice between plain numbers in every lane, which the compiler
+// makes without a branch (a branch choosing a whole Dual kept the loops over points from vectorising).
+template <class X> X if_else(bool pick, const X &x, const X &y) { return pick ? x : y; }
+template <class T, int N> Dual<T, N> if_else(bool pick, const Dual<T, N> &x, const Dual<T, N> &y) {
+  Dual<T, N> r;
+  r.v = if_else(pick, x.v, y.v);
+  for (int k = 0; k < N; ++k) r.d[k] = if_else(pick, x.d[k], y.d[k]);
+  return r;
+}
 // |a| and max/min: differentiable almost everywhere; at a tie the first argument's lanes are taken.
-template <class T, int N> Dual<T, N> abs(const Dual<T, N> &a) { return value_of(a) < 0 ? -a : a; }
-template <class X> X max(const X &a, const X &b) { return value_of(b) > value_of(a) ? b : a; }
-template <class X> X min(const X &a, const X &b) { return value_of(b) < value_of(a) ? b : a; }
+template <class T, int N> Dual<T, N> abs(const Dual<T, N> &a) { return if_else(value_of(a) < 0, -a, a); }
+template <class X> X max(const X &a, const X &b) { return if_else(value_of(b) > value_of(a), b, a); }
+template <class X> X min(const X &a, const X &b) { return if_else(value_of(b) < value_of(a), b, a); }
 
 // x^2, the commonest power, without a call.
 template <class X> X sqr(const X &x) { return x * x; }
