@@ -1,8 +1,8 @@
 // GhostExchange (include/flexipde/halo.hpp) against DMGlobalToLocal: the same value at every ghost
 // position that has a source (a star stencil's corners aside), nothing written on the owned block or
-// beyond a wall, on 1D and 2D DMDAs, periodic and walled, star and box stencils, one and two components. On one rank every ghost
-// of a periodic direction is a copy within the rank; on two ranks some travel and (2D, periodic along
-// the undivided direction) some do not.
+// beyond a wall, on 1D and 2D DMDAs, periodic and walled, star and box stencils, one and two
+// components. On one rank every ghost of a periodic direction is a copy within the rank; on two ranks
+// some travel and (2D, periodic along the undivided direction) some do not.
 // Run them with:   build/tests/unit_tests --gtest_filter='GhostExchange*'
 #include "flexipde/halo.hpp"
 #include "test_support.hpp"

@@ -1,5 +1,4 @@
 #include "flexipde/halo.hpp"
-#include <algorithm>
 
 namespace flexipde {
 
