@@ -25,6 +25,18 @@
 // (reverse.hpp) with the entries as the tape's inputs, point by point, and one backward pass gives
 // sum_i x(i)^T dG(i)/dtheta for all entries at a cost independent of their number.
 //
+// A conservation law may be stated in flux form instead of rhs():
+//   G_c = S_c - sum_d (div_d F_d)_c,   h_d (div_d F)_i = sum_k w_k F(i - n/2 + k + 1/2)   (k < n)
+//   template <class P, int d> void flux(const P &pt, Direction<d>, typename P::Number *F) const;
+//                                       F_d at the face between the point and its neighbour at +1 along d,
+//                                       reading along d alone, the points i - n/2 + 1 ... i + n/2 ... of it
+//   static constexpr std::array<double, n> divergence();   the weights w (the scheme's divergence)
+//   template <class P> void source(const P &pt, typename P::Number *s) const;   S (optional)
+//   static constexpr bool flux_form;   (optional: false leaves a model that also has rhs() on rhs())
+// G is then that sum everywhere. The transposes gain most: a gather differentiates each face once per
+// point it reads, (dF_f/dU(j))^T times the weights' combination of x at the points f enters, where
+// the gather of G would form every face of G at each of the 2R + 1 points G(j - o).
+//
 // Ghost width: the transposes evaluate G at the neighbours of owned points, whose stencils reach
 // 2 * radius from them; the state DM therefore has 2 * radius ghosts, the assembled Jacobian radius.
 #pragma once
@@ -52,6 +64,8 @@
 namespace flexipde {
 
 enum class StencilShape { Star, Box };
+// The direction d of a face flux (Eq::flux), known at compile time.
+template <int d> using Direction = std::integral_constant<int, d>;
 
 // The smallest and largest value of each parameter (a scalar's value twice), as set last.
 struct ParameterBounds {
@@ -354,6 +368,37 @@ public:
   Number theta(int e) const { return Rev::input(Base::theta(e), e); }
 };
 
+// The view of a face: point p's reads shifted by (SX, SY), so that a face flux is stated at its
+// left point and evaluated at any face of a point's stencil.
+template <class P, int SX, int SY> class Shifted {
+public:
+  using Number = typename P::Number;
+  explicit Shifted(const P &p) : p_(p) {}
+  Number u(int c, int dx, int dy = 0) const { return p_.u(c, dx + SX, dy + SY); }
+  Number param(int k, int dx = 0, int dy = 0) const { return p_.param(k, dx + SX, dy + SY); }
+  Number coefficient(int k, int dx = 0, int dy = 0) const { return p_.coefficient(k, dx + SX, dy + SY); }
+  Number theta(int e) const { return p_.theta(e); }
+  PetscReal t() const { return p_.t(); }
+  PetscInt index(int d = 0) const { return p_.index(d) + (d == 0 ? SX : SY); }
+  PetscReal h(int d = 0) const { return p_.h(d); }
+  PetscReal inv_h(int d = 0) const { return p_.inv_h(d); }
+  PetscReal x(int d = 0) const { return p_.x(d) + (d == 0 ? SX : SY) * p_.h(d); }
+  PetscInt points(int d = 0) const { return p_.points(d); }
+
+private:
+  const P &p_;
+};
+
+template <class Eq, class = void> struct HasSource : std::false_type {};
+template <class Eq>
+struct HasSource<Eq, std::void_t<decltype(std::declval<const Eq &>().source(
+                         std::declval<const Point<1, 0, 0, Stencil<1, 1, StencilShape::Star>, Mode::Value> &>(), (double *)nullptr))>>
+    : std::true_type {};
+template <class Eq, class = void> struct FluxFormOf : std::false_type {};
+template <class Eq> struct FluxFormOf<Eq, std::void_t<decltype(Eq::divergence())>> : std::true_type {};
+template <class Eq, class = void> struct FluxFlagOf : std::true_type {};
+template <class Eq> struct FluxFlagOf<Eq, std::void_t<decltype(Eq::flux_form)>> : std::bool_constant<Eq::flux_form> {};
+
 template <class Eq, class = void> struct ShapeOf {
   static constexpr StencilShape value = StencilShape::Star;
 };
@@ -468,6 +513,17 @@ class PointwiseModel final : public Model {
   static constexpr int NF = pointwise::CoefficientsOf<Eq>::value; // held after the parameters in P_
   static constexpr StencilShape Shape = pointwise::ShapeOf<Eq>::value;
   using Sten = pointwise::Stencil<D, R, Shape>;
+  // Flux form (Eq::divergence, Eq::flux): NFACE faces per point and direction, each reading the RF
+  // points either side of it.
+  static constexpr bool Flux = pointwise::FluxFormOf<Eq>::value && pointwise::FluxFlagOf<Eq>::value;
+  template <class E = Eq> static constexpr auto divergence_of() {
+    if constexpr (Flux) return E::divergence();
+    else return std::array<double, 0>{};
+  }
+  static constexpr int NFACE = (int)divergence_of().size(), RF = R - NFACE / 2 + 1;
+  static_assert(!Flux || (K == 0 && H == 0 && pointwise::PairsOf<Eq>::value == 0),
+                "flux form: no auxiliary fields, outputs or second-order pairs");
+  static_assert(NFACE % 2 == 0 && (!Flux || NFACE == 0 || RF >= 1), "flux form: faces symmetric about the point, within the radius");
   using Mode = pointwise::Mode;
   template <Mode M, int SX = 0, int SY = 0, bool CK = false, int CS = C, bool WL = CK, bool SC = false>
   using Pt = pointwise::Point<C, K, NG, Sten, M, SX, SY, CK, CS, WL, KL, SC>;
@@ -681,8 +737,8 @@ public:
           for_points<true>(R, [=](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
             constexpr int where = decltype(ck)::value;
             double gv[C + H];
-            eq.rhs(Pt<Mode::Value, 0, 0, where == 1, C, where == 1, decltype(sc)::value>(where >= 2 ? fe : f, at,
-                                                                                         where >= 2 ? at : own, i, j),
+            rhs_of(eq, Pt<Mode::Value, 0, 0, where == 1, C, where == 1, decltype(sc)::value>(where >= 2 ? fe : f, at,
+                                                                                             where >= 2 ? at : own, i, j),
                    gv);
             for (int c = 0; c < C; ++c) out[own * C + c] = gv[c];
             for (int m = 0; m < H; ++m) hout[own * H + m] = gv[C + m];
@@ -735,7 +791,7 @@ public:
         for_points<true>(R, [=](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
           constexpr int where = decltype(ck)::value;
           typename Pt<Mode::Tangent>::Number gv[C + H];
-          eq.rhs(Pt<Mode::Tangent, 0, 0, where == 1>(where >= 2 ? fe : f, at, where >= 2 ? at : own, i, j), gv);
+          rhs_of(eq, Pt<Mode::Tangent, 0, 0, where == 1>(where >= 2 ? fe : f, at, where >= 2 ? at : own, i, j), gv);
           for (int c = 0; c < C; ++c) out[own * C + c] = gv[c].d[0];
           for (int m = 0; m < H; ++m) hout[own * H + m] = gv[C + m].d[0];
         });
@@ -1253,7 +1309,7 @@ private:
     for_points(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
       Rev g[C + H];
       tape.begin(ne);
-      eq_.rhs(pointwise::ReversePoint<C, K, NG, Sten, decltype(ck)::value, CS, KL>(f, at, own, i, j), g);
+      rhs_of(eq_, pointwise::ReversePoint<C, K, NG, Sten, decltype(ck)::value, CS, KL>(f, at, own, i, j), g);
       tape.begin_seeding();
       for (int c = CLO; c < CHI; ++c) tape.seed(g[c].i, w * PetscRealPart(xo[own * C + c]));
       tape.backward();
@@ -1391,7 +1447,7 @@ private:
         for_points<true>(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
           constexpr int where = decltype(ck)::value;
           typename Pt<Mode::Tangent>::Number gv[C];
-          eq_.rhs(Pt<Mode::Tangent, 0, 0, where == 1>(where >= 2 ? fe : f, at, where >= 2 ? at : own, i, j), gv);
+          rhs_of(eq_, Pt<Mode::Tangent, 0, 0, where == 1>(where >= 2 ? fe : f, at, where >= 2 ? at : own, i, j), gv);
           v[own] = gv[0].d[0];
           if (at_zero) local_part = local_part || gv[0].v != 0.0 || gv[0].d[0] != 0.0;
         });
@@ -1465,7 +1521,33 @@ private:
   struct ModelView {
     const Eq *eq;
     template <class P, class G> void rhs(const P &pt, G *g) const { eq->rhs(pt, g); }
+    template <class P, class G> void source(const P &pt, G *g) const { eq->source(pt, g); }
+    template <class P, int d, class G> void flux(const P &pt, Direction<d> dir, G *g) const { eq->flux(pt, dir, g); }
   };
+
+  // G at one point: rhs(), or in flux form S - sum_d div_d F_d with each face's flux from a shifted view.
+  template <class E, class P, class G> static void rhs_of(const E &eq, const P &pt, G *g) {
+    if constexpr (Flux) {
+      if constexpr (pointwise::HasSource<Eq>::value) eq.source(pt, g);
+      else
+        for (int c = 0; c < C; ++c) g[c] = G(0.0);
+      if constexpr (NFACE > 0) {
+        add_faces<0>(eq, pt, g, std::make_integer_sequence<int, NFACE>());
+        if constexpr (D == 2) add_faces<1>(eq, pt, g, std::make_integer_sequence<int, NFACE>());
+      }
+    } else eq.rhs(pt, g);
+  }
+  template <int d, class E, class P, class G, int... k>
+  static void add_faces(const E &eq, const P &pt, G *g, std::integer_sequence<int, k...>) {
+    constexpr auto w = divergence_of();
+    const double ih = pt.inv_h(d);
+    (add_face<d, k - NFACE / 2>(eq, pt, g, -w[k] * ih), ...);
+  }
+  template <int d, int s, class E, class P, class G> static void add_face(const E &eq, const P &pt, G *g, double wk) {
+    G F[C];
+    eq.flux(pointwise::Shifted<P, d == 0 ? s : 0, d == 1 ? s : 0>(pt), Direction<d>(), F);
+    for (int c = 0; c < C; ++c) g[c] += wk * F[c];
+  }
 
   pointwise::Frame frame(PetscReal t, const StateView &s, const PetscScalar *P) const {
     pointwise::Frame f = frame_;
@@ -1859,16 +1941,53 @@ private:
 
   // The gather at owned point (i, j): for each stencil offset o, G at the point j - o (when it exists)
   // differentiated with respect to the inputs at j, contracted with x there.
+  // In flux form, away from walls: the source's gather so, and each face that reads the point once.
   template <int CLO, int CHI, int W, int CS, bool SC, class M, int... E>
   static void gather_offsets(const M &eq, const pointwise::Frame &f, const PetscScalar *xh, PetscInt at, PetscInt own, PetscInt i, PetscInt j,
                       PetscInt nx, PetscInt ny, bool px, bool py, double *yv, double *zv, double *gv,
                       std::integer_sequence<int, E...>) {
-    (gather_one<Sten::offset(E)[0], Sten::offset(E)[1], CLO, CHI, W, CS, SC>(eq, f, xh, at, own, i, j, nx, ny, px, py, yv, zv, gv), ...);
+    if constexpr (Flux && (W == 0 || W == 2)) {
+      if constexpr (pointwise::HasSource<Eq>::value)
+        (gather_one<Sten::offset(E)[0], Sten::offset(E)[1], CLO, CHI, W, CS, SC, true>(eq, f, xh, at, own, i, j, nx, ny, px, py, yv,
+                                                                                     zv, gv), ...);
+      if constexpr (NFACE > 0) {
+        gather_faces<0, CLO, CHI, SC>(eq, f, at, own, i, j, yv, gv, std::make_integer_sequence<int, 2 * RF>());
+        if constexpr (D == 2) gather_faces<1, CLO, CHI, SC>(eq, f, at, own, i, j, yv, gv, std::make_integer_sequence<int, 2 * RF>());
+      }
+    } else
+      (gather_one<Sten::offset(E)[0], Sten::offset(E)[1], CLO, CHI, W, CS, SC>(eq, f, xh, at, own, i, j, nx, ny, px, py, yv, zv, gv),
+       ...);
+  }
+  template <int d, int CLO, int CHI, bool SC, class M, int... q>
+  static void gather_faces(const M &eq, const pointwise::Frame &f, PetscInt at, PetscInt own, PetscInt i, PetscInt j, double *yv,
+                           double *gv, std::integer_sequence<int, q...>) {
+    (gather_face<d, q + 1 - RF, CLO, CHI, SC>(eq, f, at, own, i, j, yv, gv), ...);
+  }
+  // The face whose left point lies at -o along d from the target reads it at offset o: its flux,
+  // differentiated there, times -ih sum_k w_k x at the points it enters (G(L + NFACE/2 - k), L the left point).
+  template <int d, int o, int CLO, int CHI, bool SC, class M>
+  static void gather_face(const M &eq, const pointwise::Frame &f, PetscInt at, PetscInt own, PetscInt i, PetscInt j, double *yv,
+                          double *gv) {
+    constexpr int OX = d == 0 ? o : 0, OY = d == 1 ? o : 0;
+    const PetscInt sat = at - OX - OY * f.sy, sown = own - OX - OY * f.syo;
+    using P = Pt<Mode::Gather, OX, OY, false, C, false, SC>;
+    typename P::Number F[C];
+    eq.flux(P(f, sat, sown, i - OX, j - OY, i, j), Direction<d>(), F);
+    constexpr auto w = divergence_of();
+    const PetscInt so = d == 0 ? 1 : f.syo;
+    for (int c = CLO; c < CHI; ++c) {
+      double xw = 0;
+      for (int k = 0; k < NFACE; ++k) xw += w[k] * PetscRealPart(f.X[(own + (NFACE / 2 - k - o) * so) * C + c]);
+      xw *= -f.ih[d];
+      for (int cc = 0; cc < C; ++cc) yv[cc] += F[c].d[cc] * xw;
+      for (int k = 0; k < NG; ++k) gv[k] += F[c].d[C + K + k] * xw;
+    }
   }
   // W: how the point reads (for_points<true>); G exists at real points alone: near a wall (W = 1, 3) the
   // gather skips the others. (Beyond it the transpose's x reads 0, so that an Edge point's neighbours
   // there would add nothing; but their stencils would reach beyond the ghosted box.)
-  template <int OX, int OY, int CLO, int CHI, int W, int CS, bool SC, class M>
+  // SOURCE: the source term S alone (flux form).
+  template <int OX, int OY, int CLO, int CHI, int W, int CS, bool SC, bool SOURCE = false, class M>
   static void gather_one(const M &eq, const pointwise::Frame &f, const PetscScalar *xh, PetscInt at, PetscInt own,
                          PetscInt i, PetscInt j, PetscInt nx, PetscInt ny, bool px, bool py, double *yv, double *zv,
                          double *gv) {
@@ -1881,7 +2000,8 @@ private:
     const PetscInt sat = at - OX - OY * f.sy, sown = own - OX - OY * f.syo;
     using P = Pt<Mode::Gather, OX, OY, CK, CS, W == 1 || W == 3, SC>; // (an Edge point's neighbours are never on a wall)
     typename P::Number gd[C + H];
-    eq.rhs(P(f, sat, sown, si, sj, i, j), gd);
+    if constexpr (SOURCE) eq.source(P(f, sat, sown, si, sj, i, j), gd);
+    else rhs_of(eq, P(f, sat, sown, si, sj, i, j), gd);
     auto contract = [&](const auto &g, double xc) {
       for (int cc = 0; cc < C; ++cc) yv[cc] += g.d[cc] * xc;
       for (int k = 0; k < K; ++k) zv[k] += g.d[C + k] * xc;
@@ -1928,7 +2048,7 @@ private:
       f.theta = theta_r.data();
       for_points(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
         typename Pt<Mode::Rows>::Number gd[C];
-        eq_.rhs(Pt<Mode::Rows, 0, 0, decltype(ck)::value>(f, at, own, i, j), gd);
+        rhs_of(eq_, Pt<Mode::Rows, 0, 0, decltype(ck)::value>(f, at, own, i, j), gd);
         for (int c = 0; c < C; ++c)
           for (int l = 0; l < Sten::size * C; ++l)
             if (gd[c].d[l] != 0) local[(l / C) * C * C + c * C + l % C] = 1;
@@ -1951,7 +2071,7 @@ private:
     for_points(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
       if (ierr) return;
       typename Pt<Mode::Rows>::Number gd[C];
-      eq_.rhs(Pt<Mode::Rows, 0, 0, decltype(ck)::value>(f, at, own, i, j), gd);
+      rhs_of(eq_, Pt<Mode::Rows, 0, 0, decltype(ck)::value>(f, at, own, i, j), gd);
       for (int c = 0; c < C; ++c) {
         MatStencil row{};
         row.i = i, row.j = j, row.c = c;

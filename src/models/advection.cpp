@@ -25,8 +25,10 @@
 // the flux itself are truncated (de-aliased), and the operator is symmetric negative semi-definite
 // while P D >= 0 (checked). dG/dD is then P(...): the gradient with respect to D is truncated too.
 //
-// G is rhs() below, at one point; the pointwise layer (include/flexipde/pointwise.hpp) derives dG/dU,
-// dG/dp, their transposes and the adjoint sweeps. The spectral scheme is stated through its non-local
+// Finite differences state G in flux form, the advection as a source S = -sum_d v_d u_d and the
+// diffusive flux -D_f (Bu)_f at the faces (source() and flux() below); the spectral scheme states G at
+// one point (rhs()). The pointwise layer (include/flexipde/pointwise.hpp) derives dG/dU, dG/dp, their
+// transposes and the adjoint sweeps. The spectral scheme is stated through its non-local
 // maps: auxiliary fields read at points (u_d, the Laplacian, E_d u), outputs (the flux (P D) E_d u)
 // that enter G through E_d, and the parameter map P of a field D.
 //
@@ -127,6 +129,7 @@ public:
   static constexpr int auxiliaries = spectral ? Dim + (Df == SCALAR_D ? 1 : Df == FIELD_D ? Dim : 0) : 0;
   static constexpr int outputs = Df == FIELD_D ? Dim : 0;
   static constexpr bool linear = true;
+  static constexpr bool flux_form = !spectral; // finite differences: source() and flux(); spectral: rhs()
 
   const char *name() const { return "advection"; }
   const char *component_name(int) const { return "u"; }
@@ -199,23 +202,35 @@ public:
     PetscFunctionReturn(0);
   }
 
-  // G at one point: -sum_d v_d u_d + the diffusion term (g[1 + d]: the spectral flux (P D) E_d u).
+  // Finite differences: G = S - sum_d div_d F_d with the advection S = -sum_d v_d u_d and the
+  // diffusive flux F_d = -D_f (B u)_f at the faces, h (div F)_i = sum_k w_k F_{i - n/2 + k + 1/2}.
+  static constexpr auto divergence() {
+    if constexpr (Df == FACES4) return std::array<double, 4>{1.0 / 24, -27.0 / 24, 27.0 / 24, -1.0 / 24};
+    else if constexpr (Df == FACES2) return std::array<double, 2>{-1.0, 1.0};
+    else return std::array<double, 0>{};
+  }
+  template <class P> void source(const P &pt, typename P::Number *g) const {
+    g[0] = -advective<0>(pt) * pt.inv_h(0);
+    if constexpr (Dim == 2) g[0] -= advective<1>(pt) * pt.inv_h(1);
+  }
+  // F_d at the face i + 1/2 along d (pt at i).
+  template <class P, int d> void flux(const P &pt, Direction<d>, typename P::Number *F) const {
+    using T = typename P::Number;
+    if constexpr (Df == FACES4) {
+      const T grad = (u<d>(pt, -1) - u<d>(pt, 2) + 27.0 * (u<d>(pt, 1) - u<d>(pt, 0))) * (1.0 / 24);
+      const T D_face = (9.0 * (D<d>(pt, 0) + D<d>(pt, 1)) - D<d>(pt, -1) - D<d>(pt, 2)) * (1.0 / 16);
+      F[0] = -D_face * grad * pt.inv_h(d);
+    } else F[0] = -0.5 * (D<d>(pt, 0) + D<d>(pt, 1)) * (u<d>(pt, 1) - u<d>(pt, 0)) * pt.inv_h(d);
+  }
+
+  // Spectral: G = -sum_d v_d a_d (+ D a_Dim for a scalar D; g[1 + d]: the flux (P D) E_d u of a field D).
   template <class P> void rhs(const P &pt, typename P::Number *g) const {
     using T = typename P::Number;
     T G = T(0.0);
-    if constexpr (spectral) {
-      for (int d = 0; d < Dim; ++d) G -= pt.param(d) * pt.aux(d);
-      if constexpr (Df == SCALAR_D) G += pt.param(DIFF) * pt.aux(Dim);
-      if constexpr (Df == FIELD_D)
-        for (int d = 0; d < Dim; ++d) g[1 + d] = pt.param(DIFF) * pt.aux(Dim + d);
-    } else {
-      G -= advective<0>(pt) * pt.inv_h(0);
-      if constexpr (Dim == 2) G -= advective<1>(pt) * pt.inv_h(1);
-      if constexpr (Df != NONE) {
-        G += diffusion<0>(pt) * sqr(pt.inv_h(0));
-        if constexpr (Dim == 2) G += diffusion<1>(pt) * sqr(pt.inv_h(1));
-      }
-    }
+    for (int d = 0; d < Dim; ++d) G -= pt.param(d) * pt.aux(d);
+    if constexpr (Df == SCALAR_D) G += pt.param(DIFF) * pt.aux(Dim);
+    if constexpr (Df == FIELD_D)
+      for (int d = 0; d < Dim; ++d) g[1 + d] = pt.param(DIFF) * pt.aux(Dim + d);
     g[0] = G;
   }
 
@@ -342,19 +357,6 @@ private:
     else if constexpr (S == FD4) return v * ((u<d>(pt, -2) - u<d>(pt, 2) + 8.0 * (u<d>(pt, 1) - u<d>(pt, -1))) * (1.0 / 12));
     else return v * (0.5 * (u<d>(pt, 1) - u<d>(pt, -1)));
   }
-  // h^2 (D u_d)_d in flux form, -h^2 B^T diag(D_f) B u (a scalar D is a constant field to the layer).
-  template <int d, class P, class T = typename P::Number> static T diffusion(const P &pt) {
-    if constexpr (Df == FACES4) return (flux<d, -2>(pt) - flux<d, 1>(pt) + 27.0 * (flux<d, 0>(pt) - flux<d, -1>(pt))) * (1.0 / 24);
-    const T Dp = 0.5 * (D<d>(pt, 0) + D<d>(pt, 1)), Dm = 0.5 * (D<d>(pt, -1) + D<d>(pt, 0));
-    return Dp * (u<d>(pt, 1) - u<d>(pt, 0)) - Dm * (u<d>(pt, 0) - u<d>(pt, -1));
-  }
-  // Order 4: h D_f (Bu)_f at the face f = i + k + 1/2.
-  template <int d, int k, class P, class T = typename P::Number> static T flux(const P &pt) {
-    const T grad = (u<d>(pt, k - 1) - u<d>(pt, k + 2) + 27.0 * (u<d>(pt, k + 1) - u<d>(pt, k))) * (1.0 / 24);
-    const T Df_ = (9.0 * (D<d>(pt, k) + D<d>(pt, k + 1)) - D<d>(pt, k - 1) - D<d>(pt, k + 2)) * (1.0 / 16);
-    return Df_ * grad;
-  }
-
   PetscReal profile(PetscReal x, PetscReal y) const {
     if (ic_ == SINUSOID) {
       PetscReal arg = 2 * PETSC_PI * mode_[0] * (x - x0_[0]) / length_[0] + phase_;

@@ -2,9 +2,9 @@
 //
 //   u_t + (u^2/2)_x = (nu(x) u_x)_x,      x in [x0, x1), periodic,
 //
-//   G_i = -(F_{i+1/2} - F_{i-1/2}) / h + (nu_{i+1/2} (u_{i+1} - u_i) - nu_{i-1/2} (u_i - u_{i-1})) / h^2,
-//   F_{i+1/2} = F(u_i, u_{i+1}) = max(a, 0)^2 / 2 + min(b, 0)^2 / 2     (Engquist-Osher),
-//   nu_{i+1/2} = (nu_i + nu_{i+1}) / 2.
+//   G_i = -(F_{i+1/2} - F_{i-1/2}) / h,
+//   F_{i+1/2} = E(u_i, u_{i+1}) - nu_{i+1/2} (u_{i+1} - u_i) / h,      nu_{i+1/2} = (nu_i + nu_{i+1}) / 2,
+//   E(a, b) = max(a, 0)^2 / 2 + min(b, 0)^2 / 2                         (Engquist-Osher).
 //
 // The Engquist-Osher flux is monotone (no new extrema at shocks, the entropy solution in the limit)
 // and continuously differentiable, so gradients through a shock are exact derivatives of the
@@ -17,8 +17,9 @@
 // amplitudes and phases drawn from -burgers_ic_seed (random_start.hpp: the same function of x as the
 // learned_burgers model's, for reference solutions). A = -burgers_ic_amplitude, B = -burgers_ic_offset.
 //
-// Everything else (dG/du, dG/dnu, their transposes, the assembled Jacobian for implicit integrators,
-// the fused adjoint sweeps) is derived from rhs() below by the pointwise layer.
+// The model states the face flux F (flux() below) and the divergence's weights (-1 at i - 1/2, +1 at
+// i + 1/2); everything else (G, dG/du, dG/dnu, their transposes, the assembled Jacobian for implicit
+// integrators, the fused adjoint sweeps) is derived from them by the pointwise layer.
 //
 //   mpiexec -n 2 ./flexipde -model burgers -task gradient -burgers_nu 0.01 -true_burgers_nu 0.02 -check_fd
 //   mpiexec -n 2 ./flexipde -model burgers -task taylor -burgers_nu_field 1 -burgers_nu 0.01 -ts_type cn
@@ -65,12 +66,15 @@ public:
     PetscFunctionReturn(0);
   }
 
-  template <class P> void rhs(const P &pt, typename P::Number *g) const {
+  // h (div F)_i = F_{i+1/2} - F_{i-1/2}: the weights of the faces i - 1/2 and i + 1/2.
+  static constexpr std::array<double, 2> divergence() { return {-1.0, 1.0}; }
+
+  // F at the face i + 1/2 (pt at i).
+  template <class P, int d> void flux(const P &pt, Direction<d>, typename P::Number *F) const {
     using T = typename P::Number;
-    const T um = pt.u(0, -1), u0 = pt.u(0, 0), up = pt.u(0, 1);
-    const T nu_m = 0.5 * (pt.param(nu, -1) + pt.param(nu, 0)), nu_p = 0.5 * (pt.param(nu, 0) + pt.param(nu, 1));
-    const double ih = pt.inv_h();
-    g[0] = -(flux(u0, up) - flux(um, u0)) * ih + (nu_p * (up - u0) - nu_m * (u0 - um)) * (ih * ih);
+    const T u0 = pt.u(0, 0), u1 = pt.u(0, 1);
+    const T nu_face = 0.5 * (pt.param(nu, 0) + pt.param(nu, 1));
+    F[0] = engquist_osher(u0, u1) - nu_face * (u1 - u0) * pt.inv_h();
   }
 
   template <class P> void initial(const P &pt, typename P::Number *u) const {
@@ -88,7 +92,7 @@ public:
   }
 
 private:
-  template <class T> static T flux(const T &a, const T &b) {
+  template <class T> static T engquist_osher(const T &a, const T &b) {
     return 0.5 * sqr(max(a, T(0.0))) + 0.5 * sqr(min(b, T(0.0)));
   }
 
