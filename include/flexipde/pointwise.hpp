@@ -1858,6 +1858,23 @@ private:
       PetscCall(VecStrideScatter(f, k, Pg_, INSERT_VALUES));
     }
     PetscCall(DMGlobalToLocal(param_dm_, Pg_, INSERT_VALUES, l));
+    // a scalar's direction, like its value (set_parameters), everywhere: beyond walls too
+    PetscReal value[NP > 0 ? NP : 1] = {};
+    bool any = false;
+    for (int k = 0; k < NP; ++k)
+      if (index_[k] >= 0 && params_->info(index_[k]).kind == ParamKind::Scalar && !mapped_[k]) {
+        PetscCall(VecStrideMin(Pg_, k, nullptr, &value[k]));
+        any = true;
+      }
+    if (any) {
+      Array la(l);
+      PetscInt n;
+      PetscCall(la.error());
+      PetscCall(VecGetLocalSize(l, &n));
+      for (int k = 0; k < NP; ++k)
+        if (index_[k] >= 0 && params_->info(index_[k]).kind == ParamKind::Scalar && !mapped_[k])
+          for (PetscInt q = 0; q < n / (NP + NF); ++q) la.data()[q * (NP + NF) + k] = value[k];
+    }
     PetscFunctionReturn(0);
   }
   // Where parameter k's pointwise gradient goes: a field's entries of the packed array m, a scalar's
@@ -1948,8 +1965,11 @@ private:
                       std::integer_sequence<int, E...>) {
     if constexpr (Flux && (W == 0 || W == 2)) {
       if constexpr (pointwise::HasSource<Eq>::value)
-        (gather_one<Sten::offset(E)[0], Sten::offset(E)[1], CLO, CHI, W, CS, SC, true>(eq, f, xh, at, own, i, j, nx, ny, px, py, yv,
-                                                                                     zv, gv), ...);
+        (gather_one<Sten::offset(E)[0], Sten::offset(E)[1], CLO, CHI, W, CS, SC, 1>(eq, f, xh, at, own, i, j, nx, ny, px, py, yv,
+                                                                                  zv, gv), ...);
+      // constant parameters: dG(j)/dp x(j) from G at the point, as the points that take the gather of G
+      // count them (per face, the faces between the two kinds of point would be missed or counted twice)
+      if constexpr (SC && NG > 0) gather_one<0, 0, CLO, CHI, W, CS, SC, 2>(eq, f, xh, at, own, i, j, nx, ny, px, py, yv, zv, gv);
       if constexpr (NFACE > 0) {
         gather_faces<0, CLO, CHI, SC>(eq, f, at, own, i, j, yv, gv, std::make_integer_sequence<int, 2 * RF>());
         if constexpr (D == 2) gather_faces<1, CLO, CHI, SC>(eq, f, at, own, i, j, yv, gv, std::make_integer_sequence<int, 2 * RF>());
@@ -1980,14 +2000,15 @@ private:
       for (int k = 0; k < NFACE; ++k) xw += w[k] * PetscRealPart(f.X[(own + (NFACE / 2 - k - o) * so) * C + c]);
       xw *= -f.ih[d];
       for (int cc = 0; cc < C; ++cc) yv[cc] += F[c].d[cc] * xw;
-      for (int k = 0; k < NG; ++k) gv[k] += F[c].d[C + K + k] * xw;
+      if constexpr (!SC)
+        for (int k = 0; k < NG; ++k) gv[k] += F[c].d[C + K + k] * xw;
     }
   }
   // W: how the point reads (for_points<true>); G exists at real points alone: near a wall (W = 1, 3) the
   // gather skips the others. (Beyond it the transpose's x reads 0, so that an Edge point's neighbours
   // there would add nothing; but their stencils would reach beyond the ghosted box.)
-  // SOURCE: the source term S alone (flux form).
-  template <int OX, int OY, int CLO, int CHI, int W, int CS, bool SC, bool SOURCE = false, class M>
+  // PART: 0 G, 1 the source term S alone (flux form), 2 G for the parameters' lanes alone.
+  template <int OX, int OY, int CLO, int CHI, int W, int CS, bool SC, int PART = 0, class M>
   static void gather_one(const M &eq, const pointwise::Frame &f, const PetscScalar *xh, PetscInt at, PetscInt own,
                          PetscInt i, PetscInt j, PetscInt nx, PetscInt ny, bool px, bool py, double *yv, double *zv,
                          double *gv) {
@@ -2000,12 +2021,14 @@ private:
     const PetscInt sat = at - OX - OY * f.sy, sown = own - OX - OY * f.syo;
     using P = Pt<Mode::Gather, OX, OY, CK, CS, W == 1 || W == 3, SC>; // (an Edge point's neighbours are never on a wall)
     typename P::Number gd[C + H];
-    if constexpr (SOURCE) eq.source(P(f, sat, sown, si, sj, i, j), gd);
+    if constexpr (PART == 1) eq.source(P(f, sat, sown, si, sj, i, j), gd);
     else rhs_of(eq, P(f, sat, sown, si, sj, i, j), gd);
     auto contract = [&](const auto &g, double xc) {
-      for (int cc = 0; cc < C; ++cc) yv[cc] += g.d[cc] * xc;
+      if constexpr (PART != 2)
+        for (int cc = 0; cc < C; ++cc) yv[cc] += g.d[cc] * xc;
       for (int k = 0; k < K; ++k) zv[k] += g.d[C + k] * xc;
-      for (int k = 0; k < NG; ++k) gv[k] += g.d[C + K + k] * xc;
+      if constexpr (!(PART == 1 && SC)) // (constant parameters: PART 2)
+        for (int k = 0; k < NG; ++k) gv[k] += g.d[C + K + k] * xc;
     };
     for (int c = CLO; c < CHI; ++c)
       contract(gd[c], PetscRealPart(pointwise::read_split(f, f.X, f.Xg, sat, sown, si, sj, C, c, CK)));
