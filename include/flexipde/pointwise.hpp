@@ -700,10 +700,8 @@ public:
       PetscInt n;
       PetscCall(VecGetLocalSize(P_, &n));
       for (int k = 0; k < NP; ++k) {
-        const bool constant = index_[k] < 0 || (params_->info(index_[k]).kind == ParamKind::Scalar && !mapped_[k]);
-        if (k < NG) constants_ = constants_ && constant;
-        if (constant)
-          for (PetscInt q = 0; q < n / (NP + NF); ++q) pl.data()[q * (NP + NF) + k] = bounds_.min[k];
+        if (k < NG) constants_ = constants_ && constant_slot(k);
+        if (constant_slot(k)) fill_slot(pl.data(), n, k, bounds_.min[k]);
       }
     }
     frame_.pconst = bounds_.min.data(); // a constant's value is its minimum
@@ -1859,23 +1857,25 @@ private:
     }
     PetscCall(DMGlobalToLocal(param_dm_, Pg_, INSERT_VALUES, l));
     // a scalar's direction, like its value (set_parameters), everywhere: beyond walls too
+    // (a fixed slot's direction is 0 everywhere already)
     PetscReal value[NP > 0 ? NP : 1] = {};
-    bool any = false;
     for (int k = 0; k < NP; ++k)
-      if (index_[k] >= 0 && params_->info(index_[k]).kind == ParamKind::Scalar && !mapped_[k]) {
-        PetscCall(VecStrideMin(Pg_, k, nullptr, &value[k]));
-        any = true;
-      }
-    if (any) {
-      Array la(l);
-      PetscInt n;
-      PetscCall(la.error());
-      PetscCall(VecGetLocalSize(l, &n));
-      for (int k = 0; k < NP; ++k)
-        if (index_[k] >= 0 && params_->info(index_[k]).kind == ParamKind::Scalar && !mapped_[k])
-          for (PetscInt q = 0; q < n / (NP + NF); ++q) la.data()[q * (NP + NF) + k] = value[k];
-    }
+      if (index_[k] >= 0 && constant_slot(k)) PetscCall(VecStrideMin(Pg_, k, nullptr, &value[k]));
+    Array la(l);
+    PetscInt n;
+    PetscCall(la.error());
+    PetscCall(VecGetLocalSize(l, &n));
+    for (int k = 0; k < NP; ++k)
+      if (index_[k] >= 0 && constant_slot(k)) fill_slot(la.data(), n, k, value[k]);
     PetscFunctionReturn(0);
+  }
+  // Slot k holds one value, read everywhere: a scalar parameter, or a slot fixed by the scene.
+  bool constant_slot(int k) const {
+    return index_[k] < 0 || (params_->info(index_[k]).kind == ParamKind::Scalar && !mapped_[k]);
+  }
+  // Slot k of the ghosted per-point parameter array a (n entries) set to v at every position.
+  static void fill_slot(PetscScalar *a, PetscInt n, int k, PetscReal v) {
+    for (PetscInt q = 0; q < n / (NP + NF); ++q) a[q * (NP + NF) + k] = v;
   }
   // Where parameter k's pointwise gradient goes: a field's entries of the packed array m, a scalar's
   // accumulator during an adjoint, else a scratch array summed by flush_scratch_scalars.
