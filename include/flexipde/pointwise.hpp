@@ -981,16 +981,31 @@ public:
     PetscFunctionReturn(0);
   }
   // dG/dU row by row: Eq::rhs at Dual numbers with one lane per stencil entry and component; only the
-  // entries structurally nonzero (pattern_, found once at random inputs) are inserted.
+  // entries structurally nonzero (pattern_, found once at random inputs) are in the matrix. The values
+  // go in with one MatSetValuesCOO, in the order of a coordinate list made when a matrix is first
+  // filled, and again when a linear G's zeros move (MatSetValuesStencil row by row cost four times
+  // the rows' evaluation).
   PetscErrorCode rhs_jacobian(PetscReal t, Vec U, Mat J) override {
     PetscFunctionBeginUser;
     PetscCall(load(U, jac_, true));
     if constexpr (Local) {
-      PetscCall(MatZeroEntries(J));
-      PetscCall(assemble_rows(t, jac_, J, nullptr));
+      PetscCall(assemble_rows(t, jac_, &coo_v_, &coo_used_next_));
+      PetscInt64 id;
+      PetscCall(PetscObjectGetId((PetscObject)J, &id));
+      if (id != coo_mat_ || coo_used_next_ != coo_used_) {
+        std::vector<PetscInt> rows, cols;
+        coo_used_.swap(coo_used_next_);
+        PetscCall(assemble_rows(t, jac_, &coo_v_, nullptr, nullptr, &rows, &cols));
+        for (size_t k = 0; k < rows.size(); ++k)
+          if (!coo_used_[k]) rows[k] = cols[k] = -1; // (MatSetValuesCOO skips these values)
+        PetscCall(MatSetPreallocationCOOLocal(J, (PetscCount)rows.size(), rows.data(), cols.data()));
+        coo_mat_ = id;
+      }
+      PetscCall(MatSetValuesCOO(J, coo_v_.data(), INSERT_VALUES));
+    } else {
+      PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
+      PetscCall(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
     }
-    PetscCall(MatAssemblyBegin(J, MAT_FINAL_ASSEMBLY));
-    PetscCall(MatAssemblyEnd(J, MAT_FINAL_ASSEMBLY));
     PetscFunctionReturn(0);
   }
   // Only for a linear G (the Simulation applies it at whatever state): dG/dU does not depend on U.
@@ -2082,7 +2097,13 @@ private:
     }
     PetscFunctionReturn(0);
   }
-  FLEXIPDE_SWEEP PetscErrorCode assemble_rows(PetscReal t, const LocalState &s, Mat J, PetscReal *gersh) {
+  // The rows of dG/dU, every entry of pattern_ and the diagonal at every owned point in one fixed order: into vals (0
+  // beyond a wall), whether the matrix holds it into used (not beyond a wall; for a linear G, not a 0
+  // off the diagonal, so that a factorisation fills as for an upwind stencil's side in use), its local
+  // row and column into rows and cols, and the Gershgorin discs' bounds into gersh.
+  FLEXIPDE_SWEEP PetscErrorCode assemble_rows(PetscReal t, const LocalState &s, std::vector<PetscScalar> *vals,
+                                              std::vector<char> *used, PetscReal *gersh = nullptr,
+                                              std::vector<PetscInt> *rows = nullptr, std::vector<PetscInt> *cols = nullptr) {
     PetscFunctionBeginUser;
     if constexpr (!Local) PetscFunctionReturn(0);
     else {
@@ -2090,36 +2111,39 @@ private:
     ConstArray p(P_);
     PetscCall(u.error());
     const pointwise::Frame f = frame(t, u, p.data());
-    PetscErrorCode ierr = 0;
+    int per_point = 0; // the pattern's entries and the diagonal, which implicit integrators shift
+    for (int e = 0; e < Sten::size; ++e)
+      for (int c = 0; c < C; ++c)
+        for (int cc = 0; cc < C; ++cc) per_point += pattern_[e * C * C + c * C + cc] || (e == 0 && cc == c);
+    const size_t n = (size_t)grid_->local_points() * per_point;
+    if (vals) vals->resize(n);
+    if (used) used->resize(n);
+    if (rows) rows->resize(n), cols->resize(n);
+    PetscInt gxs = 0, gys = 0, gxm = 0;
+    if (rows) PetscCall(DMDAGetGhostCorners(matrix_dm_, &gxs, &gys, nullptr, &gxm, nullptr, nullptr));
+    const auto local_index = [&](PetscInt i, PetscInt j, int c) { return ((j - gys) * gxm + (i - gxs)) * C + c; };
+    size_t k = 0;
     for_points(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
-      if (ierr) return;
       typename Pt<Mode::Rows>::Number gd[C];
       rhs_of(eq_, Pt<Mode::Rows, 0, 0, decltype(ck)::value>(f, at, own, i, j), gd);
       for (int c = 0; c < C; ++c) {
-        MatStencil row{};
-        row.i = i, row.j = j, row.c = c;
-        MatStencil cols[Sten::size * C];
-        PetscScalar vals[Sten::size * C];
-        PetscInt nc = 0;
         double diag = 0, off = 0;
         for (int e = 0; e < Sten::size; ++e) {
           const auto o = Sten::offset(e);
           const PetscInt ci = i + o[0], cj = j + o[1];
           const bool outside = (!f.periodic[0] && (ci < 0 || ci >= f.n[0])) || (D == 2 && !f.periodic[1] && (cj < 0 || cj >= f.n[1]));
           for (int cc = 0; cc < C; ++cc) {
-            if (!pattern_[e * C * C + c * C + cc] || outside) continue;
-            const double v = gd[c].d[e * C + cc];
-            // A linear G's zeros at these parameters stay out of the matrix (an upwind stencil's other
-            // side): a factorisation then fills as for the side in use. The diagonal stays, for the
-            // implicit integrators' shift.
-            if (pointwise::LinearOf<Eq>::value && v == 0.0 && !(e == 0 && cc == c)) continue;
-            cols[nc].i = ci, cols[nc].j = cj, cols[nc].k = 0, cols[nc].c = cc;
-            vals[nc++] = v;
-            if (e == 0 && cc == c) diag += v;
+            const bool on_diagonal = e == 0 && cc == c;
+            if (!pattern_[e * C * C + c * C + cc] && !on_diagonal) continue;
+            const double v = outside ? 0.0 : gd[c].d[e * C + cc];
+            if (vals) (*vals)[k] = v;
+            if (used) (*used)[k] = !outside && (!pointwise::LinearOf<Eq>::value || v != 0.0 || on_diagonal);
+            if (rows) (*rows)[k] = local_index(i, j, c), (*cols)[k] = local_index(ci, cj, cc);
+            ++k;
+            if (on_diagonal) diag += v;
             else off += std::fabs(v);
           }
         }
-        if (J) ierr = MatSetValuesStencil(J, 1, &row, nc, cols, vals, ADD_VALUES);
         if (gersh) { // the disc {|z - diag| <= off} inside {|z + a| <= a} when diag <= 0 and off <= -diag
           const double a = -diag;
           gersh[0] = std::max(gersh[0], std::fabs(diag) + off);
@@ -2128,7 +2152,6 @@ private:
         }
       }
     });
-    PetscCall(ierr);
     }
     PetscFunctionReturn(0);
   }
@@ -2136,7 +2159,7 @@ private:
     PetscReal local[3] = {0, 0, 0}, global[3]; // max |diag| + off; max a; any disc not in the left disc
     PetscFunctionBeginUser;
     if (pattern_.empty()) PetscCall(find_pattern());
-    PetscCall(assemble_rows(0, jac_, nullptr, local));
+    PetscCall(assemble_rows(0, jac_, nullptr, nullptr, local));
     PetscCallMPI(MPI_Allreduce(local, global, 3, MPIU_REAL, MPI_MAX, grid_->comm()));
     *s = Spectrum();
     if (global[2] == 0 && global[1] > 0) { // every disc in {|z + a| <= a}: its boundary
@@ -2231,6 +2254,9 @@ private:
   const PointSource *source_ = nullptr;
   pointwise::Frame frame_;
   std::vector<int> pattern_;
+  std::vector<PetscScalar> coo_v_;              // assemble_rows' values, in the matrix's coordinate list order
+  std::vector<char> coo_used_, coo_used_next_;  // which of them the list holds (else index -1)
+  PetscInt64 coo_mat_ = -1;                     // the matrix (PetscObjectGetId) the list was set on
   std::vector<std::vector<PetscReal>> scalar_acc_; // scalars' and mapped fields' gradients during an adjoint
   std::vector<PetscReal> scratch_scalar_[NP > 0 ? NP : 1], dummy_target_[NP > 0 ? NP : 1];
   bool in_adjoint_ = false;

@@ -2,6 +2,7 @@
 #include "flexipde/leapfrog.hpp"
 #include "flexipde/rk_adjoint.hpp"
 #include "flexipde/theta_adjoint.hpp"
+#include <algorithm>
 #include <cmath>
 #include <complex>
 #include <cstring>
@@ -12,6 +13,36 @@
 
 namespace flexipde {
 
+namespace {
+// Y += a I for an AIJ matrix whose rows all hold their diagonal entry (the pointwise layer's Jacobians
+// do), in place. PETSc 3.18's MatShift for AIJ adds each diagonal entry with a MatSetValues call of
+// its own, which took four times as long as forming a tridiagonal Jacobian; implicit TS shift the
+// Jacobian at every step.
+PetscErrorCode shift_aij_in_place(Mat Y, PetscScalar a) {
+  Mat Ad = Y;
+  PetscBool mpi, done;
+  PetscInt n, missing = -1;
+  const PetscInt *ia, *ja;
+  PetscScalar *v;
+  PetscFunctionBeginUser;
+  PetscCall(PetscObjectTypeCompare((PetscObject)Y, MATMPIAIJ, &mpi));
+  if (mpi) PetscCall(MatMPIAIJGetSeqAIJ(Y, &Ad, nullptr, nullptr));
+  PetscCall(MatGetRowIJ(Ad, 0, PETSC_FALSE, PETSC_FALSE, &n, &ia, &ja, &done));
+  PetscCheck(done, PETSC_COMM_SELF, PETSC_ERR_SUP, "no row structure of the matrix to shift");
+  PetscCall(MatSeqAIJGetArray(Ad, &v));
+  for (PetscInt r = 0; r < n; ++r) { // (the diagonal block's columns are local: the diagonal is column r)
+    const PetscInt *at = std::lower_bound(ja + ia[r], ja + ia[r + 1], r);
+    if (at != ja + ia[r + 1] && *at == r) v[at - ja] += a;
+    else if (missing < 0) missing = r;
+  }
+  PetscCall(MatSeqAIJRestoreArray(Ad, &v));
+  PetscCall(MatRestoreRowIJ(Ad, 0, PETSC_FALSE, PETSC_FALSE, &n, &ia, &ja, &done));
+  PetscCheck(missing < 0, PETSC_COMM_SELF, PETSC_ERR_PLIB, "local row %" PetscInt_FMT " of the Jacobian has no diagonal entry", missing);
+  if (mpi) PetscCall(PetscObjectStateIncrease((PetscObject)Y));
+  PetscFunctionReturn(0);
+}
+} // namespace
+
 PetscErrorCode Simulation::setup(Model &model, const Grid &grid, DM state_dm, const Parameters &params) {
   PetscFunctionBeginUser;
   model_ = &model;
@@ -19,6 +50,9 @@ PetscErrorCode Simulation::setup(Model &model, const Grid &grid, DM state_dm, co
   params_ = &params;
   dm_ = state_dm;
   PetscCall(model.create_jacobian(J_.out()));
+  PetscBool aij;
+  PetscCall(PetscObjectTypeCompareAny((PetscObject)(Mat)J_, &aij, MATSEQAIJ, MATMPIAIJ, ""));
+  if (aij) PetscCall(MatSetOperation(J_, MATOP_SHIFT, (void (*)(void))shift_aij_in_place));
   PetscCall(model.create_jacobian_matrix_free(Jmf_.out()));
   if (params.global_size() > 0) {
     PetscCall(model.create_jacobian_p(Jp_.out()));
