@@ -15,6 +15,7 @@ struct ThetaAdjoint {
   std::vector<Vec> rhs, nu;                   // per cost: the transposed solve's right-hand side and solution
   std::vector<Vec> pending;                   // endpoint: h (1 - theta) nu of the step after, for its U_n
   Vec X0 = nullptr, Xdot = nullptr, dmu = nullptr;
+  Vec held = nullptr; // endpoint: the U_n whose Jacobian the last step evaluated
   PetscInt ncost = 0;
   // The transposed solves through a factorisation of P^T (see solve_transpose): P^T (built from
   // P_from, a reference, in its state p_state), and a KSP of the forward's kind on it.
@@ -40,6 +41,7 @@ struct ThetaAdjoint {
     (void)VecDestroy(&X0);
     (void)VecDestroy(&Xdot);
     (void)VecDestroy(&dmu);
+    (void)VecDestroy(&held);
     ncost = 0;
   }
 };
@@ -309,13 +311,20 @@ PetscErrorCode adjoint_step(TS ts) {
   for (PetscInt k = 0; k < ncost; ++k) PetscCall(scaled_copy(c->rhs[k], s1, ts->vecs_sensi[k]));
   if (endpoint) { // CN and the endpoint theta methods
     Vec U0 = Y[0];
-    PetscCall(ijacobian(ts, t1, ts->vec_sol, c->Xdot, s1, J, P, ksp));
+    // U_{n+1} is the U_n of the adjoint step before, whose Jacobian the operators still hold when
+    // nothing ran in between (held: that U_n, the Vec it was evaluated at); at the same Vec and time
+    // TSComputeIJacobian only shifts it again instead of evaluating it.
+    PetscBool same = PETSC_FALSE;
+    if (c->held) PetscCall(VecEqual(ts->vec_sol, c->held, &same));
+    PetscCall(ijacobian(ts, t1, same ? c->held : ts->vec_sol, c->Xdot, s1, J, P, ksp));
     PetscCall(solve_transpose(ts, ksp, *c));
     const PetscReal s2 = 1.0 / ((theta - 1.0) * h);
     if (c->constant_operator) // A^T nu = s1 nu - rhs: lambda_n = ((s2 - s1) nu + rhs) / s2, rhs = s1 lambda
       for (PetscInt k = 0; k < ncost; ++k) PetscCall(VecAXPBY(ts->vecs_sensi[k], (s2 - s1) / s2, s1 / s2, c->nu[k]));
     else {
-      PetscCall(ijacobian(ts, t0, U0, c->Xdot, s2, J, P, ksp));
+      if (!c->held) PetscCall(VecDuplicate(U0, &c->held));
+      PetscCall(VecCopy(U0, c->held));
+      PetscCall(ijacobian(ts, t0, c->held, c->Xdot, s2, J, P, ksp));
       for (PetscInt k = 0; k < ncost; ++k) {
         PetscCall(MatMultTranspose(J, c->nu[k], ts->vecs_sensi[k]));
         PetscCall(VecScale(ts->vecs_sensi[k], 1.0 / s2));
