@@ -983,8 +983,8 @@ public:
   // dG/dU row by row: Eq::rhs at Dual numbers with one lane per stencil entry and component; only the
   // entries structurally nonzero (pattern_, found once at random inputs) are in the matrix. The values
   // go in with one MatSetValuesCOO, in the order of a coordinate list made when a matrix is first
-  // filled, and again when a linear G's zeros move (MatSetValuesStencil row by row cost four times
-  // the rows' evaluation).
+  // filled, and again when a linear G's zeros move (row by row, MatSetValuesStencil's index
+  // translations and searches cost more than evaluating the rows).
   PetscErrorCode rhs_jacobian(PetscReal t, Vec U, Mat J) override {
     PetscFunctionBeginUser;
     PetscCall(load(U, jac_, true));

@@ -16,8 +16,7 @@ namespace flexipde {
 namespace {
 // Y += a I for an AIJ matrix whose rows all hold their diagonal entry (the pointwise layer's Jacobians
 // do), in place. PETSc 3.18's MatShift for AIJ adds each diagonal entry with a MatSetValues call of
-// its own, which took four times as long as forming a tridiagonal Jacobian; implicit TS shift the
-// Jacobian at every step.
+// its own, which costs more than forming a stencil's Jacobian; implicit TS shift it at every step.
 PetscErrorCode shift_aij_in_place(Mat Y, PetscScalar a) {
   Mat Ad = Y;
   PetscBool mpi, done;
