@@ -1,6 +1,7 @@
 #include "flexipde/simulation.hpp"
 #include "flexipde/leapfrog.hpp"
 #include "flexipde/rk_adjoint.hpp"
+#include "flexipde/rk_step.hpp"
 #include "flexipde/theta_adjoint.hpp"
 #include <algorithm>
 #include <cmath>
@@ -516,6 +517,7 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
     PetscCall(SNESSetLagJacobian(snes, -2));
     PetscCall(SNESSetLagJacobianPersists(snes, PETSC_TRUE));
   }
+  PetscCall(rk_step_install(ts)); // explicit RK: stages formed in one pass (rk_step.hpp)
   // flexipde's own adjoint steps (rk_adjoint.hpp, theta_adjoint.hpp) unless PETSc's are asked for.
   if (with_adjoint && !petsc_step_) // only theta types
     PetscCall(theta_adjoint_install(ts, model_->linear() && model_->jacobian_constant()));
