@@ -39,6 +39,12 @@ struct StageCombination {
                          const PetscScalar *const *a, PetscScalar *out);
 };
 
+// x += sum_{j<s} w[j] K[j] (an RK step's closing sum, or the adjoint's sum of the stages' increments).
+// For s <= 4 in a loop of its own that keeps VecMAXPY's order of operations, x + (((w0 K0 + w1 K1) +
+// w2 K2) + w3 K3), so the same numbers, without the pointer loop of PETSc 3.18's kernel that the
+// compiler does not vectorise; else VecMAXPY.
+PetscErrorCode add_weighted(Vec x, PetscInt s, const PetscScalar *w, const Vec *K);
+
 // A stage's products in one call, at stage state U: y = (dG/dU)^T x and, unless mu is null,
 // mu += (dG/dp)^T x (Model::stage_adjoint), with x given as its combination. `record`: what evaluating
 // G at the stage recorded of it in the forward solve (Model::stage_record_size; null when nothing was

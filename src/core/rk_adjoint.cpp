@@ -57,46 +57,6 @@ PetscErrorCode combine(Vec w, PetscScalar c0, Vec x0, PetscInt m, const PetscSca
   PetscFunctionReturn(0);
 }
 
-// x += d[0] + ... + d[s-1] (ones: s unit coefficients). For s <= 4 in one pass of its own: the same
-// numbers as VecMAXPY, whose kernel adds x + (((1 d0 + 1 d1) + 1 d2) + 1 d3) for four terms, without its
-// pointer loop that the compiler cannot vectorise; else VecMAXPY.
-PetscErrorCode add_stages(Vec x, PetscInt s, const Vec *d, const PetscScalar *ones) {
-  PetscScalar *xa;
-  const PetscScalar *a[4];
-  PetscInt n;
-  PetscFunctionBegin;
-  if (s > 4) {
-    PetscCall(VecMAXPY(x, s, ones, const_cast<Vec *>(d)));
-    PetscFunctionReturn(0);
-  }
-  PetscCall(VecGetLocalSize(x, &n));
-  PetscCall(VecGetArray(x, &xa));
-  for (PetscInt j = 0; j < s; ++j) PetscCall(VecGetArrayRead(d[j], &a[j]));
-  PetscScalar *__restrict o = xa;
-  const PetscScalar *__restrict p0 = a[0];
-  switch (s) {
-  case 1:
-    for (PetscInt k = 0; k < n; ++k) o[k] += p0[k];
-    break;
-  case 2: {
-    const PetscScalar *__restrict p1 = a[1];
-    for (PetscInt k = 0; k < n; ++k) o[k] += p0[k] + p1[k];
-  } break;
-  case 3: {
-    const PetscScalar *__restrict p1 = a[1], *__restrict p2 = a[2];
-    for (PetscInt k = 0; k < n; ++k) o[k] += p0[k] + p1[k] + p2[k];
-  } break;
-  default: {
-    const PetscScalar *__restrict p1 = a[1], *__restrict p2 = a[2], *__restrict p3 = a[3];
-    for (PetscInt k = 0; k < n; ++k) o[k] += p0[k] + p1[k] + p2[k] + p3[k];
-  } break;
-  }
-  for (PetscInt j = 0; j < s; ++j) PetscCall(VecRestoreArrayRead(d[j], &a[j]));
-  PetscCall(VecRestoreArray(x, &xa));
-  PetscCall(PetscLogFlops(s * n));
-  PetscFunctionReturn(0);
-}
-
 PetscErrorCode adjoint_step(TS ts) {
   RkAdjoint *ctx;
   PetscInt s, pinterp;
@@ -153,7 +113,7 @@ PetscErrorCode adjoint_step(TS ts) {
     }
   }
   for (PetscInt k = 0; k < ts->numcost; ++k)
-    PetscCall(add_stages(ts->vecs_sensi[k], s, &ctx->dlam[(size_t)k * s], ctx->ones.data()));
+    PetscCall(add_weighted(ts->vecs_sensi[k], s, ctx->ones.data(), &ctx->dlam[(size_t)k * s]));
   PetscFunctionReturn(0);
 }
 
@@ -191,6 +151,42 @@ void StageCombination::form_local(PetscInt n, PetscScalar c0, const PetscScalar 
 }
 
 PetscErrorCode StageCombination::form(Vec w) const { return combine(w, c0, x0, m, c, X); }
+
+PetscErrorCode add_weighted(Vec x, PetscInt s, const PetscScalar *w, const Vec *K) {
+  PetscScalar *xa;
+  const PetscScalar *k[4];
+  PetscInt n;
+  PetscFunctionBegin;
+  if (s > 4) {
+    PetscCall(VecMAXPY(x, s, w, const_cast<Vec *>(K)));
+    PetscFunctionReturn(0);
+  }
+  PetscCall(VecGetLocalSize(x, &n));
+  PetscCall(VecGetArray(x, &xa));
+  for (PetscInt j = 0; j < s; ++j) PetscCall(VecGetArrayRead(K[j], &k[j]));
+  PetscScalar *__restrict o = xa;
+  const PetscScalar *__restrict k0 = k[0];
+  switch (s) {
+  case 1:
+    for (PetscInt i = 0; i < n; ++i) o[i] += w[0] * k0[i];
+    break;
+  case 2: {
+    const PetscScalar *__restrict k1 = k[1];
+    for (PetscInt i = 0; i < n; ++i) o[i] += w[0] * k0[i] + w[1] * k1[i];
+  } break;
+  case 3: {
+    const PetscScalar *__restrict k1 = k[1], *__restrict k2 = k[2];
+    for (PetscInt i = 0; i < n; ++i) o[i] += w[0] * k0[i] + w[1] * k1[i] + w[2] * k2[i];
+  } break;
+  default: {
+    const PetscScalar *__restrict k1 = k[1], *__restrict k2 = k[2], *__restrict k3 = k[3];
+    for (PetscInt i = 0; i < n; ++i) o[i] += w[0] * k0[i] + w[1] * k1[i] + w[2] * k2[i] + w[3] * k3[i];
+  } break;
+  }
+  for (PetscInt j = 0; j < s; ++j) PetscCall(VecRestoreArrayRead(K[j], &k[j]));
+  PetscCall(VecRestoreArray(x, &xa));
+  PetscFunctionReturn(0);
+}
 
 PetscErrorCode rk_adjoint_install(TS ts, RkStageAdjoint stage, void *stage_ctx, RkStageNeeds needs) {
   PetscBool rk;

@@ -55,45 +55,6 @@ PetscErrorCode form_stage(Vec out, Vec x0, PetscInt m, const PetscScalar *c, con
   PetscFunctionReturn(0);
 }
 
-// x += sum_j w[j] K[j]. For s <= 4 in a loop of its own that keeps VecMAXPY's order of operations,
-// x + (((w0 K0 + w1 K1) + w2 K2) + w3 K3) (the same numbers), without the pointer loop of PETSc 3.18's
-// kernel that the compiler does not vectorise; else VecMAXPY.
-PetscErrorCode add_weighted(Vec x, PetscInt s, const PetscScalar *w, const Vec *K) {
-  PetscScalar *xa;
-  const PetscScalar *k[4];
-  PetscInt n;
-  PetscFunctionBegin;
-  if (s > 4) {
-    PetscCall(VecMAXPY(x, s, w, const_cast<Vec *>(K)));
-    PetscFunctionReturn(0);
-  }
-  PetscCall(VecGetLocalSize(x, &n));
-  PetscCall(VecGetArray(x, &xa));
-  for (PetscInt j = 0; j < s; ++j) PetscCall(VecGetArrayRead(K[j], &k[j]));
-  PetscScalar *__restrict o = xa;
-  const PetscScalar *__restrict k0 = k[0];
-  switch (s) {
-  case 1:
-    for (PetscInt i = 0; i < n; ++i) o[i] += w[0] * k0[i];
-    break;
-  case 2: {
-    const PetscScalar *__restrict k1 = k[1];
-    for (PetscInt i = 0; i < n; ++i) o[i] += w[0] * k0[i] + w[1] * k1[i];
-  } break;
-  case 3: {
-    const PetscScalar *__restrict k1 = k[1], *__restrict k2 = k[2];
-    for (PetscInt i = 0; i < n; ++i) o[i] += w[0] * k0[i] + w[1] * k1[i] + w[2] * k2[i];
-  } break;
-  default: {
-    const PetscScalar *__restrict k1 = k[1], *__restrict k2 = k[2], *__restrict k3 = k[3];
-    for (PetscInt i = 0; i < n; ++i) o[i] += w[0] * k0[i] + w[1] * k1[i] + w[2] * k2[i] + w[3] * k3[i];
-  } break;
-  }
-  for (PetscInt j = 0; j < s; ++j) PetscCall(VecRestoreArrayRead(K[j], &k[j]));
-  PetscCall(VecRestoreArray(x, &xa));
-  PetscFunctionReturn(0);
-}
-
 PetscErrorCode step(TS ts) {
   RkStep *ctx;
   PetscInt s, order;
