@@ -1,6 +1,6 @@
 // The explicit RK forward step of rk_step.hpp.
 #include "flexipde/rk_step.hpp"
-#include "flexipde/rk_adjoint.hpp" // StageCombination::form_local
+#include "flexipde/rk_adjoint.hpp" // StageCombination, add_weighted
 #include <petsc/private/tsimpl.h>
 #include <vector>
 
@@ -33,28 +33,6 @@ PetscErrorCode applies(TS ts, PetscBool fsal, bool *ok) {
   PetscFunctionReturn(0);
 }
 
-// out = x0 + sum_j c[j] X[j], one pass for up to three terms.
-PetscErrorCode form_stage(Vec out, Vec x0, PetscInt m, const PetscScalar *c, const Vec *X) {
-  PetscScalar *o;
-  const PetscScalar *a0, *a[3];
-  PetscInt n;
-  PetscFunctionBegin;
-  if (m > 3) {
-    PetscCall(VecCopy(x0, out));
-    PetscCall(VecMAXPY(out, m, c, const_cast<Vec *>(X)));
-    PetscFunctionReturn(0);
-  }
-  PetscCall(VecGetLocalSize(out, &n));
-  PetscCall(VecGetArrayWrite(out, &o));
-  PetscCall(VecGetArrayRead(x0, &a0));
-  for (PetscInt j = 0; j < m; ++j) PetscCall(VecGetArrayRead(X[j], &a[j]));
-  StageCombination::form_local(n, 1.0, a0, m, c, a, o);
-  for (PetscInt j = 0; j < m; ++j) PetscCall(VecRestoreArrayRead(X[j], &a[j]));
-  PetscCall(VecRestoreArrayRead(x0, &a0));
-  PetscCall(VecRestoreArrayWrite(out, &o));
-  PetscFunctionReturn(0);
-}
-
 PetscErrorCode step(TS ts) {
   RkStep *ctx;
   PetscInt s, order;
@@ -84,7 +62,9 @@ PetscErrorCode step(TS ts) {
     for (PetscInt j = 0; j < i; ++j)
       if (A[i * s + j] != 0.0) ctx->w[m] = h * A[i * s + j], X[m++] = ctx->K[j];
     PetscCall(TSPreStage(ts, t + h * c[i]));
-    PetscCall(form_stage(Y[i], ts->vec_sol, m, ctx->w.data(), X.data()));
+    StageCombination stage; // Y_i = U_n + sum of the nonzero h a_ij K_j, one pass for up to three
+    stage.c0 = 1.0, stage.x0 = ts->vec_sol, stage.m = m, stage.c = ctx->w.data(), stage.X = X.data();
+    PetscCall(stage.form(Y[i]));
     PetscCall(TSPostStage(ts, t + h * c[i], i, Y));
     PetscCall(TSComputeRHSFunction(ts, t + h * c[i], Y[i], ctx->K[i]));
   }
