@@ -185,6 +185,7 @@ PetscErrorCode add_weighted(Vec x, PetscInt s, const PetscScalar *w, const Vec *
   }
   for (PetscInt j = 0; j < s; ++j) PetscCall(VecRestoreArrayRead(K[j], &k[j]));
   PetscCall(VecRestoreArray(x, &xa));
+  PetscCall(PetscLogFlops(2.0 * s * n));
   PetscFunctionReturn(0);
 }
 

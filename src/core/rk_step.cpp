@@ -12,6 +12,7 @@ constexpr const char *kName = "flexipde_rk_step";
 struct RkStep {
   PetscErrorCode (*petsc_step)(TS) = nullptr; // TSRK's own step, for what this one does not do
   std::vector<Vec> K;                         // the slopes K_i
+  std::vector<Vec> X;                         // a stage's slopes with a nonzero a_ij
   std::vector<PetscScalar> w;
   ~RkStep() { release(); }
   void release() {
@@ -52,18 +53,18 @@ PetscErrorCode step(TS ts) {
     ctx->K.assign(s, nullptr);
     for (Vec &v : ctx->K) PetscCall(VecDuplicate(ts->vec_sol, &v));
     ctx->w.assign(s, 0.0);
+    ctx->X.assign(s, nullptr);
   }
   Vec *Y;
   PetscCall(TSGetStages(ts, &s, &Y));
   const PetscReal t = ts->ptime, h = ts->time_step;
-  std::vector<Vec> X(s);
   for (PetscInt i = 0; i < s; ++i) {
     PetscInt m = 0;
     for (PetscInt j = 0; j < i; ++j)
-      if (A[i * s + j] != 0.0) ctx->w[m] = h * A[i * s + j], X[m++] = ctx->K[j];
+      if (A[i * s + j] != 0.0) ctx->w[m] = h * A[i * s + j], ctx->X[m++] = ctx->K[j];
     PetscCall(TSPreStage(ts, t + h * c[i]));
     StageCombination stage; // Y_i = U_n + sum of the nonzero h a_ij K_j, one pass for up to three
-    stage.c0 = 1.0, stage.x0 = ts->vec_sol, stage.m = m, stage.c = ctx->w.data(), stage.X = X.data();
+    stage.c0 = 1.0, stage.x0 = ts->vec_sol, stage.m = m, stage.c = ctx->w.data(), stage.X = ctx->X.data();
     PetscCall(stage.form(Y[i]));
     PetscCall(TSPostStage(ts, t + h * c[i], i, Y));
     PetscCall(TSComputeRHSFunction(ts, t + h * c[i], Y[i], ctx->K[i]));
