@@ -389,6 +389,33 @@ private:
   const P &p_;
 };
 
+// The view of a face along x for its transposes, at its left point p: each read at offset dx
+// (-RF < dx <= RF) is an input with lanes of its own, (dx + RF - 1) * S + c for state component c and
+// ... + C + k for parameter k < NL (S = C + NL); other parameters, coefficients and parameter vectors
+// are constants. One evaluation gives the face's derivatives with respect to every point it reads.
+template <class P, int C, int NL, int RF> class FaceInputs {
+public:
+  static constexpr int S = C + NL;
+  using Number = Dual<double, 2 * RF * S>;
+  explicit FaceInputs(const P &p) : p_(p) {}
+  Number u(int c, int dx, int dy = 0) const { return Number::seeded(p_.u(c, dx, dy), (dx + RF - 1) * S + c); }
+  Number param(int k, int dx = 0, int dy = 0) const {
+    const double v = p_.param(k, dx, dy);
+    return k < NL ? Number::seeded(v, (dx + RF - 1) * S + C + k) : Number(v);
+  }
+  Number coefficient(int k, int dx = 0, int dy = 0) const { return Number(p_.coefficient(k, dx, dy)); }
+  Number theta(int e) const { return Number(p_.theta(e)); }
+  PetscReal t() const { return p_.t(); }
+  PetscInt index(int d = 0) const { return p_.index(d); }
+  PetscReal h(int d = 0) const { return p_.h(d); }
+  PetscReal inv_h(int d = 0) const { return p_.inv_h(d); }
+  PetscReal x(int d = 0) const { return p_.x(d); }
+  PetscInt points(int d = 0) const { return p_.points(d); }
+
+private:
+  const P &p_;
+};
+
 template <class Eq, class = void> struct HasSource : std::false_type {};
 template <class Eq>
 struct HasSource<Eq, std::void_t<decltype(std::declval<const Eq &>().source(
@@ -732,7 +759,7 @@ public:
       if constexpr (H > 0) PetscCall(VecGetArray(Hg_, &hout));
       if (!coupled_only) with_constants([&](auto sc) {
         with_model([&](const auto &eq) {
-          for_points<true>(R, [=](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+          const auto point = [=](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
             constexpr int where = decltype(ck)::value;
             double gv[C + H];
             rhs_of(eq, Pt<Mode::Value, 0, 0, where == 1, C, where == 1, decltype(sc)::value>(where >= 2 ? fe : f, at,
@@ -740,7 +767,13 @@ public:
                    gv);
             for (int c = 0; c < C; ++c) out[own * C + c] = gv[c];
             for (int m = 0; m < H; ++m) hout[own * H + m] = gv[C + m];
-          });
+          };
+          if constexpr (Flux && NFACE > 0) {
+            const RunPlan &plan = runs(R, true, false);
+            rhs_faces<decltype(sc)::value>(plan.kind[0], eq, f, out);
+            run_kind(plan.kind[1], point, Check<true>());
+            run_kind(plan.kind[2], point, Edge());
+          } else for_points<true>(R, point);
         });
       });
       if constexpr (H > 0) PetscCall(VecRestoreArray(Hg_, &hout));
@@ -835,13 +868,8 @@ public:
       const bool px = grid_->periodic(), py = grid_->periodic_y();
       using Offsets = std::make_integer_sequence<int, Sten::size>;
       with_model([&](const auto &eq) {
-      for_points<true, true>(2 * R, [=](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
-        constexpr int where = decltype(ck)::value;
-        double yv[C] = {};
-        double zv[K > 0 ? K : 1] = {};
-        double gv[NG > 0 ? NG : 1] = {};
-        gather_offsets<CLO, CHI, where, CS, SC>(eq, where >= 2 ? fe : f, xh, at, where >= 2 ? at : own, i, j, nx, ny, px, py,
-                                            yv, zv, gv, Offsets());
+      // the point's results into y, z and the gradient
+      const auto store = [=](PetscInt own, PetscInt i, const double *yv, const double *zv, const double *gv) {
         if constexpr (WY)
           for (int c = YLO; c < YHI; ++c) {
             if constexpr (ADDY) y[own * C + c] += w * yv[c];
@@ -853,7 +881,23 @@ public:
           for (int k = 0; k < K; ++k) z[own * K + k] = zv[k];
         if constexpr (WG)
           for (int k = 0; k < NG; ++k) gk[k][own] += w * gv[k];
-      });
+      };
+      const auto point = [=](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+        constexpr int where = decltype(ck)::value;
+        double yv[C] = {};
+        double zv[K > 0 ? K : 1] = {};
+        double gv[NG > 0 ? NG : 1] = {};
+        gather_offsets<CLO, CHI, where, CS, SC>(eq, where >= 2 ? fe : f, xh, at, where >= 2 ? at : own, i, j, nx, ny, px, py,
+                                            yv, zv, gv, Offsets());
+        store(own, i, yv, zv, gv);
+      };
+      if constexpr (Flux && NFACE > 0 && CS == C) {
+        const RunPlan &plan = runs(2 * R, true, true);
+        gather_face_runs<CLO, CHI, SC>(plan.kind[0], eq, f, xh, nx, ny, px, py, store);
+        run_kind(plan.kind[1], point, Check<true>());
+        run_kind(plan.kind[2], point, Edge());
+        run_kind(plan.kind[3], point, EdgeNearWall());
+      } else for_points<true, true>(2 * R, point);
       // An owned point's mirror images beyond odd walls are read by the stencils next to the wall:
       // their gathers (inputs at the image, its sign) belong to the point.
       if constexpr (WY)
@@ -1609,6 +1653,102 @@ private:
       for (PetscInt k = 0; k < r.n; ++k) point(at + k, own + k, i0 + k, j, ck);
     }
   }
+  // G in flux form on runs of unchecked points, with each face along x formed once: a block's faces
+  // into a small array, then the block's G from it. (G point by point forms each face at every one
+  // of the NFACE points it enters.) The same operations in the same order as rhs_of.
+  template <bool SC, class E>
+  FLEXIPDE_RUN void rhs_faces(const std::vector<Run> &runs, const E &model, const pointwise::Frame &frame_in,
+                              PetscScalar *out) const {
+    if (runs.empty()) return;
+    const E eq = model;
+    const pointwise::Frame f = frame_in;
+    using P = Pt<Mode::Value, 0, 0, false, C, false, SC>;
+    constexpr int B = 256, L = NFACE / 2;
+    constexpr auto w = divergence_of();
+    double wk[NFACE];
+    for (int k = 0; k < NFACE; ++k) wk[k] = -w[k] * f.ih[0];
+    // face q of a block (0 <= q < m + NFACE - 1) has its left point at q - L
+    double F[(B + NFACE - 1) * C];
+    for (const Run &r : runs)
+      for (PetscInt b0 = 0; b0 < r.n; b0 += B) {
+        const PetscInt m = std::min<PetscInt>(B, r.n - b0), at = r.at + b0, own = r.own + b0, i0 = r.i0 + b0, j = r.j;
+        shifted_faces<-L>(eq, P(f, at, own, i0, j), F, std::make_integer_sequence<int, L>());
+#pragma GCC ivdep
+        for (PetscInt q = 0; q < m; ++q) eq.flux(P(f, at + q, own + q, i0 + q, j), Direction<0>(), F + (q + L) * C);
+        shifted_faces<1>(eq, P(f, at + m - 1, own + m - 1, i0 + m - 1, j), F + (m + L) * C,
+                         std::make_integer_sequence<int, L - 1>());
+#pragma GCC ivdep
+        for (PetscInt q = 0; q < m; ++q) {
+          const P pt(f, at + q, own + q, i0 + q, j);
+          double g[C];
+          if constexpr (pointwise::HasSource<Eq>::value) eq.source(pt, g);
+          else
+            for (int c = 0; c < C; ++c) g[c] = 0.0;
+          for (int k = 0; k < NFACE; ++k)
+            for (int c = 0; c < C; ++c) g[c] += wk[k] * F[(q + k) * C + c];
+          if constexpr (D == 2) add_faces<1>(eq, pt, g, std::make_integer_sequence<int, NFACE>());
+          for (int c = 0; c < C; ++c) out[(own + q) * C + c] = g[c];
+        }
+      }
+  }
+  // The faces along x with left points at S, S + 1, ... from the point pt, into F (C each).
+  template <int S, class E, class P, int... q>
+  static void shifted_faces(const E &eq, const P &pt, double *F, std::integer_sequence<int, q...>) {
+    (eq.flux(pointwise::Shifted<P, S + q, 0>(pt), Direction<0>(), F + q * C), ...);
+  }
+
+  // The gather on runs of unchecked points in flux form, with each face along x differentiated once:
+  // for a block of points, every face that reads one of them, with respect to all its inputs at once
+  // (FaceInputs), times its weights' combination of x, added to the points it reads; then each point's
+  // source and faces along y as gather_offsets, and `store`. (The gather point by point differentiates
+  // a face at every one of the 2 RF points it reads.)
+  template <int CLO, int CHI, bool SC, class E, class Store>
+  FLEXIPDE_RUN void gather_face_runs(const std::vector<Run> &runs, const E &model, const pointwise::Frame &frame_in,
+                                     const PetscScalar *xh, PetscInt nx, PetscInt ny, bool px, bool py, const Store &put) const {
+    if (runs.empty()) return;
+    const E eq = model;
+    const pointwise::Frame f = frame_in;
+    const Store store = put;
+    constexpr int NL = SC ? 0 : NG, L = NFACE / 2, B = 128, S = C + NL, PAD = 2 * RF - 1;
+    using P = Pt<Mode::Value, 0, 0, false, C, false, SC>;
+    using FP = pointwise::FaceInputs<P, C, NL, RF>;
+    constexpr auto w = divergence_of();
+    // face q of a block (0 <= q < m + PAD) has its left point at q - RF and reads the point q - PAD + e
+    // at e (0 <= e < 2 RF); T[q][e][s] is its term for input s of that point
+    double T[(B + PAD) * 2 * RF * S];
+    for (const Run &r : runs)
+      for (PetscInt b0 = 0; b0 < r.n; b0 += B) {
+        const PetscInt m = std::min<PetscInt>(B, r.n - b0), at = r.at + b0, own = r.own + b0, i0 = r.i0 + b0, j = r.j;
+#pragma GCC ivdep
+        for (PetscInt q = 0; q < m + PAD; ++q) {
+          const PetscInt l = q - RF;
+          double xw[C] = {};
+          for (int c = CLO; c < CHI; ++c) {
+            double s = 0;
+            for (int k = 0; k < NFACE; ++k) s += w[k] * PetscRealPart(f.X[(own + l + L - k) * C + c]);
+            xw[c] = s * -f.ih[0];
+          }
+          typename FP::Number F[C];
+          eq.flux(FP(P(f, at + l, own + l, i0 + l, j)), Direction<0>(), F);
+          for (int e = 0; e < 2 * RF * S; ++e) {
+            double s = 0;
+            for (int c = CLO; c < CHI; ++c) s += F[c].d[e] * xw[c];
+            T[q * 2 * RF * S + e] = s;
+          }
+        }
+        for (PetscInt q = 0; q < m; ++q) {
+          double yv[C] = {}, zv[K > 0 ? K : 1] = {}, gv[NG > 0 ? NG : 1] = {};
+          for (int e = 0; e < 2 * RF; ++e) {
+            const double *t = T + ((q + PAD - e) * 2 * RF + e) * S;
+            for (int c = 0; c < C; ++c) yv[c] += t[c];
+            for (int k = 0; k < NL; ++k) gv[k] += t[C + k];
+          }
+          gather_offsets<CLO, CHI, 0, C, SC, false>(eq, f, xh, at + q, own + q, i0 + q, j, nx, ny, px, py, yv, zv, gv,
+                                                   std::make_integer_sequence<int, Sten::size>());
+          store(own + q, i0 + q, yv, zv, gv);
+        }
+      }
+  }
   // The runs of each kind of point for a sweep with this margin (made once per margin and flags).
   const RunPlan &runs(PetscInt margin, bool with_edges, bool near_wall) const {
     const PetscInt key = 4 * margin + 2 * with_edges + near_wall;
@@ -1974,7 +2114,8 @@ private:
   // The gather at owned point (i, j): for each stencil offset o, G at the point j - o (when it exists)
   // differentiated with respect to the inputs at j, contracted with x there.
   // In flux form, away from walls: the source's gather so, and each face that reads the point once.
-  template <int CLO, int CHI, int W, int CS, bool SC, class M, int... E>
+  // XF: with the faces along x (else the caller has them: gather_face_runs).
+  template <int CLO, int CHI, int W, int CS, bool SC, bool XF = true, class M, int... E>
   static void gather_offsets(const M &eq, const pointwise::Frame &f, const PetscScalar *xh, PetscInt at, PetscInt own, PetscInt i, PetscInt j,
                       PetscInt nx, PetscInt ny, bool px, bool py, double *yv, double *zv, double *gv,
                       std::integer_sequence<int, E...>) {
@@ -1986,7 +2127,7 @@ private:
       // count them (per face, the faces between the two kinds of point would be missed or counted twice)
       if constexpr (SC && NG > 0) gather_one<0, 0, CLO, CHI, W, CS, SC, 2>(eq, f, xh, at, own, i, j, nx, ny, px, py, yv, zv, gv);
       if constexpr (NFACE > 0) {
-        gather_faces<0, CLO, CHI, SC>(eq, f, at, own, i, j, yv, gv, std::make_integer_sequence<int, 2 * RF>());
+        if constexpr (XF) gather_faces<0, CLO, CHI, SC>(eq, f, at, own, i, j, yv, gv, std::make_integer_sequence<int, 2 * RF>());
         if constexpr (D == 2) gather_faces<1, CLO, CHI, SC>(eq, f, at, own, i, j, yv, gv, std::make_integer_sequence<int, 2 * RF>());
       }
     } else
