@@ -5,7 +5,7 @@
 // transpose of dU0/dp. It never sees the adjoint, the trajectory, the optimiser or the output:
 // the Simulation owns those and works for every model alike. A new model does not implement this
 // class by hand: it states G and U0 at one grid point and PointwiseModel (pointwise.hpp) derives all
-// of it (docs/adding_a_model.md); advection still implements it directly.
+// of it (docs/adding_a_model.md).
 #pragma once
 #include "flexipde/grid.hpp"
 #include "flexipde/parameters.hpp"

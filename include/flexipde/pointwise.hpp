@@ -1714,8 +1714,10 @@ private:
     using FP = pointwise::FaceInputs<P, C, NL, RF>;
     constexpr auto w = divergence_of();
     // face q of a block (0 <= q < m + PAD) has its left point at q - RF and reads the point q - PAD + e
-    // at e (0 <= e < 2 RF); T[q][e][s] is its term for input s of that point
-    double T[(B + PAD) * 2 * RF * S];
+    // at e (0 <= e < 2 RF); T[e][s][q] is its term for input s of that point (q fastest: both loops
+    // below run over q with unit stride, and vectorise)
+    constexpr int NB = B + PAD;
+    double T[NB * 2 * RF * S];
     for (const Run &r : runs)
       for (PetscInt b0 = 0; b0 < r.n; b0 += B) {
         const PetscInt m = std::min<PetscInt>(B, r.n - b0), at = r.at + b0, own = r.own + b0, i0 = r.i0 + b0, j = r.j;
@@ -1733,15 +1735,16 @@ private:
           for (int e = 0; e < 2 * RF * S; ++e) {
             double s = 0;
             for (int c = CLO; c < CHI; ++c) s += F[c].d[e] * xw[c];
-            T[q * 2 * RF * S + e] = s;
+            T[e * NB + q] = s;
           }
         }
+#pragma GCC ivdep
         for (PetscInt q = 0; q < m; ++q) {
           double yv[C] = {}, zv[K > 0 ? K : 1] = {}, gv[NG > 0 ? NG : 1] = {};
           for (int e = 0; e < 2 * RF; ++e) {
-            const double *t = T + ((q + PAD - e) * 2 * RF + e) * S;
-            for (int c = 0; c < C; ++c) yv[c] += t[c];
-            for (int k = 0; k < NL; ++k) gv[k] += t[C + k];
+            const double *t = T + e * S * NB + q + PAD - e;
+            for (int c = 0; c < C; ++c) yv[c] += t[c * NB];
+            for (int k = 0; k < NL; ++k) gv[k] += t[(C + k) * NB];
           }
           gather_offsets<CLO, CHI, 0, C, SC, false>(eq, f, xh, at + q, own + q, i0 + q, j, nx, ny, px, py, yv, zv, gv,
                                                    std::make_integer_sequence<int, Sten::size>());
