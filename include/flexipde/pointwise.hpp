@@ -891,7 +891,12 @@ public:
                                             yv, zv, gv, Offsets());
         store(own, i, yv, zv, gv);
       };
-      if constexpr (Flux && NFACE > 0 && CS == C) {
+      // Face blocks when each face is read by 4 points or more, or has 2 lanes per point read at most:
+      // with RF = 1 the gather point by point differentiates each face twice with half the lanes, and
+      // the blocks' stored terms cost more than they save once lanes of parameters the flux does not
+      // read (advection's velocities with a field D) are stored too.
+      constexpr bool face_blocks = Flux && CS == C && (RF >= 2 || C + (SC ? 0 : NG) <= 2);
+      if constexpr (face_blocks) {
         const RunPlan &plan = runs(2 * R, true, true);
         gather_face_runs<CLO, CHI, SC>(plan.kind[0], eq, f, xh, nx, ny, px, py, store);
         run_kind(plan.kind[1], point, Check<true>());
