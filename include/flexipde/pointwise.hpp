@@ -1677,11 +1677,10 @@ private:
     for (const Run &r : runs)
       for (PetscInt b0 = 0; b0 < r.n; b0 += B) {
         const PetscInt m = std::min<PetscInt>(B, r.n - b0), at = r.at + b0, own = r.own + b0, i0 = r.i0 + b0, j = r.j;
-        shifted_faces<-L>(eq, P(f, at, own, i0, j), F, std::make_integer_sequence<int, L>());
+        // (a face's reads lie within R of the run's points, in the owned block: its left point reads unchecked)
 #pragma GCC ivdep
-        for (PetscInt q = 0; q < m; ++q) eq.flux(P(f, at + q, own + q, i0 + q, j), Direction<0>(), F + (q + L) * C);
-        shifted_faces<1>(eq, P(f, at + m - 1, own + m - 1, i0 + m - 1, j), F + (m + L) * C,
-                         std::make_integer_sequence<int, L - 1>());
+        for (PetscInt q = 0; q < m + NFACE - 1; ++q)
+          eq.flux(P(f, at + q - L, own + q - L, i0 + q - L, j), Direction<0>(), F + q * C);
 #pragma GCC ivdep
         for (PetscInt q = 0; q < m; ++q) {
           const P pt(f, at + q, own + q, i0 + q, j);
@@ -1695,11 +1694,6 @@ private:
           for (int c = 0; c < C; ++c) out[(own + q) * C + c] = g[c];
         }
       }
-  }
-  // The faces along x with left points at S, S + 1, ... from the point pt, into F (C each).
-  template <int S, class E, class P, int... q>
-  static void shifted_faces(const E &eq, const P &pt, double *F, std::integer_sequence<int, q...>) {
-    (eq.flux(pointwise::Shifted<P, S + q, 0>(pt), Direction<0>(), F + q * C), ...);
   }
 
   // The gather on runs of unchecked points in flux form, with each face along x differentiated once:
