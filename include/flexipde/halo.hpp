@@ -8,6 +8,16 @@
 
 namespace flexipde {
 
+// to[0, n) = from[0, n). A run of a few entries (the strips and periodic wraps of a halo, one pair
+// per row) is copied in line: a call to memmove for each would cost more than the copy.
+inline void copy_entries(const PetscScalar *from, PetscInt n, PetscScalar *to) {
+  if (n > 32) {
+    std::copy(from, from + n, to);
+    return;
+  }
+  for (PetscInt k = 0; k < n; ++k) to[k] = from[k];
+}
+
 // Fills the ghost entries of a DM's local Vec (every component) from its global Vec, not the owned
 // block as DMGlobalToLocal does. Ghosts a rank owns itself (a periodic wrap within the rank: every
 // ghost on one rank) are copied by `copy_own` from the owned array, in runs; the others travel in a
@@ -26,7 +36,7 @@ public:
   }
   // ghosted[to] = owned[from] for the ghosts this rank owns (owned: x's local array, ghosted: local's)
   void copy_own(const PetscScalar *owned, PetscScalar *ghosted) const {
-    for (const Run &r : runs_) std::copy(owned + r.from, owned + r.from + r.n, ghosted + r.to);
+    for (const Run &r : runs_) copy_entries(owned + r.from, r.n, ghosted + r.to);
   }
 
 private:

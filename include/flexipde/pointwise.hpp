@@ -1762,7 +1762,7 @@ private:
     DMDAGetGhostCorners(dm_, &gxs, &gys, nullptr, &gxm, &gym, nullptr);
     const PetscInt xs = grid_->xs(), xm = grid_->xm(), ys = grid_->ys(), ym = grid_->ym(), xe = xs + xm;
     if (D == 1) gys = 0;
-    margin = std::max<PetscInt>(margin, 1); // wall points are always checked
+    margin = std::max<PetscInt>(margin, 1); // wall points are never Inside: their G may test wall()
     // with held walls an unchecked point's stencil stops short of them: one more checked point there
     const bool held = frame_.held;
     const PetscInt wx0 = held && !grid_->periodic() && xs == 0, wx1 = held && !grid_->periodic() && xe == grid_->n();
@@ -1777,13 +1777,17 @@ private:
     };
     // The points of row j in [i0, i1) outside the unchecked interior: checked on a wall, else Edge, or
     // EdgeNearWall within R of a wall (the gather's neighbours there may lie beyond it or on it).
+    // With walls beyond which the state is 0 (neither odd nor held) the gather takes a wall point as
+    // EdgeNearWall too: the ghosted arrays hold those zeros, and no point has an image to find.
+    const bool zero_walls = near_wall && !frame_.odd[0] && !frame_.odd[1] && !held;
+    const int wall_kind = zero_walls ? NearKind : Checked, cw = zero_walls ? 0 : 1;
     auto edges = [&](PetscInt j, PetscInt i0, PetscInt i1) {
       if (!with_edges) return run(j, i0, i1, Checked);
       const bool wall_row = wy && (j == 0 || j == ny - 1), near_row = wy && (j <= R || j >= ny - 1 - R);
-      if (wall_row) return run(j, i0, i1, Checked);
+      if (wall_row) return run(j, i0, i1, wall_kind);
       // columns: [0] the wall, [1, R] near it, then the free run, [nx - 1 - R, nx - 2] near, [nx - 1] the wall
-      const PetscInt a0 = wx ? std::clamp<PetscInt>(1, i0, i1) : i0, a1 = wx ? std::clamp<PetscInt>(R + 1, i0, i1) : i0;
-      const PetscInt b1 = wx ? std::clamp<PetscInt>(nx - 1, a1, i1) : i1, b0 = wx ? std::clamp<PetscInt>(nx - 1 - R, a1, b1) : i1;
+      const PetscInt a0 = wx ? std::clamp<PetscInt>(cw, i0, i1) : i0, a1 = wx ? std::clamp<PetscInt>(R + 1, i0, i1) : i0;
+      const PetscInt b1 = wx ? std::clamp<PetscInt>(nx - cw, a1, i1) : i1, b0 = wx ? std::clamp<PetscInt>(nx - 1 - R, a1, b1) : i1;
       const int near = near_wall ? NearKind : EdgeKind;
       run(j, i0, a0, Checked);
       run(j, a0, a1, near);
@@ -1838,8 +1842,7 @@ private:
       if (D == 1) gys = 0;
       const PetscInt xs = grid_->xs(), xm = grid_->xm(), ys = grid_->ys(), ym = grid_->ym(), w = strip_;
       auto copy = [&](PetscInt j, PetscInt i0, PetscInt i1) {
-        std::copy(o.data() + ((j - ys) * xm + i0 - xs) * ncomp, o.data() + ((j - ys) * xm + i1 - xs) * ncomp,
-                  g.data() + ((j - gys) * gxm + i0 - gxs) * ncomp);
+        copy_entries(o.data() + ((j - ys) * xm + i0 - xs) * ncomp, (i1 - i0) * ncomp, g.data() + ((j - gys) * gxm + i0 - gxs) * ncomp);
       };
       for (PetscInt j = ys; j < ys + ym; ++j) {
         if ((D > 1 && (j < ys + w || j >= ys + ym - w)) || xm <= 2 * w) copy(j, xs, xs + xm);
