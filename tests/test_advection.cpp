@@ -690,6 +690,8 @@ TEST(AdvectionScene, RefusesBadSetups) {
   };
   EXPECT_EQ(setup_error({}, false), PETSC_ERR_ARG_WRONG);
   EXPECT_NE(setup_error({{"-fd_order", "3"}, {"-advection_diffusion", "1"}}), 0);
+  // order 8 is the wave's: the diffusion faces are of order 2 or 4
+  EXPECT_EQ(setup_error({{"-fd_order", "8"}, {"-advection_diffusion", "1"}}), PETSC_ERR_ARG_OUTOFRANGE);
   EXPECT_NE(setup_error({{"-advection_scheme", "fd3"}}), 0);
   EXPECT_EQ(setup_error({{"-advection_ic_width", "0"}}), PETSC_ERR_ARG_OUTOFRANGE);
   // A negative diffusivity is refused when the parameters are set.

@@ -98,7 +98,7 @@ TEST_P(WaveDerivatives, RhsMatchesStencil) {
   SecondDerivative d;
   PETSC_ASSERT_OK(d.set_order(c.order));
   const Grid &g = scene.grid;
-  std::array<StencilEntry, 5> st;
+  SecondDerivative::Row st;
   PetscReal maxerr = 0, maxg = 0;
   for (PetscInt i = 0; i < g.n(); ++i) {
     PetscReal eu = 0, ev = 0;

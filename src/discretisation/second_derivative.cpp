@@ -7,7 +7,7 @@ PetscErrorCode SecondDerivative::from_options(MPI_Comm comm, const char *prefix,
   PetscInt order = default_order;
   PetscFunctionBeginUser;
   PetscOptionsBegin(comm, prefix, "Finite-difference second derivative", "Differentiator");
-  PetscCall(PetscOptionsInt("-fd_order", "Order of the centred second derivative (2 or 4)", "SecondDerivative",
+  PetscCall(PetscOptionsInt("-fd_order", "Order of the centred second derivative (2, 4 or 8)", "SecondDerivative",
                             order, &order, nullptr));
   PetscOptionsEnd();
   PetscCall(d.set_order(order));
@@ -16,17 +16,14 @@ PetscErrorCode SecondDerivative::from_options(MPI_Comm comm, const char *prefix,
 
 PetscErrorCode SecondDerivative::set_order(PetscInt order) {
   PetscFunctionBeginUser;
-  PetscCheck(order == 2 || order == 4, PETSC_COMM_SELF, PETSC_ERR_ARG_OUTOFRANGE,
-             "-fd_order %" PetscInt_FMT " is not offered: choose 2 or 4", order);
+  PetscCheck(order == 2 || order == 4 || order == 8, PETSC_COMM_SELF, PETSC_ERR_ARG_OUTOFRANGE,
+             "-fd_order %" PetscInt_FMT " is not offered: choose 2, 4 or 8", order);
   order_ = order;
   PetscFunctionReturn(0);
 }
 
-PetscInt SecondDerivative::row(const Grid &g, PetscInt i, std::array<StencilEntry, 5> &out) const {
-  static const PetscReal w2[3] = {1.0, -2.0, 1.0};
-  static const PetscReal w4[5] = {-1.0 / 12, 16.0 / 12, -30.0 / 12, 16.0 / 12, -1.0 / 12};
+PetscInt SecondDerivative::row(const Grid &g, PetscInt i, Row &out) const {
   const PetscInt r = half_width(), n = g.n();
-  const PetscReal *w = order_ == 2 ? w2 : w4;
   const PetscReal ih2 = 1.0 / (g.h() * g.h());
   PetscInt m = 0;
   for (PetscInt k = -r; k <= r; ++k) {
@@ -44,7 +41,7 @@ PetscInt SecondDerivative::row(const Grid &g, PetscInt i, std::array<StencilEntr
       s = -1.0;
     }
     if (!g.periodic() && closure_ == Closure::OddReflection && (j == 0 || j == n - 1)) continue; // wall value is zero
-    PetscReal wk = s * w[k + r] * ih2;
+    PetscReal wk = s * weight((int)order_, (int)(k < 0 ? -k : k)) * ih2;
     bool merged = false;
     for (PetscInt q = 0; q < m; ++q)
       if (out[q].j == j) {

@@ -182,6 +182,8 @@ public:
       SecondDerivative order;
       PetscCall(SecondDerivative::from_options(grid.comm(), nullptr, c.scheme == FD4 ? 4 : 2, order));
       c.order = order.order();
+      PetscCheck(c.order == 2 || c.order == 4, grid.comm(), PETSC_ERR_ARG_OUTOFRANGE,
+                 "-fd_order %" PetscInt_FMT " is not offered for advection's diffusion faces: choose 2 or 4", c.order);
     }
     // The model was made for the choice read before the grid existed; -help must not change it.
     PetscCheck(c.dim == Dim && c.scheme == S && c.diffusion_term() == Df, grid.comm(), PETSC_ERR_PLIB,

@@ -4,7 +4,8 @@
 //   u_t = v,    v_t = c(x)^2 Lap_h u - sigma(x) v + w(t) delta_h(x - x_s),
 //
 // Lap_h u = sum_d (w_0 u + sum_{k=1..R} w_k (u(x - k h_d e_d) + u(x + k h_d e_d))) / h_d^2, the centred
-// second differences of order 2R (-fd_order 2|4). The last term is a point source (survey.hpp).
+// second differences of order 2R (-fd_order 2|4|8, weights in differentiator.hpp). The last term is a
+// point source (survey.hpp).
 // Ends of non-periodic directions (-<m>_boundary): "walls" (default) holds the end points at u = v = 0
 // and gives them no equation, the state beyond a wall being the odd reflection of the inside (so that
 // the fourth-order stencil next to a wall stays consistent with u = 0 on it); "zero_outside" updates
@@ -180,10 +181,7 @@ private:
     return d == 0 ? "-ic_x" : d == 1 ? "-ic_y" : "-ic_z";
   }
   // The centred second-difference weights: w_0 u_0 + sum_k w_k (u_-k + u_k), over h^2.
-  static constexpr double weight(int k) {
-    if (R == 1) return k == 0 ? -2.0 : 1.0;
-    return k == 0 ? -30.0 / 12 : (k == 1 ? 16.0 / 12 : -1.0 / 12);
-  }
+  static constexpr double weight(int k) { return SecondDerivative::weight(2 * R, k); }
   bool on_wall(int d, PetscInt i) const { return !periodic_[d] && (i == 0 || i == n_[d] - 1); }
   template <class P> bool held(const P &pt) const { return boundary_ == Walls && pt.on_wall(); }
   template <class P> PetscReal sponge(const P &pt) const {
@@ -250,6 +248,7 @@ template <int D> std::unique_ptr<Model> make_wave() {
   (void)PetscOptionsGetInt(nullptr, nullptr, "-fd_order", &order, nullptr);
   (void)PetscOptionsGetReal(nullptr, nullptr, D == 1 ? "-wave_sponge_width" : "-wave2d_sponge_width", &width, nullptr);
   if (order == 4) return make_wave_damped<D, 2>(width);
+  if (order == 8) return make_wave_damped<D, 4>(width);
   return make_wave_damped<D, 1>(width); // other orders are refused at setup
 }
 
