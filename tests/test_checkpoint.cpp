@@ -263,6 +263,62 @@ TEST(CheckpointGradient, FsalMatchesFiniteDifferences) {
   }
 }
 
+// -checkpoint_memory: the binomial budget is the number of states that fit per rank (the rank holding
+// the most decides), the gradient equals full storage's, and a memory that holds every state gives
+// full storage itself. Sizes are parsed with their units; bad sizes and both bounds at once are refused.
+TEST(CheckpointGradient, MemoryBudget) {
+  EXPECT_EQ(parse_memory_size("4GB"), 4.0 * 1024 * 1024 * 1024);
+  EXPECT_EQ(parse_memory_size("512mb"), 512.0 * 1024 * 1024);
+  EXPECT_EQ(parse_memory_size("1.5k"), 1536.0);
+  EXPECT_EQ(parse_memory_size("1000"), 1000.0);
+  for (const char *bad : {"", "GB", "4XB", "-1MB", "0", "4 GBs"}) EXPECT_LT(parse_memory_size(bad), 0) << bad;
+  for (const char *ts : {"leapfrog", "rk"}) {
+    std::vector<std::pair<std::string, std::string>> base = {{"-da_grid_x", "61"},       {"-ts_max_time", "0.12"},
+                                                             {"-ts_dt", "2e-3"},         {"-ts_type", ts},
+                                                             {"-wave_c_field", "1"},     {"-wave_c", "0.9"},
+                                                             {"-true_wave_c", "1.0"},    {"-true_wave_c_profile", "gaussian"},
+                                                             {"-true_wave_c_bump", "0.1"}};
+    Result full;
+    PETSC_ASSERT_OK(run_gradient(base, full));
+    ASSERT_EQ(full.stats.budget, 0);
+    // one state: (u, v) at every point of the rank that holds the most
+    PetscInt n = (61 + 1) / 2;
+    PetscMPIInt size;
+    MPI_Comm_size(PETSC_COMM_WORLD, &size);
+    if (size == 1) n = 61;
+    const PetscReal state = 2.0 * n * sizeof(PetscScalar);
+    for (const char *memory : {"10kB", "1GB"}) {
+      auto opts = base;
+      opts.push_back({"-checkpoint_memory", memory});
+      Result cp;
+      PETSC_ASSERT_OK(run_gradient(opts, cp));
+      const PetscReal fit = std::floor(parse_memory_size(memory) / state);
+      const PetscInt expected = fit >= full.stats.steps + 1 ? 0 : (PetscInt)fit;
+      PetscPrintf(PETSC_COMM_WORLD, "  [%s, %s] state %.0f B, budget %d, recomputed %lld; rel diff dJ/dp %.1e\n", ts, memory,
+                  (double)state, (int)cp.stats.budget, (long long)cp.stats.recomputed_steps, (double)rel_diff(cp.g, full.g));
+      EXPECT_EQ(cp.stats.budget, expected) << memory;
+      EXPECT_NEAR(cp.stats.state_mb * 1048576.0, state, 1e-6);
+      EXPECT_EQ(cp.J, full.J);
+      EXPECT_LE(rel_diff(cp.g, full.g), 1e-12) << memory;
+      if (expected > 0) EXPECT_EQ(cp.stats.recomputed_steps, binomial_optimal_recomputations(full.stats.steps, expected));
+    }
+    Result r;
+    for (auto extra : std::vector<std::vector<std::pair<std::string, std::string>>>{
+             {{"-checkpoint_memory", "4XB"}},
+             {{"-checkpoint_memory", "100B"}}, // less than one state
+             {{"-checkpoint_memory", "1GB"}, {"-checkpoint_budget", "4"}}}) {
+      auto opts = base;
+      for (auto &o : extra) opts.push_back(o);
+      PetscErrorCode ierr;
+      {
+        flexipde_test::QuietErrors q;
+        ierr = run_gradient(opts, r);
+      }
+      EXPECT_NE(ierr, 0) << extra[0].second;
+    }
+  }
+}
+
 // Repeated evaluations on one Simulation (as TAO does) give identical results and statistics.
 TEST(CheckpointGradient, RepeatedEvaluations) {
   ScopedOptions opts{{"-da_grid_x", "81"}, {"-ts_max_time", "0.1"}, {"-ts_dt", "2e-3"},         {"-wave_c_field", "1"},

@@ -87,7 +87,12 @@ struct CheckpointStats {
   PetscInt64 recomputed_steps = 0;       // forward steps run again during TSAdjointSolve
   PetscInt64 optimal_recomputations = 0; // the binomial optimum t(n, s) (full storage: n - 1)
   PetscReal stored_mb = 0;               // full storage: the trajectory's memory on this rank (MB)
+  PetscReal memory_mb = 0;               // -checkpoint_memory per rank (MB; 0: not given)
+  PetscReal state_mb = 0;                // one stored state on the rank that holds the most (MB)
 };
+// Bytes in a size like "4GB", "512MB", "64kB", "1.5G" or "1000000" (powers of 1024; B optional), or -1
+// when the text is not one.
+PetscReal parse_memory_size(const char *text);
 
 // The TSTrajectory type "binomial" (registered on first use).
 #define FLEXIPDE_TSTRAJECTORY_BINOMIAL "binomial"
@@ -124,6 +129,9 @@ private:
 };
 PetscErrorCode register_store_trajectory();
 PetscErrorCode store_trajectory_use_buffer(TSTrajectory tj, StateBuffer *buffer);
+// Keep each step's stages only while the whole buffer stays within mb per rank (the default of
+// -checkpoint_keep_stages_max_mb, which still overrides it).
+PetscErrorCode store_trajectory_cap_stages(TSTrajectory tj, PetscReal mb);
 PetscInt64 store_trajectory_recomputed(TSTrajectory tj);
 PetscInt store_trajectory_states(TSTrajectory tj);
 bool store_trajectory_keeps_stages(TSTrajectory tj); // every step's stages at hand (stored, or solutions themselves): nothing re-run

@@ -334,6 +334,12 @@ static PetscErrorCode run(MPI_Comm comm) {
                           "checkpointing: budget %" PetscInt_FMT " (0: full storage), %" PetscInt_FMT
                           " states stored at most, %" PetscInt64_FMT " steps recomputed, binomial optimum %" PetscInt64_FMT "\n",
                           cs.budget, cs.stored_peak, cs.recomputed_steps, cs.optimal_recomputations));
+    if (cs.memory_mb > 0)
+      PetscCall(PetscPrintf(comm,
+                            "checkpointing: -checkpoint_memory %.4g MB per rank, a state %.4g MB: %s (%" PetscInt_FMT
+                            " steps)\n",
+                            (double)cs.memory_mb, (double)cs.state_mb,
+                            cs.budget ? "binomial schedule within it" : "every state fits, full storage", cs.steps));
     if (cs.stored_mb > 0)
       PetscCall(PetscPrintf(comm, "checkpointing: full storage held %.1f MB on rank 0\n", (double)cs.stored_mb));
     if (output[0]) {

@@ -18,7 +18,11 @@
 #include "flexipde/checkpoint.hpp"
 #include "flexipde/leapfrog.hpp"
 #include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdlib>
 #include <limits>
+#include <string>
 #include <petsc/private/tsimpl.h>
 
 namespace flexipde {
@@ -360,18 +364,70 @@ PetscErrorCode binomial_create(TSTrajectory tj, TS) {
 // ---------------------------------------------------------------------------------------------
 // Simulation glue: options and statistics
 
+// -checkpoint_memory: the states that fit in it on every rank. All of them (n + 1 for n steps): full
+// storage, which keeps stages too only within the same memory; fewer: the binomial schedule with as
+// many as fit.
+PetscErrorCode budget_from_memory(TS ts, const char *text, CheckpointStats *stats, PetscInt *budget) {
+  MPI_Comm comm = PetscObjectComm((PetscObject)ts);
+  PetscFunctionBegin;
+  const PetscReal bytes = parse_memory_size(text);
+  PetscCheck(bytes > 0, comm, PETSC_ERR_ARG_WRONG,
+             "-checkpoint_memory %s: give a size per rank such as 4GB, 512MB or 64kB", text);
+  PetscCheck(ts->max_time < PETSC_MAX_REAL && ts->time_step > 0, comm, PETSC_ERR_ARG_WRONG,
+             "-checkpoint_memory plans for a known number of fixed steps: give -ts_max_time and -ts_dt");
+  PetscInt n, steps = (PetscInt)std::ceil((ts->max_time - ts->ptime) / ts->time_step - 1e-9);
+  steps = std::min(steps, ts->max_steps - ts->steps);
+  if (ts->vec_sol) PetscCall(VecGetLocalSize(ts->vec_sol, &n));
+  else { // (the solution is set later: a state of the TS's DM)
+    DM dm;
+    Vec v;
+    PetscCall(TSGetDM(ts, &dm));
+    PetscCall(DMGetGlobalVector(dm, &v));
+    PetscCall(VecGetLocalSize(v, &n));
+    PetscCall(DMRestoreGlobalVector(dm, &v));
+  }
+  PetscReal state = (PetscReal)n * sizeof(PetscScalar);
+  PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &state, 1, MPIU_REAL, MPI_MAX, comm));
+  const PetscReal fit = std::floor(bytes / state);
+  stats->memory_mb = bytes / 1048576.0, stats->state_mb = state / 1048576.0;
+  PetscCheck(fit >= 1, comm, PETSC_ERR_ARG_OUTOFRANGE,
+             "-checkpoint_memory %s holds no state of this scene (%.3g MB per rank): give more", text, (double)stats->state_mb);
+  // full storage keeps every state; an FSAL Runge-Kutta method (PETSc's memory trajectory) its stages too
+  PetscInt per_step = 1;
+  PetscBool rk, fsal = PETSC_FALSE;
+  PetscCall(PetscObjectTypeCompare((PetscObject)ts, TSRK, &rk));
+  if (rk) {
+    PetscInt s;
+    PetscCall(TSRKGetTableau(ts, &s, nullptr, nullptr, nullptr, nullptr, nullptr, nullptr, &fsal));
+    if (fsal) per_step += s;
+  }
+  *budget = fit >= (PetscReal)(steps + 1) * per_step ? 0 : (PetscInt)std::min<PetscReal>(fit, PETSC_MAX_INT);
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode checkpoint_options(PetscObject obj, PetscOptionItems *PetscOptionsObject, void *ctx) {
   TS ts = (TS)obj;
   auto *stats = static_cast<CheckpointStats *>(ctx);
   TSTrajectory tj;
   PetscInt budget = 0;
-  PetscBool set = PETSC_FALSE;
+  PetscBool set = PETSC_FALSE, memory_set = PETSC_FALSE;
+  char memory[64] = "";
   PetscFunctionBegin;
   PetscCall(TSGetTrajectory(ts, &tj));
   PetscOptionsHeadBegin(PetscOptionsObject, "Adjoint checkpointing (flexipde)");
   PetscCall(PetscOptionsInt("-checkpoint_budget",
                             "Most forward states kept for the adjoint, binomial (revolve) schedule; unset: every state",
                             "setup_adjoint_trajectory", budget, &budget, &set));
+  PetscCall(PetscOptionsString("-checkpoint_memory",
+                               "Memory per rank for the states the adjoint keeps (e.g. 4GB, 512MB): every state when they "
+                               "fit, else the binomial schedule with as many as fit",
+                               "setup_adjoint_trajectory", memory, memory, sizeof memory, &memory_set));
+  PetscCheck(!(set && memory_set), PetscObjectComm(obj), PETSC_ERR_ARG_INCOMP,
+             "-checkpoint_budget (states) and -checkpoint_memory (bytes) both bound the trajectory: give one of them");
+  if (memory_set) {
+    PetscCall(budget_from_memory(ts, memory, stats, &budget));
+    set = budget > 0 ? PETSC_TRUE : PETSC_FALSE;
+  }
   if (set) {
     PetscCheck(budget >= 1, PetscObjectComm(obj), PETSC_ERR_ARG_OUTOFRANGE,
                "-checkpoint_budget %" PetscInt_FMT ": the budget is a number of stored states and must be at least 1 "
@@ -392,7 +448,10 @@ PetscErrorCode checkpoint_options(PetscObject obj, PetscOptionItems *PetscOption
   PetscCall(PetscStrcmp(type, TSRK, &is_rk));
   if (is_rk) PetscCall(TSRKGetTableau(ts, nullptr, nullptr, nullptr, nullptr, nullptr, nullptr, nullptr, &fsal));
   if (fsal) PetscCall(TSTrajectorySetSolutionOnly(tj, PETSC_FALSE));
-  else PetscCall(TSTrajectorySetType(tj, ts, FLEXIPDE_TSTRAJECTORY_STORE)); // one buffer, one memcpy per step
+  else {
+    PetscCall(TSTrajectorySetType(tj, ts, FLEXIPDE_TSTRAJECTORY_STORE)); // one buffer, one memcpy per step
+    if (memory_set) PetscCall(store_trajectory_cap_stages(tj, stats->memory_mb));
+  }
   PetscFunctionReturn(0);
 }
 
@@ -435,6 +494,21 @@ PetscErrorCode checkpoint_statistics(TS ts, PetscInt step, PetscReal, Vec, Petsc
 }
 
 } // namespace
+
+PetscReal parse_memory_size(const char *text) {
+  if (!text || !*text) return -1;
+  char *end = nullptr;
+  const double v = std::strtod(text, &end);
+  if (end == text || !(v > 0) || !std::isfinite(v)) return -1;
+  std::string unit(end);
+  while (!unit.empty() && unit[0] == ' ') unit.erase(0, 1);
+  for (auto &c : unit) c = (char)std::toupper((unsigned char)c);
+  if (!unit.empty() && unit.back() == 'B') unit.pop_back();
+  const char *units[] = {"", "K", "M", "G", "T"};
+  for (int k = 0; k < 5; ++k)
+    if (unit == units[k]) return v * std::pow(1024.0, k);
+  return -1;
+}
 
 PetscErrorCode register_binomial_trajectory() {
   PetscFunctionBegin;

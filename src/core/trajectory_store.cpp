@@ -475,6 +475,14 @@ PetscErrorCode store_trajectory_use_buffer(TSTrajectory tj, StateBuffer *buffer)
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode store_trajectory_cap_stages(TSTrajectory tj, PetscReal mb) {
+  PetscBool match;
+  PetscFunctionBegin;
+  PetscCall(PetscObjectTypeCompare((PetscObject)tj, FLEXIPDE_TSTRAJECTORY_STORE, &match));
+  if (match) context(tj)->keep_stages_max_mb = mb;
+  PetscFunctionReturn(0);
+}
+
 PetscInt64 store_trajectory_recomputed(TSTrajectory tj) { return context(tj)->recomputed; }
 PetscInt store_trajectory_states(TSTrajectory tj) { return context(tj)->last; } // U_0 .. U_{n-1}
 bool store_trajectory_keeps_stages(TSTrajectory tj) { return context(tj)->keep_stages || context(tj)->theta_endpoint; }
