@@ -17,6 +17,7 @@
 #include "test_support.hpp"
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <string>
 #include <unistd.h>
 
@@ -111,50 +112,57 @@ void survey2d_options(ScopedOptions &o) {
 }
 
 TEST(ReceiverMisfit2D, TaylorTest) {
-  ScopedOptions o;
-  survey2d_options(o);
-  SceneProblem sp;
-  PETSC_ASSERT_OK(sp.setup(PETSC_COMM_WORLD));
-  EXPECT_EQ(sp.scene.grid.dim(), 2);
-  OwnedVec d;
-  PETSC_ASSERT_OK(VecDuplicate(sp.p, d.out()));
-  PETSC_ASSERT_OK(fill_random(d, -0.05, 0.05, 5));
-  TaylorResult tr;
-  auto f = [&](Vec q, PetscReal *J, Vec g) { return sp.scene.gradient(q, J, g); };
-  PETSC_ASSERT_OK(taylor_test(f, sp.p, d, 1.0, 4, tr));
-  const size_t last = tr.eps.size() - 1;
-  for (size_t k = 1; k <= last; ++k)
-    PetscPrintf(PETSC_COMM_WORLD, "  [2D] eps %.3e r1 %.3e (%.3f) r2 %.3e (%.3f)\n", (double)tr.eps[k], (double)tr.r1[k],
-                (double)tr.ratio1(k), (double)tr.r2[k], (double)tr.ratio2(k));
-  EXPECT_GT(std::fabs(tr.gd), 0.0);
-  EXPECT_NEAR(tr.ratio1(last), 2.0, 0.2);
-  EXPECT_NEAR(tr.ratio2(last), 4.0, 0.3) << "dJ/dc (2D) is not the derivative of the receiver misfit";
+  for (const char *how : {"linear", "sinc"}) { // sources and receivers tied to the grid by either weights
+    ScopedOptions o;
+    survey2d_options(o);
+    o.set("-survey_interpolation", how);
+    PetscPrintf(PETSC_COMM_WORLD, "  [2D, %s]\n", how);
+    SceneProblem sp;
+    PETSC_ASSERT_OK(sp.setup(PETSC_COMM_WORLD));
+    EXPECT_EQ(sp.scene.grid.dim(), 2);
+    OwnedVec d;
+    PETSC_ASSERT_OK(VecDuplicate(sp.p, d.out()));
+    PETSC_ASSERT_OK(fill_random(d, -0.05, 0.05, 5));
+    TaylorResult tr;
+    auto f = [&](Vec q, PetscReal *J, Vec g) { return sp.scene.gradient(q, J, g); };
+    PETSC_ASSERT_OK(taylor_test(f, sp.p, d, 1.0, 4, tr));
+    const size_t last = tr.eps.size() - 1;
+    for (size_t k = 1; k <= last; ++k)
+      PetscPrintf(PETSC_COMM_WORLD, "  [2D] eps %.3e r1 %.3e (%.3f) r2 %.3e (%.3f)\n", (double)tr.eps[k], (double)tr.r1[k],
+                  (double)tr.ratio1(k), (double)tr.r2[k], (double)tr.ratio2(k));
+    EXPECT_GT(std::fabs(tr.gd), 0.0);
+    EXPECT_NEAR(tr.ratio1(last), 2.0, 0.2);
+    EXPECT_NEAR(tr.ratio2(last), 4.0, 0.3) << "dJ/dc (2D) is not the derivative of the receiver misfit";
+  }
 }
 
 TEST(ReceiverMisfit2D, ParallelMatchesSerial) {
-  ScopedOptions o;
-  survey2d_options(o);
-  SceneProblem par, ser;
-  PETSC_ASSERT_OK(par.setup(PETSC_COMM_WORLD));
-  PETSC_ASSERT_OK(ser.setup(PETSC_COMM_SELF));
-  OwnedVec gpar, gser;
-  PETSC_ASSERT_OK(VecDuplicate(par.p, gpar.out()));
-  PETSC_ASSERT_OK(VecDuplicate(ser.p, gser.out()));
-  PetscReal Jpar, Jser;
-  PETSC_ASSERT_OK(par.scene.gradient(par.p, &Jpar, gpar));
-  PETSC_ASSERT_OK(ser.scene.gradient(ser.p, &Jser, gser));
-  // the parameter Vecs of a 2D DMDA are in PETSc's (per-rank block) order: compare in natural order
-  std::vector<PetscReal> a, b;
-  for (auto *pr : {&par, &ser}) {
-    OwnedVec f, nat;
-    PETSC_ASSERT_OK(DMCreateGlobalVector(pr->scene.grid.dm(), f.out()));
-    PETSC_ASSERT_OK(pr->scene.params.get_field(pr == &par ? gpar.get() : gser.get(), 0, f));
-    PETSC_ASSERT_OK(DMDACreateNaturalVector(pr->scene.grid.dm(), nat.out()));
-    PETSC_ASSERT_OK(DMDAGlobalToNaturalBegin(pr->scene.grid.dm(), f, INSERT_VALUES, nat));
-    PETSC_ASSERT_OK(DMDAGlobalToNaturalEnd(pr->scene.grid.dm(), f, INSERT_VALUES, nat));
-    PETSC_ASSERT_OK(flexipde_test::gather_all(nat, pr == &par ? a : b));
+  for (const char *how : {"linear", "sinc"}) {
+    ScopedOptions o;
+    survey2d_options(o);
+    o.set("-survey_interpolation", how);
+    SceneProblem par, ser;
+    PETSC_ASSERT_OK(par.setup(PETSC_COMM_WORLD));
+    PETSC_ASSERT_OK(ser.setup(PETSC_COMM_SELF));
+    OwnedVec gpar, gser;
+    PETSC_ASSERT_OK(VecDuplicate(par.p, gpar.out()));
+    PETSC_ASSERT_OK(VecDuplicate(ser.p, gser.out()));
+    PetscReal Jpar, Jser;
+    PETSC_ASSERT_OK(par.scene.gradient(par.p, &Jpar, gpar));
+    PETSC_ASSERT_OK(ser.scene.gradient(ser.p, &Jser, gser));
+    // the parameter Vecs of a 2D DMDA are in PETSc's (per-rank block) order: compare in natural order
+    std::vector<PetscReal> a, b;
+    for (auto *pr : {&par, &ser}) {
+      OwnedVec f, nat;
+      PETSC_ASSERT_OK(DMCreateGlobalVector(pr->scene.grid.dm(), f.out()));
+      PETSC_ASSERT_OK(pr->scene.params.get_field(pr == &par ? gpar.get() : gser.get(), 0, f));
+      PETSC_ASSERT_OK(DMDACreateNaturalVector(pr->scene.grid.dm(), nat.out()));
+      PETSC_ASSERT_OK(DMDAGlobalToNaturalBegin(pr->scene.grid.dm(), f, INSERT_VALUES, nat));
+      PETSC_ASSERT_OK(DMDAGlobalToNaturalEnd(pr->scene.grid.dm(), f, INSERT_VALUES, nat));
+      PETSC_ASSERT_OK(flexipde_test::gather_all(nat, pr == &par ? a : b));
+    }
+    flexipde_test::expect_matches_serial(std::string("receivers 2D, ") + how, Jpar, Jser, a, b);
   }
-  flexipde_test::expect_matches_serial("receivers 2D", Jpar, Jser, a, b);
 }
 
 // A sponge absorbs: the energy left in the box after the pulse has reached the edges is far below
@@ -333,6 +341,124 @@ TEST(ReceiverMisfit, InterpolationWeights) {
     MPI_Allreduce(MPI_IN_PLACE, tot, 2, MPIU_REAL, MPI_SUM, PETSC_COMM_WORLD);
     EXPECT_NEAR(tot[0], 1.0, 1e-14) << "x = " << x;
     EXPECT_NEAR(tot[1], x, 1e-14) << "x = " << x;
+  }
+}
+
+// The windowed sinc: exact on grid points, weights summing to 1 away from walls, and far more accurate
+// than linear interpolation between points (sin(2 pi 5 x) sampled at 10 and 4 points per wavelength).
+TEST(ReceiverMisfit, SincInterpolation) {
+  ScopedOptions o{{"-da_grid_x", "51"}};
+  Grid grid;
+  GridOptions go;
+  PETSC_ASSERT_OK(Grid::from_options(PETSC_COMM_WORLD, 1, go, grid));
+  auto sample = [&](PetscReal x, Interpolation how, const std::function<PetscReal(PetscReal)> &f, PetscReal out[3]) {
+    PointStencil st;
+    PetscErrorCode ierr = point_stencil(grid, x, 0.0, &st, how);
+    out[0] = out[1] = 0, out[2] = 0;
+    for (PetscInt k = 0; k < st.n; ++k) {
+      out[0] += st.weight[k];
+      out[1] += st.weight[k] * f(grid.x(grid.xs() + st.local[k]));
+      out[2] = std::max(out[2], (PetscReal)st.n);
+    }
+    MPI_Allreduce(MPI_IN_PLACE, out, 2, MPIU_REAL, MPI_SUM, PETSC_COMM_WORLD);
+    MPI_Allreduce(MPI_IN_PLACE, out + 2, 1, MPIU_REAL, MPI_MAX, PETSC_COMM_WORLD);
+    return ierr;
+  };
+  PetscReal periods = 5; // on [0, 1]: 10 points per wavelength
+  auto f = [&](PetscReal x) { return std::sin(2 * PETSC_PI * periods * x) + 0.3; };
+  for (PetscInt i : {0, 7, 25, 50}) { // on a grid point: that point alone
+    PetscReal r[3];
+    PETSC_ASSERT_OK(sample(grid.x(i), Interpolation::Sinc, f, r));
+    EXPECT_NEAR(r[0], 1.0, 1e-14);
+    EXPECT_NEAR(r[1], f(grid.x(i)), 1e-14);
+  }
+  for (PetscReal ppw : {10.0, 4.0}) {
+    periods = 50 / ppw;
+    PetscReal worst[2] = {0, 0}, sums = 0;
+    for (PetscReal x = 0.2013; x < 0.8; x += 0.0371) { // off the grid, more than 4 cells from the walls
+      PetscReal rl[3], rs[3];
+      PETSC_ASSERT_OK(sample(x, Interpolation::Linear, f, rl));
+      PETSC_ASSERT_OK(sample(x, Interpolation::Sinc, f, rs));
+      EXPECT_EQ(rs[2] > 0 ? 1 : 0, 1);
+      worst[0] = std::max(worst[0], std::fabs(rl[1] - f(x)));
+      worst[1] = std::max(worst[1], std::fabs(rs[1] - f(x)));
+      sums = std::max(sums, std::fabs(rs[0] - 1));
+    }
+    PetscPrintf(PETSC_COMM_WORLD, "  [%.0f points per wavelength] max error linear %.2e, sinc %.2e; sinc weights sum to 1 within %.1e\n",
+                (double)ppw, (double)worst[0], (double)worst[1], (double)sums);
+    EXPECT_LT(worst[1], 2e-3);
+    EXPECT_LT(worst[1], 0.05 * worst[0]);
+    EXPECT_LT(sums, 2e-3);
+  }
+}
+
+// Injection and sampling are each other's transposes: the source's forcing of v (G with the source
+// less G without, at a time t) equals w(t) / cell volume times R^T e_r, R's row of a receiver at the
+// source's position, at every point; and <R u, e_r> = <u, R^T e_r> for a random u. 2D, sinc and
+// linear, off-grid positions, on any number of ranks.
+TEST(ReceiverMisfit2D, InjectionIsSamplingTransposed) {
+  for (const char *how : {"sinc", "linear"}) {
+    ScopedOptions o{{"-model", "wave2d"},          {"-da_grid_x", "31"},           {"-da_grid_y", "31"},
+                    {"-ts_max_time", "0.1"},       {"-ts_dt", "4e-3"},             {"-wave2d_c_field", "1"},
+                    {"-objective_type", "receivers"}, {"-survey_sources_x", "0.4137"}, {"-survey_sources_y", "0.2871"},
+                    {"-survey_receivers_x", "0.4137"}, {"-survey_receivers_y", "0.2871"}, {"-survey_ricker_f0", "5"},
+                    {"-survey_interpolation", how}};
+    SceneProblem sp;
+    PETSC_ASSERT_OK(sp.setup(PETSC_COMM_WORLD));
+    Survey *survey = sp.scene.objective.survey();
+    ASSERT_NE(survey, nullptr);
+    PETSC_ASSERT_OK(survey->select_shot(0));
+    PETSC_ASSERT_OK(sp.scene.model->set_parameters(sp.p));
+    OwnedVec U, Gon, Goff, q, ur, e;
+    PETSC_ASSERT_OK(sp.scene.sim.create_state(U.out()));
+    PETSC_ASSERT_OK(VecDuplicate(U, Gon.out()));
+    PETSC_ASSERT_OK(VecDuplicate(U, Goff.out()));
+    PETSC_ASSERT_OK(VecDuplicate(U, q.out()));
+    PETSC_ASSERT_OK(flexipde_test::fill_random(U, -1.0, 1.0, 91));
+    const PetscReal t = 0.21;
+    PETSC_ASSERT_OK(sp.scene.model->rhs(t, U, Gon));
+    PETSC_ASSERT_OK(sp.scene.model->set_point_source(nullptr));
+    PETSC_ASSERT_OK(sp.scene.model->rhs(t, U, Goff));
+    PETSC_ASSERT_OK(survey->select_shot(0));
+    PETSC_ASSERT_OK(VecAXPY(Gon, -1.0, Goff)); // the injection
+    Mat R = survey->receiver_matrix();
+    PETSC_ASSERT_OK(MatCreateVecs(R, nullptr, e.out())); // one entry per receiver
+    PETSC_ASSERT_OK(VecDuplicate(e, ur.out()));
+    PETSC_ASSERT_OK(VecSet(e, 1.0)); // one receiver
+    PETSC_ASSERT_OK(MatMultTranspose(R, e, q));
+    // R^T e_r sits in u (component 0), the injection in v (component 1)
+    Ricker w;
+    w.f0 = 5, w.t0 = 1.2 / 5;
+    const PetscReal scale = w(t) / sp.scene.grid.cell_volume();
+    PetscReal diff = 0, norm = 0, nonzero = 0;
+    {
+      const PetscScalar *a, *b;
+      PetscInt n;
+      PETSC_ASSERT_OK(VecGetLocalSize(q, &n));
+      PETSC_ASSERT_OK(VecGetArrayRead(q, &a));
+      PETSC_ASSERT_OK(VecGetArrayRead(Gon, &b));
+      for (PetscInt k = 0; k < n / 2; ++k) {
+        diff = std::max(diff, std::fabs(scale * PetscRealPart(a[2 * k]) - PetscRealPart(b[2 * k + 1])));
+        norm = std::max(norm, std::fabs(PetscRealPart(b[2 * k + 1])));
+        nonzero += PetscRealPart(a[2 * k]) != 0.0;
+        diff = std::max(diff, std::fabs(PetscRealPart(b[2 * k]))); // nothing injected into u
+      }
+      PETSC_ASSERT_OK(VecRestoreArrayRead(q, &a));
+      PETSC_ASSERT_OK(VecRestoreArrayRead(Gon, &b));
+    }
+    MPI_Allreduce(MPI_IN_PLACE, &diff, 1, MPIU_REAL, MPI_MAX, PETSC_COMM_WORLD);
+    MPI_Allreduce(MPI_IN_PLACE, &norm, 1, MPIU_REAL, MPI_MAX, PETSC_COMM_WORLD);
+    MPI_Allreduce(MPI_IN_PLACE, &nonzero, 1, MPIU_REAL, MPI_SUM, PETSC_COMM_WORLD);
+    PETSC_ASSERT_OK(MatMult(R, U, ur));
+    PetscReal Ru, uq;
+    PETSC_ASSERT_OK(VecDot(ur, e, &Ru));
+    PETSC_ASSERT_OK(VecDot(U, q, &uq));
+    PetscPrintf(PETSC_COMM_WORLD, "  [%s] %d points, injection - w/V R^T e: %.1e of %.1e; <Ru, e> %.15e, <u, R^T e> %.15e\n", how,
+                (int)nonzero, (double)diff, (double)norm, (double)Ru, (double)uq);
+    EXPECT_GT(norm, 0.0);
+    EXPECT_LE(diff, 1e-12 * norm);
+    EXPECT_EQ(nonzero, std::string(how) == "sinc" ? 64 : 4);
+    EXPECT_LE(std::fabs(Ru - uq), 1e-13 * std::max(std::fabs(Ru), 1.0));
   }
 }
 

@@ -6,8 +6,9 @@
 // Sources. Shot s fires one point source at x_s with a Ricker wavelet of peak frequency f0,
 //   w(t) = A (1 - 2 pi^2 f0^2 (t - t0)^2) exp(-pi^2 f0^2 (t - t0)^2),  t0 = delay (default 1.2/f0),
 // added to the equation of the model's forced component (the wave: v_t = c^2 u_xx + w(t) delta_h(x - x_s)).
-// The discrete delta spreads w over the grid points around x_s with the linear (1D) or bilinear
-// (2D) interpolation weights, divided by the cell volume, so that it integrates to w.
+// The discrete delta spreads w over the grid points around x_s with the interpolation weights (linear,
+// bilinear, or Kaiser-windowed sinc: -survey_interpolation), divided by the cell volume, so that it
+// integrates to w.
 //
 // Receivers. u(x_r, t) = (R U)_r, R the same interpolation weights on component u (a sparse
 // matrix with one row per receiver, owned by rank 0). The misfit is an Objective integrand
@@ -26,6 +27,7 @@
 // Options (prefix -survey_):
 //   -survey_sources_x x1,x2,...      one shot per source (2D: -survey_sources_y, one value or one per source)
 //   -survey_ricker_f0 F, -survey_ricker_delay T0, -survey_ricker_amplitude A
+//   -survey_interpolation linear|sinc   how sources and receivers off the grid points are tied to it
 //   -survey_receivers_x x1,...       receivers (2D: -survey_receivers_y, one value or one per receiver), or
 //   -survey_receivers_spread a,b,n   n receivers evenly spaced from a to b (2D: at depth -survey_receivers_y), or
 //   -survey_receivers_file F         text file, one receiver per line: "x" (1D) or "x y" (2D)
@@ -49,15 +51,27 @@ struct Ricker {
   PetscReal operator()(PetscReal t) const;
 };
 
-// Interpolation of a point onto the grid: up to 4 (point index, weight) pairs owned by this rank,
-// weights summing to 1 over all ranks. Points are local indices into the owned block
+// How a point off the grid is tied to it (-survey_interpolation):
+//   linear  the 2 (1D) or 4 (2D) nearest points, linear or bilinear weights;
+//   sinc    2r = 8 points per direction, w(d) = sinc(d) I0(b sqrt(1 - (d/r)^2)) / I0(b), d the distance
+//           to the point in cells, r = 4, b = 6.31 (Kaiser-windowed sinc, Hicks 2002, with his b for
+//           waves of 4 points per wavelength and more): exact on a grid point (w = 1 there, 0 at the
+//           others), within about 1e-3 between points at 4 points per wavelength and more; in 2D the
+//           product of the two directions' weights.
+//           Points beyond a wall are left out (within 4 cells of a wall the weights no longer sum to 1).
+// Sources and receivers use the same weights, so injection and sampling are each other's transposes.
+enum class Interpolation { Linear, Sinc };
+// The owned (point index, weight) pairs of a point's interpolation; weights summing to 1 over all ranks
+// (sinc: up to the window's error, and away from walls). Points are local indices into the owned block
 // ((j - ys) * xm + (i - xs)).
 struct PointStencil {
+  static constexpr int max_points = 64;
   PetscInt n = 0;
-  PetscInt local[4];
-  PetscReal weight[4];
+  PetscInt local[max_points];
+  PetscReal weight[max_points];
 };
-PetscErrorCode point_stencil(const Grid &grid, PetscReal x, PetscReal y, PointStencil *st);
+PetscErrorCode point_stencil(const Grid &grid, PetscReal x, PetscReal y, PointStencil *st,
+                             Interpolation how = Interpolation::Linear);
 
 // The source of the current shot, as a model sees it: the local stencil and the wavelet.
 struct PointSource {
@@ -91,6 +105,9 @@ public:
   PetscInt samples() const { return nt_; }
   PetscReal sample_dt() const { return sample_dt_; }
   const std::vector<PetscReal> &receivers_x() const { return rec_x_; }
+  // R: u at the receivers from the state (one row per receiver, on rank 0; the sampling whose
+  // transpose, over the cell volume, is the sources' injection).
+  Mat receiver_matrix() const { return R_; }
 
   // Objective: no terminal part (except while recording), the integrand above.
   PetscErrorCode terminal(Vec UT, PetscReal *J, Vec dJdU) override;
@@ -112,6 +129,7 @@ private:
   PetscInt component_ = 0, dof_ = 1, nshots_ = 1, shot_ = 0, nt_ = 0;
   std::vector<PetscReal> src_x_, src_y_, rec_x_, rec_y_;
   std::vector<PointSource> sources_;
+  Interpolation interpolation_ = Interpolation::Linear;
   Ricker ricker_;
   PetscReal sample_dt_ = 0;
   std::vector<PetscReal> traces_; // [shot][receiver][sample], on rank 0 (every rank after read/record)

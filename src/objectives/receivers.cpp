@@ -1,5 +1,6 @@
 // Survey: Ricker point sources, receivers and the time-integrated receiver misfit (survey.hpp).
 #include "flexipde/survey.hpp"
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -15,32 +16,61 @@ PetscReal Ricker::operator()(PetscReal t) const {
   return amplitude * (1.0 - 2.0 * a2) * std::exp(-a2);
 }
 
-// Linear (1D) or bilinear (2D) weights of the grid points around (x, y), owned points only.
-PetscErrorCode point_stencil(const Grid &grid, PetscReal x, PetscReal y, PointStencil *st) {
-  PetscFunctionBeginUser;
-  st->n = 0;
-  auto cell = [](PetscReal pos, PetscReal origin, PetscReal h, PetscInt n, bool periodic, PetscInt *i, PetscReal *th) {
+namespace {
+
+// The 1D weights of position pos: up to 8 (grid index, weight) pairs, indices wrapped on a periodic
+// direction and left out beyond a wall.
+int line_weights(PetscReal pos, PetscReal origin, PetscReal h, PetscInt n, bool periodic, Interpolation how,
+                 PetscInt idx[8], PetscReal w[8]) {
+  const PetscReal s = (pos - origin) / h;
+  int m = 0;
+  auto add = [&](PetscInt i, PetscReal wi) {
+    if (wi == 0.0) return;
+    if (periodic) i = (i % n + n) % n;
+    else if (i < 0 || i >= n) return;
+    idx[m] = i, w[m] = wi, ++m;
+  };
+  if (how == Interpolation::Linear) {
     const PetscInt last = periodic ? n - 1 : n - 2; // left node of the last cell
-    PetscReal s = (pos - origin) / h;
     PetscInt k = (PetscInt)std::floor(s);
     if (k > last) k = last;
     if (k < 0) k = 0;
-    *i = k;
-    *th = s - k;
-  };
-  PetscInt i, j = 0;
-  PetscReal tx, ty = 0;
-  cell(x, grid.x0(), grid.h(), grid.n(), grid.periodic(), &i, &tx);
-  if (grid.dim() == 2) cell(y, grid.y0(), grid.hy(), grid.ny(), grid.periodic_y(), &j, &ty);
-  const PetscInt nj = grid.dim() == 2 ? 2 : 1;
-  for (PetscInt b = 0; b < nj; ++b)
-    for (PetscInt a = 0; a < 2; ++a) {
-      const PetscReal w = (a ? tx : 1 - tx) * (grid.dim() == 2 ? (b ? ty : 1 - ty) : 1.0);
-      if (w == 0.0) continue;
-      const PetscInt ii = (i + a) % grid.n(), jj = grid.dim() == 2 ? (j + b) % grid.ny() : 0;
+    const PetscReal t = s - k;
+    add(k, 1 - t);
+    add(k + 1, t);
+    return m;
+  }
+  constexpr int r = 4;
+  constexpr PetscReal b = 6.31; // Hicks's value for r = 4 and wavenumbers up to pi / 2h (4 points per wavelength)
+  const PetscReal k = std::round(s);
+  if (std::fabs(s - k) < 1e-12) { // on a grid point: the sinc is a delta there
+    add((PetscInt)k, 1.0);
+    return m;
+  }
+  const PetscInt k0 = (PetscInt)std::floor(s);
+  for (PetscInt i = k0 - r + 1; i <= k0 + r; ++i) {
+    const PetscReal d = i - s, q = d / r;
+    const PetscReal sinc = std::sin(PETSC_PI * d) / (PETSC_PI * d);
+    add(i, sinc * std::cyl_bessel_i(0.0, b * std::sqrt(std::max<PetscReal>(0, 1 - q * q))) / std::cyl_bessel_i(0.0, b));
+  }
+  return m;
+}
+
+} // namespace
+
+PetscErrorCode point_stencil(const Grid &grid, PetscReal x, PetscReal y, PointStencil *st, Interpolation how) {
+  PetscInt ix[8], iy[8] = {0};
+  PetscReal wx[8], wy[8] = {1.0};
+  PetscFunctionBeginUser;
+  st->n = 0;
+  const int mx = line_weights(x, grid.x0(), grid.h(), grid.n(), grid.periodic(), how, ix, wx);
+  const int my = grid.dim() == 2 ? line_weights(y, grid.y0(), grid.hy(), grid.ny(), grid.periodic_y(), how, iy, wy) : 1;
+  for (int b = 0; b < my; ++b)
+    for (int a = 0; a < mx; ++a) {
+      const PetscInt ii = ix[a], jj = iy[b];
       if (ii < grid.xs() || ii >= grid.xs() + grid.xm() || jj < grid.ys() || jj >= grid.ys() + grid.ym()) continue;
       st->local[st->n] = (jj - grid.ys()) * grid.xm() + (ii - grid.xs());
-      st->weight[st->n] = w;
+      st->weight[st->n] = wx[a] * wy[b];
       ++st->n;
     }
   PetscFunctionReturn(0);
@@ -86,6 +116,15 @@ PetscErrorCode Survey::read_positions() {
                              1.2 / ricker_.f0, &ricker_.t0, &set_delay));
   PetscCall(PetscOptionsReal("-survey_ricker_amplitude", "Amplitude of the Ricker wavelet", "Survey",
                              ricker_.amplitude, &ricker_.amplitude, nullptr));
+  {
+    const char *kinds[] = {"linear", "sinc"};
+    PetscInt kind = (PetscInt)interpolation_;
+    PetscCall(PetscOptionsEList("-survey_interpolation",
+                                "Sources and receivers between grid points: linear (2 or 4 nearest points) or sinc "
+                                "(Kaiser-windowed, 8 points per direction)",
+                                "Survey", kinds, 2, kinds[kind], &kind, nullptr));
+    interpolation_ = (Interpolation)kind;
+  }
   PetscCall(read_list(comm_, "-survey_receivers_x", "Receiver positions x", rec_x_, &set_rx));
   PetscCall(PetscOptionsRealArray("-survey_receivers_spread", "a,b,n: n receivers evenly spaced in x from a to b",
                                   "Survey", spread, &nspread, &set_spread));
@@ -186,12 +225,13 @@ PetscErrorCode Survey::build_receiver_matrix(DM state_dm) {
   PetscCall(MatCreate(comm_, R_.out()));
   PetscCall(MatSetSizes(R_, rank_ == 0 ? nrec : 0, nloc, nrec, PETSC_DETERMINE));
   PetscCall(MatSetType(R_, MATAIJ));
-  PetscCall(MatSeqAIJSetPreallocation(R_, 4, nullptr));
-  PetscCall(MatMPIAIJSetPreallocation(R_, 4, nullptr, 4, nullptr));
+  const PetscInt per_row = interpolation_ == Interpolation::Sinc ? PointStencil::max_points : 4;
+  PetscCall(MatSeqAIJSetPreallocation(R_, per_row, nullptr));
+  PetscCall(MatMPIAIJSetPreallocation(R_, per_row, nullptr, per_row, nullptr));
   PetscCall(MatSetOption(R_, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_FALSE));
   for (PetscInt r = 0; r < nrec; ++r) {
     PointStencil st;
-    PetscCall(point_stencil(*grid_, rec_x_[r], rec_y_[r], &st));
+    PetscCall(point_stencil(*grid_, rec_x_[r], rec_y_[r], &st, interpolation_));
     for (PetscInt k = 0; k < st.n; ++k)
       PetscCall(MatSetValue(R_, r, rstart + st.local[k] * dof_ + component_, st.weight[k], ADD_VALUES));
   }
@@ -216,7 +256,7 @@ PetscErrorCode Survey::setup(const Grid &grid, Model &model, DM state_dm, PetscI
   nshots_ = std::max<PetscInt>(1, (PetscInt)src_x_.size());
   sources_.resize(src_x_.size());
   for (size_t s = 0; s < src_x_.size(); ++s) {
-    PetscCall(point_stencil(grid, src_x_[s], src_y_[s], &sources_[s].stencil));
+    PetscCall(point_stencil(grid, src_x_[s], src_y_[s], &sources_[s].stencil, interpolation_));
     sources_[s].wavelet = ricker_;
     sources_[s].cell_volume = grid.cell_volume();
   }
