@@ -355,29 +355,6 @@ INSTANTIATE_TEST_SUITE_P(
 // The same scene on PETSC_COMM_WORLD and on PETSC_COMM_SELF: the same J and gradient. Field
 // gradients are compared in natural (x fastest) order, which a 2D DMDA on 2 ranks need not keep.
 
-PetscErrorCode natural_gradient(const Scene &s, Vec g, std::vector<PetscReal> &out) {
-  std::vector<PetscReal> part;
-  PetscFunctionBeginUser;
-  out.clear();
-  for (PetscInt k = 0; k < s.params.count(); ++k) {
-    if (s.params.info(k).kind == ParamKind::Scalar) {
-      PetscReal v;
-      PetscCall(s.params.scalar(g, k, &v));
-      out.push_back(v);
-      continue;
-    }
-    OwnedVec f, nat;
-    PetscCall(DMCreateGlobalVector(s.grid.dm(), f.out()));
-    PetscCall(DMDACreateNaturalVector(s.grid.dm(), nat.out()));
-    PetscCall(s.params.get_field(g, k, f));
-    PetscCall(DMDAGlobalToNaturalBegin(s.grid.dm(), f, INSERT_VALUES, nat));
-    PetscCall(DMDAGlobalToNaturalEnd(s.grid.dm(), f, INSERT_VALUES, nat));
-    PetscCall(flexipde_test::gather_all(nat, part));
-    out.insert(out.end(), part.begin(), part.end());
-  }
-  PetscFunctionReturn(0);
-}
-
 struct RankCase {
   const char *name;
   Options options;
@@ -395,19 +372,7 @@ TEST_P(AdvectionNewRanks, ParallelMatchesSerial) {
   opts.set("-advection_ic", "gaussian");
   opts.set("-advection_ic_width", "0.9");
   for (auto &kv : c.options) opts.set(kv.first, kv.second);
-  flexipde_test::SceneProblem par, ser;
-  PETSC_ASSERT_OK(par.setup(PETSC_COMM_WORLD));
-  PETSC_ASSERT_OK(ser.setup(PETSC_COMM_SELF));
-  OwnedVec gpar, gser;
-  PETSC_ASSERT_OK(VecDuplicate(par.p, gpar.out()));
-  PETSC_ASSERT_OK(VecDuplicate(ser.p, gser.out()));
-  PetscReal Jpar, Jser;
-  PETSC_ASSERT_OK(par.scene.sim.gradient(par.p, &Jpar, gpar, nullptr));
-  PETSC_ASSERT_OK(ser.scene.sim.gradient(ser.p, &Jser, gser, nullptr));
-  std::vector<PetscReal> a, b;
-  PETSC_ASSERT_OK(natural_gradient(par.scene, gpar, a));
-  PETSC_ASSERT_OK(natural_gradient(ser.scene, gser, b));
-  flexipde_test::expect_matches_serial(c.name, Jpar, Jser, a, b);
+  flexipde_test::expect_parallel_matches_serial(c.name);
 }
 
 INSTANTIATE_TEST_SUITE_P(

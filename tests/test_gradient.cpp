@@ -286,20 +286,7 @@ TEST_P(RankComparison, ParallelMatchesSerial) {
                      {"-true_wave_c_profile", "linear"},
                      {"-true_wave_c_left", "0.9"},
                      {"-true_wave_c_right", "1.1"}};
-  Problem par, ser;
-  PETSC_ASSERT_OK(par.setup(PETSC_COMM_WORLD));
-  PETSC_ASSERT_OK(ser.setup(PETSC_COMM_SELF));
-  OwnedVec gpar, gser;
-  PETSC_ASSERT_OK(VecDuplicate(par.p, gpar.out()));
-  PETSC_ASSERT_OK(VecDuplicate(ser.p, gser.out()));
-  PetscReal Jpar, Jser;
-  PETSC_ASSERT_OK(par.scene.sim.gradient(par.p, &Jpar, gpar, nullptr));
-  PETSC_ASSERT_OK(ser.scene.sim.gradient(ser.p, &Jser, gser, nullptr));
-  std::vector<PetscReal> a, b;
-  PETSC_ASSERT_OK(flexipde_test::gather_all(gpar, a));
-  PETSC_ASSERT_OK(flexipde_test::gather_all(gser, b));
-  ASSERT_EQ(a.size(), b.size());
-  flexipde_test::expect_matches_serial(ts_type, Jpar, Jser, a, b);
+  flexipde_test::expect_parallel_matches_serial(ts_type);
 }
 
 INSTANTIATE_TEST_SUITE_P(Wave, RankComparison, ::testing::Values("rk", "cn", "leapfrog"));

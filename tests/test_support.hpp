@@ -190,6 +190,50 @@ inline void expect_matches_serial(const std::string &label, PetscReal Jpar, Pets
   EXPECT_LE(worst[1], 1e-10);
 }
 
+// The parameter-shaped vector v of a scene on every rank: scalars by value, fields in the grid's natural
+// order (a 2D DMDA's global order is per-rank blocks), so that scenes on any number of ranks compare
+// entry by entry (collective).
+inline PetscErrorCode natural_parameters(const flexipde::Scene &s, Vec v, std::vector<PetscReal> &out) {
+  std::vector<PetscReal> part;
+  PetscFunctionBeginUser;
+  out.clear();
+  for (PetscInt k = 0; k < s.params.count(); ++k) {
+    if (s.params.info(k).kind == flexipde::ParamKind::Scalar) {
+      PetscReal value;
+      PetscCall(s.params.scalar(v, k, &value));
+      out.push_back(value);
+      continue;
+    }
+    flexipde::OwnedVec f, nat;
+    PetscCall(DMCreateGlobalVector(s.grid.dm(), f.out()));
+    PetscCall(DMDACreateNaturalVector(s.grid.dm(), nat.out()));
+    PetscCall(s.params.get_field(v, k, f));
+    PetscCall(DMDAGlobalToNaturalBegin(s.grid.dm(), f, INSERT_VALUES, nat));
+    PetscCall(DMDAGlobalToNaturalEnd(s.grid.dm(), f, INSERT_VALUES, nat));
+    PetscCall(gather_all(nat, part));
+    out.insert(out.end(), part.begin(), part.end());
+  }
+  PetscFunctionReturn(0);
+}
+
+// The scene of the current options set up on PETSC_COMM_WORLD and on PETSC_COMM_SELF (each rank the
+// serial problem): J and dJ/dp (Scene::gradient, summed over a survey's shots) the same (1e-10).
+inline void expect_parallel_matches_serial(const std::string &label) {
+  SceneProblem par, ser;
+  PETSC_ASSERT_OK(par.setup(PETSC_COMM_WORLD));
+  PETSC_ASSERT_OK(ser.setup(PETSC_COMM_SELF));
+  flexipde::OwnedVec gpar, gser;
+  PETSC_ASSERT_OK(VecDuplicate(par.p, gpar.out()));
+  PETSC_ASSERT_OK(VecDuplicate(ser.p, gser.out()));
+  PetscReal Jpar, Jser;
+  PETSC_ASSERT_OK(par.scene.gradient(par.p, &Jpar, gpar));
+  PETSC_ASSERT_OK(ser.scene.gradient(ser.p, &Jser, gser));
+  std::vector<PetscReal> a, b;
+  PETSC_ASSERT_OK(natural_parameters(par.scene, gpar, a));
+  PETSC_ASSERT_OK(natural_parameters(ser.scene, gser, b));
+  expect_matches_serial(label, Jpar, Jser, a, b);
+}
+
 // With a diffusivity field D among the scene's parameters: p's D becomes random in [lo, hi], so every
 // entry of it matters in a derivative check. Nothing otherwise.
 inline void rough_diffusion_field(flexipde::Scene &scene, Vec p, PetscReal lo, PetscReal hi) {

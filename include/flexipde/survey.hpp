@@ -27,6 +27,7 @@
 // Options (prefix -survey_):
 //   -survey_sources_x x1,x2,...      one shot per source (2D: -survey_sources_y, one value or one per source)
 //   -survey_ricker_f0 F, -survey_ricker_delay T0, -survey_ricker_amplitude A
+//   -survey_wavelet_file F           the wavelet from a text file instead: one "t w" pair per line
 //   -survey_interpolation linear|sinc   how sources and receivers off the grid points are tied to it
 //   -survey_receivers_x x1,...       receivers (2D: -survey_receivers_y, one value or one per receiver), or
 //   -survey_receivers_spread a,b,n   n receivers evenly spaced from a to b (2D: at depth -survey_receivers_y), or
@@ -73,10 +74,19 @@ struct PointStencil {
 PetscErrorCode point_stencil(const Grid &grid, PetscReal x, PetscReal y, PointStencil *st,
                              Interpolation how = Interpolation::Linear);
 
+// A source's time function: the Ricker wavelet, or samples w_k at times t_k (increasing) read from a
+// file, interpolated by the cubic Lagrange polynomial through the four nearest samples (linear
+// between the first two and the last two), 0 outside [t_0, t_last].
+struct Wavelet {
+  Ricker ricker;
+  std::vector<PetscReal> t, w; // samples (empty: the Ricker wavelet)
+  PetscReal operator()(PetscReal time) const;
+};
+
 // The source of the current shot, as a model sees it: the local stencil and the wavelet.
 struct PointSource {
   PointStencil stencil;
-  Ricker wavelet;
+  Wavelet wavelet;
   PetscReal cell_volume = 1.0;
   // The forcing density at local point k of the stencil at time t.
   PetscReal density(PetscInt k, PetscReal t) const { return wavelet(t) * stencil.weight[k] / cell_volume; }
@@ -117,6 +127,7 @@ public:
 
 private:
   PetscErrorCode read_positions();
+  PetscErrorCode read_wavelet(const char *file);
   PetscErrorCode build_receiver_matrix(DM state_dm);
   // d(t) of the current shot into dvec_ (rank 0 holds every entry).
   PetscErrorCode data_at(PetscReal t);
@@ -130,7 +141,7 @@ private:
   std::vector<PetscReal> src_x_, src_y_, rec_x_, rec_y_;
   std::vector<PointSource> sources_;
   Interpolation interpolation_ = Interpolation::Linear;
-  Ricker ricker_;
+  Wavelet wavelet_;
   PetscReal sample_dt_ = 0;
   std::vector<PetscReal> traces_; // [shot][receiver][sample], on rank 0 (every rank after read/record)
   std::vector<char> recorded_;

@@ -16,6 +16,26 @@ PetscReal Ricker::operator()(PetscReal t) const {
   return amplitude * (1.0 - 2.0 * a2) * std::exp(-a2);
 }
 
+PetscReal Wavelet::operator()(PetscReal time) const {
+  if (t.empty()) return ricker(time);
+  const size_t n = t.size();
+  if (time < t[0] || time > t[n - 1]) return 0.0;
+  size_t k = std::upper_bound(t.begin(), t.end(), time) - t.begin(); // t[k-1] <= time < t[k]
+  k = std::min(std::max<size_t>(k, 1), n - 1);
+  if (n < 4 || k == 1 || k == n - 1) { // linear in the first and last interval
+    const PetscReal a = (time - t[k - 1]) / (t[k] - t[k - 1]);
+    return (1 - a) * w[k - 1] + a * w[k];
+  }
+  PetscReal sum = 0;
+  for (size_t i = k - 2; i <= k + 1; ++i) {
+    PetscReal l = 1;
+    for (size_t j = k - 2; j <= k + 1; ++j)
+      if (j != i) l *= (time - t[j]) / (t[i] - t[j]);
+    sum += l * w[i];
+  }
+  return sum;
+}
+
 namespace {
 
 // The 1D weights of position pos: up to 8 (grid index, weight) pairs, indices wrapped on a periodic
@@ -76,6 +96,57 @@ PetscErrorCode point_stencil(const Grid &grid, PetscReal x, PetscReal y, PointSt
   PetscFunctionReturn(0);
 }
 
+// Rows of `cols` finite numbers from a text file (blank lines and # comments skipped), read on rank 0
+// and sent to every rank with the outcome, so that all ranks stop together on a bad file: *status 0,
+// 1 (the file cannot be read) or 2 (a line without `cols` finite numbers).
+static PetscErrorCode read_rows(MPI_Comm comm, const char *file, int cols, std::vector<PetscReal> &vals, PetscInt *status) {
+  PetscMPIInt rank;
+  PetscInt count = 0;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_rank(comm, &rank));
+  *status = 0;
+  vals.clear();
+  if (rank == 0) {
+    std::ifstream in(file);
+    if (!in) *status = 1;
+    std::string line;
+    while (*status == 0 && std::getline(in, line)) {
+      if (line.find_first_not_of(" \t\r") == std::string::npos || line[0] == '#') continue;
+      std::istringstream ls(line);
+      for (int c = 0; c < cols && *status == 0; ++c) {
+        PetscReal a;
+        if (!(ls >> a) || !std::isfinite(a)) *status = 2;
+        else vals.push_back(a);
+      }
+    }
+    count = (PetscInt)vals.size();
+  }
+  PetscCallMPI(MPI_Bcast(status, 1, MPIU_INT, 0, comm));
+  PetscCallMPI(MPI_Bcast(&count, 1, MPIU_INT, 0, comm));
+  vals.resize(count);
+  PetscCallMPI(MPI_Bcast(vals.data(), (PetscMPIInt)count, MPIU_REAL, 0, comm));
+  PetscFunctionReturn(0);
+}
+
+// The wavelet's samples from a text file: "t w" per line, times increasing, two samples at least.
+PetscErrorCode Survey::read_wavelet(const char *file) {
+  std::vector<PetscReal> vals;
+  PetscInt status;
+  PetscFunctionBeginUser;
+  PetscCall(read_rows(comm_, file, 2, vals, &status));
+  PetscCheck(status != 1, comm_, PETSC_ERR_FILE_OPEN, "-survey_wavelet_file %s cannot be read", file);
+  PetscCheck(status != 2, comm_, PETSC_ERR_FILE_UNEXPECTED, "-survey_wavelet_file %s: every line must hold a time and a value", file);
+  const size_t n = vals.size() / 2;
+  PetscCheck(n >= 2, comm_, PETSC_ERR_FILE_UNEXPECTED, "-survey_wavelet_file %s: give at least two samples", file);
+  wavelet_.t.resize(n), wavelet_.w.resize(n);
+  for (size_t k = 0; k < n; ++k) {
+    wavelet_.t[k] = vals[2 * k], wavelet_.w[k] = vals[2 * k + 1];
+    PetscCheck(k == 0 || wavelet_.t[k] > wavelet_.t[k - 1], comm_, PETSC_ERR_FILE_UNEXPECTED,
+               "-survey_wavelet_file %s: the times must increase (sample %zu)", file, k + 1);
+  }
+  PetscFunctionReturn(0);
+}
+
 // Values for the second coordinate: one per point, or one for all.
 // In 2D a depth is required: a silent default on the edge would put the points on the Dirichlet wall.
 static PetscErrorCode expand(MPI_Comm comm, const char *what, std::vector<PetscReal> &y, size_t n) {
@@ -91,7 +162,8 @@ PetscErrorCode Survey::read_positions() {
   const bool two_d = grid_->dim() == 2;
   PetscBool set_sx = PETSC_FALSE, set_sy = PETSC_FALSE, set_rx = PETSC_FALSE, set_ry = PETSC_FALSE, set_spread = PETSC_FALSE,
             set_file = PETSC_FALSE, set_delay = PETSC_FALSE;
-  char rec_file[PETSC_MAX_PATH_LEN] = "";
+  char rec_file[PETSC_MAX_PATH_LEN] = "", wavelet_file[PETSC_MAX_PATH_LEN] = "";
+  PetscBool set_wavelet = PETSC_FALSE;
   PetscReal spread[3] = {0, 0, 0};
   PetscInt nspread = 3;
   PetscFunctionBeginUser;
@@ -110,12 +182,12 @@ PetscErrorCode Survey::read_positions() {
                       src_x_, &set_sx));
   if (two_d)
     PetscCall(read_list(comm_, "-survey_sources_y", "Source positions y (one value, or one per source)", src_y_, &set_sy));
-  PetscCall(PetscOptionsReal("-survey_ricker_f0", "Peak frequency of the Ricker wavelet", "Survey", ricker_.f0,
-                             &ricker_.f0, nullptr));
+  PetscCall(PetscOptionsReal("-survey_ricker_f0", "Peak frequency of the Ricker wavelet", "Survey", wavelet_.ricker.f0,
+                             &wavelet_.ricker.f0, nullptr));
   PetscCall(PetscOptionsReal("-survey_ricker_delay", "Delay t0 of the Ricker wavelet (default 1.2/f0)", "Survey",
-                             1.2 / ricker_.f0, &ricker_.t0, &set_delay));
+                             1.2 / wavelet_.ricker.f0, &wavelet_.ricker.t0, &set_delay));
   PetscCall(PetscOptionsReal("-survey_ricker_amplitude", "Amplitude of the Ricker wavelet", "Survey",
-                             ricker_.amplitude, &ricker_.amplitude, nullptr));
+                             wavelet_.ricker.amplitude, &wavelet_.ricker.amplitude, nullptr));
   {
     const char *kinds[] = {"linear", "sinc"};
     PetscInt kind = (PetscInt)interpolation_;
@@ -125,6 +197,9 @@ PetscErrorCode Survey::read_positions() {
                                 "Survey", kinds, 2, kinds[kind], &kind, nullptr));
     interpolation_ = (Interpolation)kind;
   }
+  PetscCall(PetscOptionsString("-survey_wavelet_file", "Source wavelet from a text file, one \"t w(t)\" pair per line "
+                               "(times increasing; 0 outside them), instead of the Ricker wavelet",
+                               "Survey", wavelet_file, wavelet_file, sizeof(wavelet_file), &set_wavelet));
   PetscCall(read_list(comm_, "-survey_receivers_x", "Receiver positions x", rec_x_, &set_rx));
   PetscCall(PetscOptionsRealArray("-survey_receivers_spread", "a,b,n: n receivers evenly spaced in x from a to b",
                                   "Survey", spread, &nspread, &set_spread));
@@ -138,9 +213,9 @@ PetscErrorCode Survey::read_positions() {
   PetscCall(PetscOptionsString("-survey_data_write", "Write the synthetic traces of the true model to this HDF5 file",
                                "Survey", write_file_, write_file_, sizeof(write_file_), nullptr));
   PetscOptionsEnd();
-  PetscCheck(ricker_.f0 > 0, comm_, PETSC_ERR_ARG_OUTOFRANGE, "-survey_ricker_f0 must be positive, got %g",
-             (double)ricker_.f0);
-  if (!set_delay) ricker_.t0 = 1.2 / ricker_.f0;
+  PetscCheck(wavelet_.ricker.f0 > 0, comm_, PETSC_ERR_ARG_OUTOFRANGE, "-survey_ricker_f0 must be positive, got %g",
+             (double)wavelet_.ricker.f0);
+  if (!set_delay) wavelet_.ricker.t0 = 1.2 / wavelet_.ricker.f0;
   PetscCheck((set_rx ? 1 : 0) + (set_spread ? 1 : 0) + (set_file ? 1 : 0) == 1, comm_, PETSC_ERR_ARG_WRONG,
              "-objective_type receivers needs exactly one of -survey_receivers_x, -survey_receivers_spread, "
              "-survey_receivers_file");
@@ -152,37 +227,22 @@ PetscErrorCode Survey::read_positions() {
     for (PetscInt k = 0; k < n; ++k) rec_x_[k] = n == 1 ? spread[0] : spread[0] + (spread[1] - spread[0]) * k / (n - 1);
   }
   if (set_file) {
-    // rank 0 reads; everyone receives the values (or the failure, so that all ranks stop together)
     std::vector<PetscReal> vals;
-    PetscInt status = 0, count = 0;
-    if (rank_ == 0) {
-      std::ifstream in(rec_file);
-      if (!in) status = 1;
-      std::string line;
-      while (status == 0 && std::getline(in, line)) {
-        if (line.find_first_not_of(" \t\r") == std::string::npos || line[0] == '#') continue;
-        std::istringstream ls(line);
-        PetscReal a, b = 0;
-        if (!(ls >> a) || (two_d && !(ls >> b))) status = 2;
-        vals.push_back(a);
-        vals.push_back(b);
-      }
-      count = (PetscInt)vals.size() / 2;
-    }
-    PetscCallMPI(MPI_Bcast(&status, 1, MPIU_INT, 0, comm_));
+    const int cols = two_d ? 2 : 1;
+    PetscInt status;
+    PetscCall(read_rows(comm_, rec_file, cols, vals, &status));
     PetscCheck(status != 1, comm_, PETSC_ERR_FILE_OPEN, "-survey_receivers_file %s cannot be read", rec_file);
     PetscCheck(status != 2, comm_, PETSC_ERR_FILE_UNEXPECTED,
                "-survey_receivers_file %s: every line must hold %s", rec_file, two_d ? "x y" : "x");
-    PetscCallMPI(MPI_Bcast(&count, 1, MPIU_INT, 0, comm_));
-    vals.resize(2 * count);
-    PetscCallMPI(MPI_Bcast(vals.data(), 2 * count, MPIU_REAL, 0, comm_));
+    const size_t count = vals.size() / cols;
     rec_x_.resize(count);
     rec_y_.resize(two_d ? count : 0);
-    for (PetscInt k = 0; k < count; ++k) {
-      rec_x_[k] = vals[2 * k];
+    for (size_t k = 0; k < count; ++k) {
+      rec_x_[k] = vals[cols * k];
       if (two_d) rec_y_[k] = vals[2 * k + 1];
     }
   }
+  if (set_wavelet) PetscCall(read_wavelet(wavelet_file));
   PetscCheck(!rec_x_.empty(), comm_, PETSC_ERR_ARG_WRONG, "The survey has no receivers");
   if (two_d) {
     PetscCall(expand(comm_, "-survey_receivers_y", rec_y_, rec_x_.size()));
@@ -257,7 +317,7 @@ PetscErrorCode Survey::setup(const Grid &grid, Model &model, DM state_dm, PetscI
   sources_.resize(src_x_.size());
   for (size_t s = 0; s < src_x_.size(); ++s) {
     PetscCall(point_stencil(grid, src_x_[s], src_y_[s], &sources_[s].stencil, interpolation_));
-    sources_[s].wavelet = ricker_;
+    sources_[s].wavelet = wavelet_;
     sources_[s].cell_volume = grid.cell_volume();
   }
   PetscCall(build_receiver_matrix(state_dm));
