@@ -75,8 +75,8 @@ PetscErrorCode point_stencil(const Grid &grid, PetscReal x, PetscReal y, PointSt
                              Interpolation how = Interpolation::Linear);
 
 // A source's time function: the Ricker wavelet, or samples w_k at times t_k (increasing) read from a
-// file, interpolated by the cubic Lagrange polynomial through the four nearest samples (linear
-// between the first two and the last two), 0 outside [t_0, t_last].
+// file, interpolated by the cubic Lagrange polynomial through the four nearest samples (as the data
+// are in time), 0 outside [t_0, t_last].
 struct Wavelet {
   Ricker ricker;
   std::vector<PetscReal> t, w; // samples (empty: the Ricker wavelet)

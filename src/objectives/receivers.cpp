@@ -16,23 +16,29 @@ PetscReal Ricker::operator()(PetscReal t) const {
   return amplitude * (1.0 - 2.0 * a2) * std::exp(-a2);
 }
 
+namespace {
+
+// w[a] = the Lagrange basis polynomial of node a of x[0, m) at s (the interpolant is sum_a w[a] f(x[a])).
+void lagrange_weights(const PetscReal *x, PetscInt m, PetscReal s, PetscReal *w) {
+  for (PetscInt a = 0; a < m; ++a) {
+    w[a] = 1;
+    for (PetscInt b = 0; b < m; ++b)
+      if (b != a) w[a] *= (s - x[b]) / (x[a] - x[b]);
+  }
+}
+
+} // namespace
+
 PetscReal Wavelet::operator()(PetscReal time) const {
   if (t.empty()) return ricker(time);
-  const size_t n = t.size();
+  const PetscInt n = (PetscInt)t.size(), m = std::min<PetscInt>(4, n);
   if (time < t[0] || time > t[n - 1]) return 0.0;
-  size_t k = std::upper_bound(t.begin(), t.end(), time) - t.begin(); // t[k-1] <= time < t[k]
-  k = std::min(std::max<size_t>(k, 1), n - 1);
-  if (n < 4 || k == 1 || k == n - 1) { // linear in the first and last interval
-    const PetscReal a = (time - t[k - 1]) / (t[k] - t[k - 1]);
-    return (1 - a) * w[k - 1] + a * w[k];
-  }
-  PetscReal sum = 0;
-  for (size_t i = k - 2; i <= k + 1; ++i) {
-    PetscReal l = 1;
-    for (size_t j = k - 2; j <= k + 1; ++j)
-      if (j != i) l *= (time - t[j]) / (t[i] - t[j]);
-    sum += l * w[i];
-  }
+  // the four samples around time (t[k0 + 1] <= time < t[k0 + 2]), moved inside at the ends
+  PetscInt k0 = (PetscInt)(std::upper_bound(t.begin(), t.end(), time) - t.begin()) - 2;
+  k0 = std::max<PetscInt>(0, std::min<PetscInt>(k0, n - m));
+  PetscReal l[4], sum = 0;
+  lagrange_weights(t.data() + k0, m, time, l);
+  for (PetscInt a = 0; a < m; ++a) sum += l[a] * w[k0 + a];
   return sum;
 }
 
@@ -574,12 +580,9 @@ PetscErrorCode Survey::data_at(PetscReal t) {
   const PetscInt m = std::min<PetscInt>(4, nt_);
   PetscInt k0 = (PetscInt)std::floor(s) - (m == 4 ? 1 : 0);
   k0 = std::max<PetscInt>(0, std::min<PetscInt>(k0, nt_ - m));
+  const PetscReal nodes[4] = {(PetscReal)k0, (PetscReal)k0 + 1, (PetscReal)k0 + 2, (PetscReal)k0 + 3};
   PetscReal w[4];
-  for (PetscInt a = 0; a < m; ++a) {
-    w[a] = 1;
-    for (PetscInt b = 0; b < m; ++b)
-      if (b != a) w[a] *= (s - (k0 + b)) / (PetscReal)(a - b);
-  }
+  lagrange_weights(nodes, m, s, w);
   for (PetscInt r = 0; r < receivers(); ++r) {
     const PetscReal *tr = traces_.data() + (shot_ * receivers() + r) * nt_;
     PetscReal v = 0;
