@@ -26,18 +26,27 @@ namespace {
 struct ConformanceCase {
   std::string model;
   bool fields;
+  std::string variant; // a name for `options` (empty: none)
+  OptionList options;  // set-up options of a variant whose equations differ (a layer with equations of its own)
+  std::string name() const { return model + (variant.empty() ? "" : "_" + variant) + (fields ? "_fields" : "_scalars"); }
 };
-std::ostream &operator<<(std::ostream &os, const ConformanceCase &c) { return os << c.model << (c.fields ? "_fields" : "_scalars"); }
+std::ostream &operator<<(std::ostream &os, const ConformanceCase &c) { return os << c.name(); }
 
 std::vector<ConformanceCase> registered_cases() {
   std::vector<ConformanceCase> cases;
   for (auto &kv : model_registry())
-    for (bool f : {false, true}) cases.push_back({kv.first, f});
+    for (bool f : {false, true}) cases.push_back({kv.first, f, "", {}});
+  // the wave's perfectly matched layer: four (2D) or two (1D) equations more, and first differences
+  for (bool f : {false, true}) {
+    cases.push_back({"wave", f, "pml", {{"-wave_pml_width", "0.2"}, {"-wave_pml_alpha", "5"}}});
+    cases.push_back({"wave2d", f, "pml", {{"-wave2d_pml_width", "0.2"}, {"-wave2d_pml_alpha", "5"}}});
+    cases.push_back({"wave2d", f, "pml_order8", {{"-wave2d_pml_width", "0.3"}, {"-fd_order", "8"}, {"-da_grid_y", "20"}}});
+  }
   return cases;
 }
 
 // A small scene of the model: few points, a short horizon, stable explicit steps.
-void small_scene(ScopedOptions &o, const std::string &model) {
+void small_scene(ScopedOptions &o, const std::string &model, const OptionList &variant = {}) {
   o.set("-model", model);
   o.set("-da_grid_x", "24");
   o.set("-da_grid_y", "16");
@@ -47,12 +56,13 @@ void small_scene(ScopedOptions &o, const std::string &model) {
   o.set("-wave2d_ic", "pulse");
   // advection declares its diffusivity only with diffusion on: on here, so that D is checked too
   o.set("-advection_diffusion", "1");
+  for (auto &kv : variant) o.set(kv.first, kv.second);
 }
 
 // The names of the model's parameters (a throwaway set-up).
-std::vector<std::string> parameter_names(const std::string &model) {
+std::vector<std::string> parameter_names(const std::string &model, const OptionList &variant) {
   ScopedOptions o;
-  small_scene(o, model);
+  small_scene(o, model, variant);
   Scene s;
   std::vector<std::string> names;
   if (s.setup(PETSC_COMM_WORLD)) return names;
@@ -64,8 +74,8 @@ class ModelConformance : public ::testing::TestWithParam<ConformanceCase> {
 protected:
   void SetUp() override {
     const ConformanceCase c = GetParam();
-    small_scene(opts_, c.model);
-    names_ = parameter_names(c.model);
+    small_scene(opts_, c.model, c.options);
+    names_ = parameter_names(c.model, c.options);
     if (c.fields)
       for (auto &n : names_) opts_.set("-" + n + "_field", "1");
     PETSC_ASSERT_OK(scene.setup(PETSC_COMM_WORLD));
@@ -277,6 +287,4 @@ TEST_P(ModelConformance, GradientTaylorCentralDifferenceAndRanks) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Registry, ModelConformance, ::testing::ValuesIn(registered_cases()),
-                         [](const ::testing::TestParamInfo<ConformanceCase> &i) {
-                           return i.param.model + (i.param.fields ? "_fields" : "_scalars");
-                         });
+                         [](const ::testing::TestParamInfo<ConformanceCase> &i) { return i.param.name(); });

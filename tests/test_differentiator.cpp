@@ -172,6 +172,34 @@ INSTANTIATE_TEST_SUITE_P(SecondDerivative, Convergence,
                          ::testing::Values(OrderCase{2, 1.8, 2.3}, OrderCase{4, 3.6, 4.5}, OrderCase{8, 7.5, 8.6}),
                          [](const ::testing::TestParamInfo<OrderCase> &i) { return "order" + std::to_string(i.param.order); });
 
+// FirstDerivative's weights: the order of the centred first difference of a smooth periodic function,
+// and exactness on polynomials up to that order.
+TEST_P(Convergence, FirstDerivativeOrder) {
+  const OrderCase oc = GetParam();
+  const int R = (int)oc.order / 2;
+  auto error = [&](PetscInt n) {
+    const PetscReal h = 1.0 / n;
+    PetscReal e = 0;
+    for (PetscInt i = 0; i < n; ++i) {
+      const PetscReal x = i * h;
+      PetscReal s = 0;
+      for (int k = 1; k <= R; ++k)
+        s += FirstDerivative::weight((int)oc.order, k) * (std::exp(std::sin(2 * pi * (x + k * h))) - std::exp(std::sin(2 * pi * (x - k * h))));
+      e = std::max(e, std::fabs(s / h - 2 * pi * std::cos(2 * pi * x) * std::exp(std::sin(2 * pi * x))));
+    }
+    return e;
+  };
+  const PetscReal rate = std::log2(error(32) / error(64));
+  std::printf("  [first derivative, order %d]  observed order %.3f\n", (int)oc.order, (double)rate);
+  EXPECT_GE(rate, oc.lo);
+  EXPECT_LE(rate, oc.hi);
+  for (int m = 1; m <= oc.order; ++m) { // d/dx x^m at 0 is 1 for m = 1, else 0
+    PetscReal s = 0;
+    for (int k = 1; k <= R; ++k) s += FirstDerivative::weight((int)oc.order, k) * (std::pow(k, m) - std::pow(-k, m));
+    EXPECT_NEAR(s, m == 1 ? 1.0 : 0.0, 1e-13) << "x^" << m;
+  }
+}
+
 TEST(SecondDerivative, StencilWeightsNearWall) {
   // Order 4, Dirichlet: row 1 reflects u_{-1} = -u_1 onto itself (merged), so it has 3 entries:
   // (-30 + 1)/12 at j=1, 16/12 at j=2, -1/12 at j=3 (the wall value at j=0 is zero and omitted).

@@ -14,6 +14,10 @@
 //     stencil is cut at the ends): the operator of a loop that updates all n points with zero
 //     neighbours beyond them, symmetric as well.
 // Periodic grids wrap. Options: -fd_order 2|4|8.
+//
+// FirstDerivative: the centred first differences of the same orders for d/dx,
+//   sum_{k=1..R} c_k (u_{i+k} - u_{i-k}) / h:
+//   order 2: c = (1/2);  order 4: c = (2/3, -1/12);  order 8: c = (4/5, -1/5, 4/105, -1/280)
 #pragma once
 #include "flexipde/grid.hpp"
 #include <array>
@@ -23,6 +27,14 @@ namespace flexipde {
 struct StencilEntry {
   PetscInt j;       // global grid index in [0, n)
   PetscReal weight; // already divided by h^2
+};
+
+struct FirstDerivative {
+  // c_k of the centred stencil of this order (2, 4 or 8), 1 <= k <= order / 2.
+  static constexpr PetscReal weight(int order, int k) {
+    constexpr PetscReal c2[1] = {0.5}, c4[2] = {2.0 / 3, -1.0 / 12}, c8[4] = {4.0 / 5, -1.0 / 5, 4.0 / 105, -1.0 / 280};
+    return order == 2 ? c2[k - 1] : order == 4 ? c4[k - 1] : c8[k - 1];
+  }
 };
 
 class SecondDerivative {

@@ -6,6 +6,13 @@
 // values that generate synthetic data (-true_wave_c, -true_wave_c_profile ...), -objective_type
 // (l2sq, l2: misfit with data; mean_square, time_variation: no data), -objective_component, and
 // PETSc's -ts_* for the integrator.
+//
+// Shots in parallel (-shot_groups G, for -objective_type receivers): the ranks split into G groups of
+// equal size (MPI_Comm_split), each holding its own copy of the scene on its ranks and running a
+// contiguous block of the shots. value() and gradient() take p in this scene's layout (every rank's),
+// hand it to the groups, and sum the misfits and gradients of all groups back into it (a PetscSF
+// between the two layouts), so that TAO and everything else see one scene. Monitors (-ts_monitor)
+// print once per group.
 #pragma once
 #include "flexipde/model.hpp"
 #include "flexipde/objective.hpp"
@@ -36,6 +43,9 @@ public:
   PetscErrorCode gradient(Vec p, PetscReal *J, Vec grad_p);
 
   MPI_Comm comm() const { return comm_; }
+  // The simulation that ran the last shots (the group's with -shot_groups), for its statistics.
+  const Simulation &solver() const { return group_ ? group_->sim : sim; }
+  PetscInt shot_groups() const { return groups_; }
   Grid grid;
   OwnedDM state_dm;
   std::unique_ptr<Model> model;
@@ -43,9 +53,23 @@ public:
   SelectedObjective objective;
   Simulation sim;
 
+  ~Scene();
+
 private:
+  // The shots [first, end) this scene runs (all of them when not a group's).
+  PetscInt first_shot() const { return first_shot_; }
+  PetscInt end_shot() const;
+  PetscErrorCode setup_groups(const SceneDefaults &defaults);
+  PetscErrorCode to_group(Vec p); // group_p_ = p in the group's layout
+
   MPI_Comm comm_ = MPI_COMM_NULL;
   PetscInt component_ = 0;
+  PetscInt groups_ = 1, first_shot_ = 0, end_shot_ = -1;
+  bool in_group_ = false;
+  MPI_Comm group_comm_ = MPI_COMM_NULL; // owned, freed after group_
+  std::unique_ptr<Scene> group_;
+  PetscSF to_group_ = nullptr; // roots: this scene's parameter entries; leaves: the group's
+  OwnedVec group_p_, group_g_;
 };
 
 } // namespace flexipde

@@ -108,6 +108,12 @@ public:
   // Ends the recording; checks every sample was recorded and writes -survey_data_write if set.
   PetscErrorCode end_recording();
   bool recording() const { return recording_; }
+  // Shot groups (Scene, -shot_groups): this survey fires shots [first, end) alone; its recording checks
+  // those and writes no file.
+  void fire_only(PetscInt first, PetscInt end) { first_ = first, end_ = end; }
+  // The traces that `group` recorded or read for its shots, from every group into this survey's (rank 0
+  // of its communicator, which spans the groups); then -survey_data_write if set. Collective.
+  PetscErrorCode gather_recording(const Survey &group);
   // Reads -survey_data_file into the traces; false in *read when no file was given.
   PetscErrorCode read_data(PetscReal final_time, PetscBool *read);
   PetscErrorCode write_data(const char *file) const;
@@ -138,6 +144,7 @@ private:
   MPI_Comm comm_ = MPI_COMM_NULL;
   PetscMPIInt rank_ = 0;
   PetscInt component_ = 0, dof_ = 1, nshots_ = 1, shot_ = 0, nt_ = 0;
+  PetscInt first_ = 0, end_ = -1; // the shots fired (end -1: all)
   std::vector<PetscReal> src_x_, src_y_, rec_x_, rec_y_;
   std::vector<PointSource> sources_;
   Interpolation interpolation_ = Interpolation::Linear;

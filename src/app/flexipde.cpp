@@ -26,6 +26,7 @@
 #include "flexipde/inversion.hpp"
 #include "flexipde/io.hpp"
 #include "flexipde/scene.hpp"
+#include "flexipde/survey.hpp"
 #include "flexipde/taylor.hpp"
 #include <string>
 
@@ -176,7 +177,7 @@ static PetscErrorCode time_once(MPI_Comm comm, Scene &scene, Vec p, Vec U, Vec g
   double t1 = MPI_Wtime();
   PetscCall(scene.gradient(p, &J, g));
   PetscCallMPI(MPI_Barrier(comm));
-  *t = {t1 - t0, MPI_Wtime() - t1, scene.sim.stats().solve_seconds, scene.sim.stats().adjoint_seconds};
+  *t = {t1 - t0, MPI_Wtime() - t1, scene.solver().stats().solve_seconds, scene.solver().stats().adjoint_seconds};
   PetscFunctionReturn(0);
 }
 
@@ -304,6 +305,12 @@ static PetscErrorCode run(MPI_Comm comm) {
   else
     PetscCall(PetscPrintf(comm, "flexipde: model %s, %" PetscInt_FMT " points, %" PetscInt_FMT " parameters\n",
                           scene.model->name(), scene.grid.n(), scene.params.global_size()));
+  if (scene.shot_groups() > 1) {
+    PetscMPIInt size;
+    PetscCallMPI(MPI_Comm_size(comm, &size));
+    PetscCall(PetscPrintf(comm, "shots: %" PetscInt_FMT " in %" PetscInt_FMT " groups of %d ranks\n",
+                          scene.objective.survey()->shots(), scene.shot_groups(), size / (int)scene.shot_groups()));
+  }
 
   if (task == 0) {
     PetscReal nrm;
@@ -328,8 +335,8 @@ static PetscErrorCode run(MPI_Comm comm) {
     PetscCall(scene.gradient(p, &J, g));
     PetscCall(VecNorm(g, NORM_2, &gn));
     PetscCall(PetscPrintf(comm, "gradient: J = %.12e, ||dJ/dp|| = %.12e (%s, %" PetscInt_FMT " steps)\n", (double)J,
-                          (double)gn, scene.sim.stats().ts_type, scene.sim.stats().steps));
-    const CheckpointStats &cs = scene.sim.checkpoint_stats();
+                          (double)gn, scene.solver().stats().ts_type, scene.solver().stats().steps));
+    const CheckpointStats &cs = scene.solver().checkpoint_stats();
     PetscCall(PetscPrintf(comm,
                           "checkpointing: budget %" PetscInt_FMT " (0: full storage), %" PetscInt_FMT
                           " states stored at most, %" PetscInt64_FMT " steps recomputed, binomial optimum %" PetscInt64_FMT "\n",

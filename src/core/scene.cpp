@@ -1,6 +1,7 @@
 #include "flexipde/scene.hpp"
 #include "flexipde/survey.hpp"
 #include <cstring>
+#include <map>
 
 namespace flexipde {
 
@@ -12,6 +13,10 @@ PetscErrorCode Scene::setup(MPI_Comm comm, const SceneDefaults &d) {
   std::strncpy(model_name, d.model.c_str(), sizeof(model_name) - 1);
   model_name[sizeof(model_name) - 1] = 0;
   PetscOptionsBegin(comm, nullptr, "Scene", "Scene");
+  if (!in_group_)
+    PetscCall(PetscOptionsInt("-shot_groups", "Split the ranks into this many groups, each running a block of the "
+                              "shots on its own copy of the grid (-objective_type receivers)", "Scene", groups_, &groups_,
+                              nullptr));
   PetscCall(PetscOptionsString("-model", ("Model: " + model_names()).c_str(), "Scene", model_name, model_name,
                                sizeof(model_name), nullptr));
   PetscCall(PetscOptionsString("-objective_component", "Component of U(T) compared with the data (default: the first)",
@@ -39,6 +44,96 @@ PetscErrorCode Scene::setup(MPI_Comm comm, const SceneDefaults &d) {
   PetscCall(sim.setup(*model, grid, state_dm, params));
   sim.set_default_time(d.dt, d.final_time);
   sim.set_objective(&objective);
+  if (groups_ != 1) PetscCall(setup_groups(d));
+  PetscFunctionReturn(0);
+}
+
+Scene::~Scene() {
+  group_.reset();
+  if (to_group_) (void)PetscSFDestroy(&to_group_);
+  if (group_comm_ != MPI_COMM_NULL) (void)MPI_Comm_free(&group_comm_);
+}
+
+PetscInt Scene::end_shot() const {
+  const Survey *sv = objective.survey();
+  return end_shot_ >= 0 ? end_shot_ : sv ? sv->shots() : 1;
+}
+
+PetscErrorCode Scene::setup_groups(const SceneDefaults &d) {
+  PetscMPIInt size, rank;
+  Survey *sv = objective.survey();
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_size(comm_, &size));
+  PetscCallMPI(MPI_Comm_rank(comm_, &rank));
+  PetscCheck(groups_ >= 1 && size % groups_ == 0, comm_, PETSC_ERR_ARG_OUTOFRANGE,
+             "-shot_groups %" PetscInt_FMT ": the %d ranks do not split into that many groups of equal size", groups_, size);
+  PetscCheck(sv, comm_, PETSC_ERR_ARG_WRONG, "-shot_groups needs shots: -objective_type receivers with -survey_sources_x");
+  PetscCheck(sv->shots() >= groups_, comm_, PETSC_ERR_ARG_OUTOFRANGE,
+             "-shot_groups %" PetscInt_FMT " with %" PetscInt_FMT " shots: a group would have none", groups_, sv->shots());
+  const PetscMPIInt per_group = size / (PetscMPIInt)groups_, color = rank / per_group;
+  PetscCallMPI(MPI_Comm_split(comm_, color, rank, &group_comm_));
+  group_ = std::make_unique<Scene>();
+  group_->in_group_ = true;
+  group_->first_shot_ = color * sv->shots() / groups_;
+  group_->end_shot_ = (color + 1) * sv->shots() / groups_;
+  PetscCall(group_->setup(group_comm_, d));
+  group_->objective.survey()->fire_only(group_->first_shot_, group_->end_shot_);
+  PetscCall(group_->params.create_vec(group_p_.out()));
+  PetscCall(VecDuplicate(group_p_, group_g_.out()));
+
+  // Where each of the group's parameter entries lives in this scene's layout: the scalars and vectors
+  // at the same offsets on rank 0, a field's value at point (i, j) on the rank that owns (i, j), at
+  // that field's offset there plus the point's index in its box.
+  struct Box {
+    PetscInt xs, ys, xm, ym, first_field; // owned box, and the local offset of the first field
+  };
+  PetscInt first_field = params.local_size();
+  for (PetscInt k = 0; k < params.count(); ++k)
+    if (params.info(k).kind == ParamKind::Field) first_field = std::min(first_field, params.info(k).local_offset);
+  Box mine = {grid.xs(), grid.ys(), grid.xm(), grid.ym(), first_field};
+  std::vector<Box> boxes(size);
+  PetscCallMPI(MPI_Allgather(&mine, 5, MPIU_INT, boxes.data(), 5, MPIU_INT, comm_));
+  std::vector<PetscInt> column(grid.n()), row(grid.ny()); // a box's first index for each column and row
+  std::map<std::pair<PetscInt, PetscInt>, PetscMPIInt> owner;
+  for (PetscMPIInt r = 0; r < size; ++r) {
+    const Box &b = boxes[r];
+    for (PetscInt i = b.xs; i < b.xs + b.xm; ++i) column[i] = b.xs;
+    for (PetscInt j = b.ys; j < b.ys + b.ym; ++j) row[j] = b.ys;
+    owner[{b.xs, b.ys}] = r;
+  }
+  const Grid &gg = group_->grid;
+  const Parameters &gp = group_->params;
+  std::vector<PetscSFNode> remote((size_t)gp.local_size());
+  PetscInt field_ordinal = 0;
+  for (PetscInt k = 0; k < gp.count(); ++k) {
+    const ParamInfo &info = gp.info(k);
+    if (info.kind != ParamKind::Field) {
+      for (PetscInt e = 0; e < info.local_size; ++e) remote[info.local_offset + e] = {0, params.info(k).local_offset + e};
+      continue;
+    }
+    for (PetscInt q = 0; q < info.local_size; ++q) {
+      const PetscInt i = gg.xs() + q % gg.xm(), j = gg.ys() + q / gg.xm();
+      const PetscMPIInt r = owner[{column[i], row[j]}];
+      const Box &b = boxes[r];
+      remote[info.local_offset + q] = {r, b.first_field + field_ordinal * b.xm * b.ym + (j - b.ys) * b.xm + (i - b.xs)};
+    }
+    ++field_ordinal;
+  }
+  PetscCall(PetscSFCreate(comm_, &to_group_));
+  PetscCall(PetscSFSetGraph(to_group_, params.local_size(), gp.local_size(), nullptr, PETSC_COPY_VALUES, remote.data(),
+                            PETSC_COPY_VALUES));
+  PetscCall(PetscSFSetUp(to_group_));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Scene::to_group(Vec p) {
+  PetscFunctionBeginUser;
+  ConstArray a(p);
+  Array b(group_p_);
+  PetscCall(a.error());
+  PetscCall(b.error());
+  PetscCall(PetscSFBcastBegin(to_group_, MPIU_SCALAR, a.data(), b.data(), MPI_REPLACE));
+  PetscCall(PetscSFBcastEnd(to_group_, MPIU_SCALAR, a.data(), b.data(), MPI_REPLACE));
   PetscFunctionReturn(0);
 }
 
@@ -54,6 +149,13 @@ PetscErrorCode Scene::parameters_from_options(const char *prefix, Vec p) const {
 PetscErrorCode Scene::make_synthetic_data(Vec p_true) {
   OwnedVec U;
   PetscFunctionBeginUser;
+  if (group_) {
+    // Each group records (or reads) the traces of its shots; this scene gathers them (and writes them).
+    PetscCall(to_group(p_true));
+    PetscCall(group_->make_synthetic_data(group_p_));
+    PetscCall(objective.survey()->gather_recording(*group_->objective.survey()));
+    PetscFunctionReturn(0);
+  }
   if (Survey *sv = objective.survey()) {
     // Observed traces from -survey_data_file, else recorded from p_true at every step.
     PetscBool read;
@@ -62,7 +164,7 @@ PetscErrorCode Scene::make_synthetic_data(Vec p_true) {
     if (read) PetscFunctionReturn(0);
     PetscCall(DMCreateGlobalVector(state_dm, U.out()));
     PetscCall(sv->begin_recording(sim.stats().dt, sim.stats().final_time));
-    for (PetscInt s = 0; s < sv->shots(); ++s) {
+    for (PetscInt s = first_shot(); s < end_shot(); ++s) {
       PetscReal J;
       PetscCall(sv->select_shot(s));
       PetscCall(sim.initial_condition(p_true, U));
@@ -70,7 +172,7 @@ PetscErrorCode Scene::make_synthetic_data(Vec p_true) {
       PetscCall(sim.value(p_true, &J));
     }
     PetscCall(sv->end_recording());
-    PetscCall(sv->select_shot(0));
+    PetscCall(sv->select_shot(first_shot()));
     PetscFunctionReturn(0);
   }
   if (!objective.data()) PetscFunctionReturn(0);
@@ -85,15 +187,31 @@ PetscErrorCode Scene::make_synthetic_data(Vec p_true) {
 
 namespace flexipde {
 
+// The sum over the groups of a value every rank of each group holds (collective on the scene's ranks).
+static PetscErrorCode sum_over_groups(MPI_Comm comm, MPI_Comm group, PetscReal *v) {
+  PetscMPIInt grank;
+  PetscFunctionBeginUser;
+  PetscCallMPI(MPI_Comm_rank(group, &grank));
+  PetscReal mine = grank == 0 ? *v : 0;
+  PetscCallMPI(MPI_Allreduce(&mine, v, 1, MPIU_REAL, MPI_SUM, comm));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode Scene::value(Vec p, PetscReal *J) {
   Survey *sv = objective.survey();
   PetscFunctionBeginUser;
+  if (group_) {
+    PetscCall(to_group(p));
+    PetscCall(group_->value(group_p_, J));
+    PetscCall(sum_over_groups(comm_, group_comm_, J));
+    PetscFunctionReturn(0);
+  }
   if (!sv) {
     PetscCall(sim.value(p, J));
     PetscFunctionReturn(0);
   }
   *J = 0;
-  for (PetscInt s = 0; s < sv->shots(); ++s) {
+  for (PetscInt s = first_shot(); s < end_shot(); ++s) {
     PetscReal Js;
     PetscCall(sv->select_shot(s));
     PetscCall(sim.value(p, &Js));
@@ -106,8 +224,23 @@ PetscErrorCode Scene::gradient(Vec p, PetscReal *J, Vec grad_p) {
   Survey *sv = objective.survey();
   OwnedVec gs;
   PetscFunctionBeginUser;
-  if (!sv || sv->shots() == 1) {
-    if (sv) PetscCall(sv->select_shot(0));
+  if (group_) {
+    PetscCall(to_group(p));
+    PetscCall(group_->gradient(group_p_, J, grad_p ? group_g_.get() : nullptr));
+    PetscCall(sum_over_groups(comm_, group_comm_, J));
+    if (grad_p) {
+      PetscCall(VecSet(grad_p, 0.0));
+      ConstArray a(group_g_);
+      Array b(grad_p);
+      PetscCall(a.error());
+      PetscCall(b.error());
+      PetscCall(PetscSFReduceBegin(to_group_, MPIU_SCALAR, a.data(), b.data(), MPI_SUM));
+      PetscCall(PetscSFReduceEnd(to_group_, MPIU_SCALAR, a.data(), b.data(), MPI_SUM));
+    }
+    PetscFunctionReturn(0);
+  }
+  if (!sv || end_shot() - first_shot() == 1) {
+    if (sv) PetscCall(sv->select_shot(first_shot()));
     PetscCall(sim.gradient(p, J, grad_p, nullptr));
     PetscFunctionReturn(0);
   }
@@ -116,7 +249,7 @@ PetscErrorCode Scene::gradient(Vec p, PetscReal *J, Vec grad_p) {
     PetscCall(VecSet(grad_p, 0.0));
     PetscCall(VecDuplicate(grad_p, gs.out()));
   }
-  for (PetscInt s = 0; s < sv->shots(); ++s) {
+  for (PetscInt s = first_shot(); s < end_shot(); ++s) {
     PetscReal Js;
     PetscCall(sv->select_shot(s));
     PetscCall(sim.gradient(p, &Js, gs, nullptr));

@@ -3,16 +3,28 @@
 //
 //   u_t = v,    v_t = c(x)^2 Lap_h u - sigma(x) v + w(t) delta_h(x - x_s),
 //
-// Lap_h u = sum_d (w_0 u + sum_{k=1..R} w_k (u(x - k h_d e_d) + u(x + k h_d e_d))) / h_d^2, the centred
-// second differences of order 2R (-fd_order 2|4|8, weights in differentiator.hpp). The last term is a
-// point source (survey.hpp).
+// Lap_h u = sum_d L_d u, L_d u = (w_0 u + sum_{k=1..R} w_k (u(x - k h_d e_d) + u(x + k h_d e_d))) / h_d^2,
+// the centred second differences of order 2R (-fd_order 2|4|8, weights in differentiator.hpp). The
+// last term is a point source (survey.hpp).
 // Ends of non-periodic directions (-<m>_boundary): "walls" (default) holds the end points at u = v = 0
 // and gives them no equation, the state beyond a wall being the odd reflection of the inside (so that
 // the fourth-order stencil next to a wall stays consistent with u = 0 on it); "zero_outside" updates
 // every point and takes the values outside the grid as 0.
-// sigma is an absorbing sponge along the walls, sigma_max (d / W)^2 at depth d into a layer of width W
-// (-<m>_sponge_width W, -<m>_sponge_strength sigma_max; W = 0, the 1D default: none). Without it the
-// system is in second-order form (G_u = v, G_v independent of v) and the leapfrog applies.
+//
+// Absorbing layers along the walls, of width W, at fraction s_d = (W - depth_d)/W into the layer along d:
+//   sponge (-<m>_sponge_width W, -<m>_sponge_strength sigma_max; W = 0.15 in 2D, 0 in 1D):
+//     sigma = sigma_max s^2 (s from the nearest wall). Without it the system is in second-order form
+//     (G_u = v, G_v independent of v) and the leapfrog applies.
+//   perfectly matched layer (-<m>_pml_width W, -<m>_pml_strength sigma_max, -<m>_pml_alpha alpha_max):
+//     the complex-frequency-shifted stretching d/dx_d -> (1/s_d) d/dx_d, s_d = 1 + sigma_d/(alpha_d + i omega),
+//     sigma_d = sigma_max s_d^2, alpha_d = alpha_max (1 - s_d), applied twice to u_tt = c^2 sum_d u_{x_d x_d}.
+//     Each application is a memory variable (1/s - 1) f = psi, psi_t = -(alpha + sigma) psi - sigma f:
+//       v_t     = c^2 sum_d (L_d u + D_d phi_d + chi_d) + w(t) delta_h,
+//       phi_d,t = -(alpha_d + sigma_d) phi_d - sigma_d D_d u,
+//       chi_d,t = -(alpha_d + sigma_d) chi_d - sigma_d (L_d u + D_d phi_d),
+//     D_d the centred first difference of order 2R. phi and chi start at 0 and stay 0 outside the layer,
+//     where the equation is the plain wave's. The default sigma_max = 1.5 ln(1000) / W is the strength
+//     whose continuous reflection is 1e-3 for c = 1 (scale it with c).
 // The parameter c is one scalar (-<m>_c_field 0) or a field (-<m>_c_field 1), never below -<m>_c_min.
 // <m> is "wave" in 1D and "wave2d" in 2D.
 //
@@ -38,28 +50,39 @@
 //   mpiexec -n 2 ./flexipde -model wave2d -task taylor -da_grid_x 41 -da_grid_y 41 -wave2d_c_field 1
 //           -true_wave2d_c 1.1 -objective_type receivers -survey_sources_x 0.5 -survey_sources_y 0.3
 //           -survey_receivers_spread 0.2,0.8,7 -survey_receivers_y 0.7 -ts_max_time 0.6 -ts_dt 2e-3
+//   mpiexec -n 2 ./flexipde -model wave2d -task gradient -wave2d_pml_width 0.15 -wave2d_c_field 1
+//           -true_wave2d_c 1.1 -objective_type receivers -survey_sources_x 0.5 -survey_sources_y 0.5
+//           -survey_receivers_spread 0.2,0.8,7 -survey_receivers_y 0.7 -ts_max_time 0.6 -ts_dt 2e-3
 //   (each one command line)
 #include "flexipde/differentiator.hpp"
 #include "flexipde/pointwise.hpp"
 
 namespace flexipde {
 
-// D dimensions, stencil radius R (order 2R), with or without the sponge (Damped).
-template <int D, int R, bool Damped>
+enum class Absorber { None, Sponge, Pml };
+
+// D dimensions, stencil radius R (order 2R), with no absorbing layer, the sponge or the PML.
+template <int D, int R, Absorber A>
 class AcousticWave {
+  static constexpr bool Damped = A == Absorber::Sponge, Pml = A == Absorber::Pml;
+
 public:
-  static constexpr int dim = D, components = 2, radius = R, parameters = 1;
+  // u, v, and with the PML phi_d (2 + d) and chi_d (2 + D + d)
+  static constexpr int dim = D, components = Pml ? 2 + 2 * D : 2, radius = R, parameters = 1;
   static constexpr int second_order_pairs = 1, forced_component = 1;
   static constexpr int coefficients = Damped ? 1 : 0; // the sponge's sigma(x)
   static constexpr bool linear = true;
   enum Parameter { c = 0 };
 
   const char *name() const { return D == 1 ? "wave" : "wave2d"; }
-  const char *component_name(int k) const { return k == 0 ? "u" : "v"; }
+  const char *component_name(int k) const {
+    static const char *names[] = {"u", "v", "phi_x", "phi_y", "phi_z", "chi_x", "chi_y", "chi_z"};
+    return k < 2 ? names[k] : k < 2 + D ? names[k] : names[5 + (k - 2 - D)];
+  }
   void grid_defaults(GridOptions &o) const {
     if (D == 2) o.n = o.ny = 101;
   }
-  bool second_order_active() const { return !Damped; }
+  bool second_order_active() const { return A == Absorber::None; }
   bool odd_walls() const { return boundary_ == Walls; }
   // The walls have no equation: the stencils read them as 0 whatever the state holds (no wall columns in dG/dU).
   bool held_walls() const { return boundary_ == Walls; }
@@ -68,7 +91,7 @@ public:
   PetscErrorCode setup(const Grid &grid, Declarations &decl) {
     const char *ics[] = {"travelling", "rest", "zero", "two_level", "pulse"}, *ends[] = {"walls", "zero_outside"};
     const std::string prefix = std::string(name()) + "_", title = std::string("Acoustic wave u_tt = c^2 Lap u (") + name() + ")";
-    PetscBool c_field = PETSC_FALSE;
+    PetscBool c_field = PETSC_FALSE, sponge_set = PETSC_FALSE;
     PetscReal c_min = 0.01;
     PetscFunctionBeginUser;
     ic_ = D == 1 ? Travelling : Zero;
@@ -89,11 +112,25 @@ public:
     PetscCall(PetscOptionsEList("-boundary", "Ends of non-periodic directions: walls (the end points held at 0) or "
                                 "zero_outside (all points updated, values outside the grid 0)", "Wave", ends, 2, ends[boundary_],
                                 &boundary_, nullptr));
-    PetscCall(PetscOptionsReal("-sponge_width", "Width W of the absorbing layer along each wall (0: none)", "Wave",
-                               sponge_width_, &sponge_width_, nullptr));
-    PetscCall(PetscOptionsReal("-sponge_strength", "Damping sigma_max at the outer edge of the layer", "Wave", sigma_max_,
+    PetscCall(PetscOptionsReal("-sponge_width", "Width W of the absorbing sponge along each wall (0: none)", "Wave",
+                               sponge_width_, &sponge_width_, &sponge_set));
+    PetscCall(PetscOptionsReal("-sponge_strength", "Damping sigma_max at the outer edge of the sponge", "Wave", sigma_max_,
                                &sigma_max_, nullptr));
+    PetscCall(PetscOptionsReal("-pml_width", "Width W of the perfectly matched layer along each wall (0: none; replaces "
+                               "the sponge)", "Wave", pml_width_, &pml_width_, nullptr));
+    pml_strength_ = pml_width_ > 0 ? 1.5 * std::log(1000.0) / pml_width_ : 0;
+    PetscCall(PetscOptionsReal("-pml_strength", "PML damping sigma_max at its outer edge (default 1.5 ln(1000)/W: "
+                               "reflection 1e-3 for c = 1)", "Wave", pml_strength_, &pml_strength_, nullptr));
+    PetscCall(PetscOptionsReal("-pml_alpha", "PML frequency shift alpha_max at its inner edge (0 at the outer edge)", "Wave",
+                               pml_alpha_, &pml_alpha_, nullptr));
     PetscOptionsEnd();
+    if (pml_width_ > 0 && !sponge_set) sponge_width_ = 0;
+    PetscCheck(pml_width_ >= 0 && pml_strength_ >= 0 && pml_alpha_ >= 0, grid.comm(), PETSC_ERR_ARG_OUTOFRANGE,
+               "-%spml_width, -%spml_strength and -%spml_alpha must be non-negative", prefix.c_str(), prefix.c_str(),
+               prefix.c_str());
+    PetscCheck(!(pml_width_ > 0 && sponge_width_ > 0), grid.comm(), PETSC_ERR_ARG_INCOMP,
+               "-%spml_width and -%ssponge_width: choose one absorbing layer (the other's width 0)", prefix.c_str(),
+               prefix.c_str());
     PetscCheck(c_min > 0, grid.comm(), PETSC_ERR_ARG_OUTOFRANGE, "-%sc_min must be positive, got %g", prefix.c_str(), (double)c_min);
     PetscCheck(ic_width_ > 0, grid.comm(), PETSC_ERR_ARG_OUTOFRANGE, "-%sic_width must be positive, got %g", prefix.c_str(),
                (double)ic_width_);
@@ -111,25 +148,45 @@ public:
       periodic_[d] = d == 0 ? grid.periodic() : grid.periodic_y();
       n_[d] = d == 0 ? grid.n() : grid.ny();
       any_wall = any_wall || !periodic_[d];
+      PetscCheck(periodic_[d] || 2 * pml_width_ < hi_[d] - lo_[d], grid.comm(), PETSC_ERR_ARG_OUTOFRANGE,
+                 "-%spml_width %g: the layers of two opposite walls would overlap (the domain is %g wide)", prefix.c_str(),
+                 (double)pml_width_, (double)(hi_[d] - lo_[d]));
     }
+    PetscCheck(!Pml || any_wall, grid.comm(), PETSC_ERR_ARG_WRONG, "-%spml_width: the grid has no wall to absorb at "
+               "(-grid_periodic 0)", prefix.c_str());
     PetscCheck(boundary_ == Walls || any_wall, grid.comm(), PETSC_ERR_ARG_WRONG,
                "-%sboundary zero_outside needs a non-periodic grid (-grid_periodic 0)", prefix.c_str());
     decl.parameter(c, prefix + "c", c_field, c_min, 1.0);
     PetscFunctionReturn(0);
   }
 
-  // G = [v ; c^2 Lap u - sigma v], 0 on the walls.
+  // G = [v ; c^2 Lap u - sigma v], or with the PML [v ; c^2 sum_d (L_d u + D_d phi_d + chi_d) ; G_phi ; G_chi];
+  // 0 on the walls.
   template <class P> void rhs(const P &pt, typename P::Number *g) const {
     using T = typename P::Number;
     if (held(pt)) {
-      g[0] = g[1] = T(0.0);
+      for (int k = 0; k < components; ++k) g[k] = T(0.0);
       return;
     }
     T lap = T(0.0);
     for (int d = 0; d < D; ++d) {
       T s = weight(0) * pt.u(0, 0);
-      for (int k = 1; k <= R; ++k) s += weight(k) * (d == 0 ? pt.u(0, -k) + pt.u(0, k) : pt.u(0, 0, -k) + pt.u(0, 0, k));
-      lap += s * sqr(pt.inv_h(d));
+      for (int k = 1; k <= R; ++k) s += weight(k) * (along(pt, 0, d, -k) + along(pt, 0, d, k));
+      s *= sqr(pt.inv_h(d));
+      if constexpr (Pml) {
+        const int phi = 2 + d, chi = 2 + D + d;
+        const PetscReal f = layer_fraction(pt, d), sigma = pml_strength_ * f * f, decay = sigma + pml_alpha_ * (1 - f);
+        T du = T(0.0), dphi = T(0.0);
+        for (int k = 1; k <= R; ++k) {
+          du += first_weight(k) * (along(pt, 0, d, k) - along(pt, 0, d, -k));
+          dphi += first_weight(k) * (along(pt, phi, d, k) - along(pt, phi, d, -k));
+        }
+        s += dphi * pt.inv_h(d); // (1/s_d) d/dx_d of (1/s_d) du/dx_d, less its memory chi_d
+        g[phi] = -decay * pt.u(phi, 0) - sigma * (du * pt.inv_h(d));
+        g[chi] = -decay * pt.u(chi, 0) - sigma * s;
+        s += pt.u(chi, 0);
+      }
+      lap += s;
     }
     g[0] = pt.u(1, 0);
     g[1] = sqr(pt.param(c)) * lap;
@@ -139,7 +196,7 @@ public:
 
   template <class P> void initial(const P &pt, typename P::Number *u) const {
     using T = typename P::Number;
-    u[0] = u[1] = T(0.0);
+    for (int k = 0; k < components; ++k) u[k] = T(0.0);
     if (held(pt) || ic_ == Zero) return;
     const PetscReal u0 = pulse(pt, 0.0);
     u[0] = u0;
@@ -163,7 +220,7 @@ public:
   // Eigenvalues of dG/dU: +-i c sqrt(eig(-Lap_h)) in the interior, damped by at most sigma_max.
   PetscErrorCode spectrum(const ParameterBounds &b, Spectrum *s) const {
     s->imag_radius = b.max[c] * std::sqrt(spectral_radius_);
-    s->real_radius = Damped ? sigma_max_ : 0;
+    s->real_radius = Damped ? sigma_max_ : Pml ? pml_strength_ + pml_alpha_ : 0;
     return 0;
   }
   PetscErrorCode check_parameters(const ParameterBounds &b, MPI_Comm comm) const {
@@ -182,6 +239,15 @@ private:
   }
   // The centred second-difference weights: w_0 u_0 + sum_k w_k (u_-k + u_k), over h^2.
   static constexpr double weight(int k) { return SecondDerivative::weight(2 * R, k); }
+  static constexpr double first_weight(int k) { return FirstDerivative::weight(2 * R, k); }
+  // Component q at k points from the point along direction d.
+  template <class P> static auto along(const P &pt, int q, int d, int k) { return d == 0 ? pt.u(q, k) : pt.u(q, 0, k); }
+  // How far into the PML along direction d, from 0 at its inner edge to 1 on the wall (0 outside it).
+  template <class P> PetscReal layer_fraction(const P &pt, int d) const {
+    if (periodic_[d]) return 0;
+    const PetscReal depth = std::min(pt.x(d) - lo_[d], hi_[d] - pt.x(d));
+    return std::max<PetscReal>(0, pml_width_ - depth) / pml_width_;
+  }
   bool on_wall(int d, PetscInt i) const { return !periodic_[d] && (i == 0 || i == n_[d] - 1); }
   template <class P> bool held(const P &pt) const { return boundary_ == Walls && pt.on_wall(); }
   template <class P> PetscReal sponge(const P &pt) const {
@@ -226,6 +292,7 @@ private:
   PetscInt ic_ = Travelling, boundary_ = Walls;
   PetscReal ic_x_[D], ic_width_ = 0.2, dt_ = 0;
   PetscReal sponge_width_ = 0, sigma_max_ = 60.0, spectral_radius_ = 0;
+  PetscReal pml_width_ = 0, pml_strength_ = 0, pml_alpha_ = 10.0;
   PetscReal lo_[D], hi_[D];
   PetscInt n_[D];
   bool periodic_[D];
@@ -236,22 +303,41 @@ public:
   }
 };
 
-// The stencil radius and the sponge are compile-time constants of the sweeps (no branch in their
-// loops): -fd_order and -<m>_sponge_width pick the instance.
-template <int D, int R> std::unique_ptr<Model> make_wave_damped(PetscReal width) {
-  if (width > 0) return std::make_unique<PointwiseModel<AcousticWave<D, R, true>>>();
-  return std::make_unique<PointwiseModel<AcousticWave<D, R, false>>>(); // (a negative width is refused at setup)
+// The stencil radius and the absorbing layer are compile-time constants of the sweeps (no branch in
+// their loops): -fd_order, -<m>_sponge_width and -<m>_pml_width pick the instance. The PML's instances
+// are compiled in wave_pml.cpp, apart from the others.
+template <int D, int R> std::unique_ptr<Model> make_wave_pml();
+#ifndef FLEXIPDE_WAVE_PML_UNIT
+template <int D, int R> std::unique_ptr<Model> make_wave_absorbing(PetscReal sponge, PetscReal pml) {
+  if (pml > 0) return make_wave_pml<D, R>();
+  if (sponge > 0) return std::make_unique<PointwiseModel<AcousticWave<D, R, Absorber::Sponge>>>();
+  return std::make_unique<PointwiseModel<AcousticWave<D, R, Absorber::None>>>(); // (negative widths are refused at setup)
 }
 template <int D> std::unique_ptr<Model> make_wave() {
   PetscInt order = 2;
-  PetscReal width = D == 1 ? 0.0 : 0.15;
+  PetscReal sponge = D == 1 ? 0.0 : 0.15, pml = 0;
+  PetscBool sponge_set = PETSC_FALSE;
+  const std::string m = D == 1 ? "-wave_" : "-wave2d_";
   (void)PetscOptionsGetInt(nullptr, nullptr, "-fd_order", &order, nullptr);
-  (void)PetscOptionsGetReal(nullptr, nullptr, D == 1 ? "-wave_sponge_width" : "-wave2d_sponge_width", &width, nullptr);
-  if (order == 4) return make_wave_damped<D, 2>(width);
-  if (order == 8) return make_wave_damped<D, 4>(width);
-  return make_wave_damped<D, 1>(width); // other orders are refused at setup
+  (void)PetscOptionsGetReal(nullptr, nullptr, (m + "sponge_width").c_str(), &sponge, &sponge_set);
+  (void)PetscOptionsGetReal(nullptr, nullptr, (m + "pml_width").c_str(), &pml, nullptr);
+  if (pml > 0 && !sponge_set) sponge = 0; // (both set: refused at setup)
+  if (order == 4) return make_wave_absorbing<D, 2>(sponge, pml);
+  if (order == 8) return make_wave_absorbing<D, 4>(sponge, pml);
+  return make_wave_absorbing<D, 1>(sponge, pml); // other orders are refused at setup
 }
 
 static const ModelRegistration wave_1d("wave", make_wave<1>), wave_2d("wave2d", make_wave<2>);
+#else
+template <int D, int R> std::unique_ptr<Model> make_wave_pml() {
+  return std::make_unique<PointwiseModel<AcousticWave<D, R, Absorber::Pml>>>();
+}
+template std::unique_ptr<Model> make_wave_pml<1, 1>();
+template std::unique_ptr<Model> make_wave_pml<1, 2>();
+template std::unique_ptr<Model> make_wave_pml<1, 4>();
+template std::unique_ptr<Model> make_wave_pml<2, 1>();
+template std::unique_ptr<Model> make_wave_pml<2, 2>();
+template std::unique_ptr<Model> make_wave_pml<2, 4>();
+#endif
 
 } // namespace flexipde

@@ -376,12 +376,26 @@ PetscErrorCode Survey::record_initial(Vec U0) {
 PetscErrorCode Survey::end_recording() {
   PetscFunctionBeginUser;
   recording_ = false;
-  for (PetscInt s = 0; s < nshots_; ++s)
+  const bool all = end_ < 0;
+  for (PetscInt s = first_; s < (all ? nshots_ : end_); ++s)
     for (PetscInt k = 0; k < nt_; ++k)
       PetscCheck(recorded_[s * nt_ + k], comm_, PETSC_ERR_PLIB,
                  "Synthetic data: the integrator never visited t = %g (sample %" PetscInt_FMT "); record with a fixed step "
                  "of -ts_type rk or cn",
                  (double)(k * sample_dt_), k);
+  if (all && write_file_[0]) PetscCall(write_data(write_file_));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Survey::gather_recording(const Survey &group) {
+  const PetscInt per_shot = receivers() * group.nt_;
+  std::vector<PetscReal> mine((size_t)(nshots_ * per_shot), 0.0);
+  PetscFunctionBeginUser;
+  sample_dt_ = group.sample_dt_, nt_ = group.nt_;
+  if (group.rank_ == 0)
+    for (PetscInt k = group.first_ * per_shot; k < group.end_ * per_shot; ++k) mine[k] = group.traces_[k];
+  traces_.assign(rank_ == 0 ? mine.size() : 0, 0.0);
+  PetscCallMPI(MPI_Reduce(mine.data(), rank_ == 0 ? traces_.data() : nullptr, (int)mine.size(), MPIU_REAL, MPI_SUM, 0, comm_));
   if (write_file_[0]) PetscCall(write_data(write_file_));
   PetscFunctionReturn(0);
 }
