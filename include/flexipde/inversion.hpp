@@ -16,6 +16,12 @@
 // keeping the lowest objective: a terminal snapshot of a wave gives an objective with several
 // nearly equal minima (cycle skipping), and a scan is the honest cure for one unknown.
 //
+// Frequency continuation (-inv_frequency_bands f1,f2,...,0; a survey's misfit): one TAO solve per band,
+// each from the last one's result, with the data and the sources low-pass filtered at f_k (0: the
+// whole band; Scene::set_frequency_band). Low frequencies first widen the basin of the misfit (cycle
+// skipping needs a half-period error); each band then adds detail. The history runs on through the
+// bands; the whole band is restored at the end.
+//
 // Restart: with a checkpoint file set (the driver uses its -output file), every iteration (every N with
 // -inv_checkpoint_every N) rewrites it with /restart/p (the iterate), /restart/iteration and /history
 // (written to <file>.part, then renamed, so an interrupted run leaves the last complete snapshot). -inv_restart <file> starts
@@ -78,6 +84,8 @@ private:
   PetscInt evaluations_ = 0, scan_ = 0, scan_starts_ = 3;
   PetscReal scan_start_ = 0;
   PetscReal frtol_ = 0, previous_f_ = PETSC_MAX_REAL; // -inv_frtol, and the last iteration's objective
+  std::vector<PetscReal> bands_;                       // -inv_frequency_bands
+  bool skip_first_ = false;                            // the resumed iterate is already in the history
   TaoConvergedReason reason_ = TAO_CONTINUE_ITERATING;
   PetscInt iterations_ = 0;
   std::vector<HistoryEntry> history_;

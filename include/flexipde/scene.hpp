@@ -41,6 +41,9 @@ public:
   // (-objective_type receivers), one forward (and adjoint) solve per shot.
   PetscErrorCode value(Vec p, PetscReal *J);
   PetscErrorCode gradient(Vec p, PetscReal *J, Vec grad_p);
+  // The survey's data and sources low-pass filtered at f_c (Survey::set_band; f_c <= 0: the whole
+  // band), after make_synthetic_data. Refused without a survey.
+  PetscErrorCode set_frequency_band(PetscReal f_c);
 
   MPI_Comm comm() const { return comm_; }
   // The simulation that ran the last shots (the group's with -shot_groups), for its statistics.

@@ -35,6 +35,13 @@
 //   -survey_data_file F.h5           read the observed traces from F (written by -survey_data_write)
 //   -survey_data_write F.h5          write the synthetic traces made from the true model to F
 //
+// Frequency bands (set_band, for frequency continuation): the data and every source wavelet pass through
+// the same causal low-pass filter at f_c (order-4 Butterworth, two second-order sections, bilinear
+// transform), applied to the samples. The filtered wavelet is sampled at the data's rate and
+// interpolated like a wavelet from a file. The wave equation being linear and time-invariant, the
+// filtered source makes the filtered data; a causal filter keeps that true up to the end of the time
+// window (a zero-phase filter would mix in the data's truncation at T).
+//
 // Data file (HDF5, PETSc viewer): /survey/traces (nshots * nrec * nt, shot-major, then receiver,
 // then sample), /survey/receivers_x, /survey/sources_x (and _y in 2D), attributes on /survey/traces:
 // nshots, nrec, nt (integers), sample_dt, dim.
@@ -114,6 +121,9 @@ public:
   // The traces that `group` recorded or read for its shots, from every group into this survey's (rank 0
   // of its communicator, which spans the groups); then -survey_data_write if set. Collective.
   PetscErrorCode gather_recording(const Survey &group);
+  // Data and sources low-pass filtered at f_c (above; f_c <= 0: the whole band, as observed). Needs the
+  // data (after Scene::make_synthetic_data).
+  PetscErrorCode set_band(PetscReal f_c);
   // Reads -survey_data_file into the traces; false in *read when no file was given.
   PetscErrorCode read_data(PetscReal final_time, PetscBool *read);
   PetscErrorCode write_data(const char *file) const;
@@ -152,6 +162,9 @@ private:
   PetscReal sample_dt_ = 0;
   std::vector<PetscReal> traces_; // [shot][receiver][sample], on rank 0 (every rank after read/record)
   std::vector<char> recorded_;
+  std::vector<PetscReal> observed_; // the traces before any band was set (empty: none set yet)
+  Wavelet source_wavelet_;           // the wavelet before any band was set
+  bool banded_ = false;
   bool recording_ = false;
   char data_file_[PETSC_MAX_PATH_LEN] = "", write_file_[PETSC_MAX_PATH_LEN] = "";
   OwnedMat R_;

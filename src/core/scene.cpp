@@ -126,6 +126,14 @@ PetscErrorCode Scene::setup_groups(const SceneDefaults &d) {
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode Scene::set_frequency_band(PetscReal f_c) {
+  PetscFunctionBeginUser;
+  PetscCheck(objective.survey(), comm_, PETSC_ERR_ARG_WRONG, "Frequency bands need a survey: -objective_type receivers");
+  if (group_) PetscCall(group_->set_frequency_band(f_c));
+  else PetscCall(objective.survey()->set_band(f_c));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode Scene::to_group(Vec p) {
   PetscFunctionBeginUser;
   ConstArray a(p);

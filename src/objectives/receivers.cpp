@@ -387,6 +387,44 @@ PetscErrorCode Survey::end_recording() {
   PetscFunctionReturn(0);
 }
 
+// x (n samples at spacing dt) through the causal order-4 Butterworth low-pass at f_c, in place: two
+// second-order sections (quality factors 1/(2 cos(pi/8)) and 1/(2 cos(3 pi/8))), bilinear transform
+// with the cutoff prewarped. Causal, so that filtered data up to t depend on the data up to t alone,
+// as the response to the filtered source does.
+static void low_pass(PetscReal *x, PetscInt n, PetscReal dt, PetscReal f_c) {
+  const double w0 = 2 * M_PI * f_c * dt, cw = std::cos(w0), sw = std::sin(w0);
+  for (double q : {1 / (2 * std::cos(M_PI / 8)), 1 / (2 * std::cos(3 * M_PI / 8))}) {
+    const double alpha = sw / (2 * q), a0 = 1 + alpha;
+    const double b0 = (1 - cw) / 2 / a0, b1 = (1 - cw) / a0, b2 = b0, a1 = -2 * cw / a0, a2 = (1 - alpha) / a0;
+    double x1 = 0, x2 = 0, y1 = 0, y2 = 0;
+    for (PetscInt k = 0; k < n; ++k) {
+      const double y = b0 * x[k] + b1 * x1 + b2 * x2 - a1 * y1 - a2 * y2;
+      x2 = x1, x1 = x[k], y2 = y1, y1 = y;
+      x[k] = y;
+    }
+  }
+}
+
+PetscErrorCode Survey::set_band(PetscReal f_c) {
+  PetscFunctionBeginUser;
+  PetscCheck(nt_ > 0 && sample_dt_ > 0, comm_, PETSC_ERR_ORDER, "Survey: a frequency band needs the data first");
+  if (!banded_) observed_ = traces_, source_wavelet_ = wavelet_, banded_ = true;
+  traces_ = observed_;
+  Wavelet w = source_wavelet_;
+  if (f_c > 0) {
+    PetscCheck(f_c < 0.5 / sample_dt_, comm_, PETSC_ERR_ARG_OUTOFRANGE,
+               "Frequency band up to %g: above the data's Nyquist frequency %g", (double)f_c, (double)(0.5 / sample_dt_));
+    const PetscInt n = nt_;
+    for (size_t k = 0; k + n <= traces_.size(); k += n) low_pass(traces_.data() + k, n, sample_dt_, f_c);
+    w.t.resize(n), w.w.resize(n);
+    for (PetscInt k = 0; k < n; ++k) w.t[k] = k * sample_dt_, w.w[k] = source_wavelet_(k * sample_dt_);
+    low_pass(w.w.data(), n, sample_dt_, f_c);
+  }
+  wavelet_ = w;
+  for (auto &s : sources_) s.wavelet = w;
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode Survey::gather_recording(const Survey &group) {
   const PetscInt per_shot = receivers() * group.nt_;
   std::vector<PetscReal> mine((size_t)(nshots_ * per_shot), 0.0);

@@ -36,6 +36,15 @@ PetscErrorCode Inversion::setup(Scene &scene, Vec p_true) {
                              "this times max(|f_k|, |f_k+1|, 1), scipy L-BFGS-B's ftol (0: off)", "Inversion", frtol_,
                              &frtol_, nullptr));
   {
+    PetscReal bands[64];
+    PetscInt nb = 64;
+    PetscBool set;
+    PetscCall(PetscOptionsRealArray("-inv_frequency_bands", "Frequency continuation: one inversion per low-pass cutoff "
+                                    "f1,f2,... of data and sources, increasing (0: the whole band, last)", "Inversion",
+                                    bands, &nb, &set));
+    if (set) bands_.assign(bands, bands + nb);
+  }
+  {
     char file[PETSC_MAX_PATH_LEN] = "";
     PetscBool set;
     PetscCall(PetscOptionsString("-inv_restart", "Resume from the last iterate and history in this HDF5 results file",
@@ -45,6 +54,17 @@ PetscErrorCode Inversion::setup(Scene &scene, Vec p_true) {
   PetscOptionsEnd();
   PetscCheck(restart_file_.empty() || scan_ == 0, comm, PETSC_ERR_ARG_WRONG, "-inv_restart cannot be combined with -inv_scan");
   PetscCheck(scan_ >= 0, comm, PETSC_ERR_ARG_OUTOFRANGE, "-inv_scan must be non-negative");
+  PetscCheck(bands_.empty() || (scan_ == 0 && restart_file_.empty()), comm, PETSC_ERR_ARG_WRONG,
+             "-inv_frequency_bands cannot be combined with -inv_scan or -inv_restart");
+  PetscCheck(bands_.empty() || scene.objective.survey(), comm, PETSC_ERR_ARG_WRONG,
+             "-inv_frequency_bands needs a survey's data: -objective_type receivers");
+  for (size_t k = 0; k < bands_.size(); ++k) {
+    const bool whole = bands_[k] == 0, last = k + 1 == bands_.size();
+    PetscCheck(bands_[k] >= 0 && (!whole || last) && (whole || k == 0 || bands_[k] > bands_[k - 1]), comm,
+               PETSC_ERR_ARG_OUTOFRANGE,
+               "-inv_frequency_bands: give increasing positive cutoffs, optionally ending with 0 (the whole band); entry %zu is %g",
+               k + 1, (double)bands_[k]);
+  }
   PetscCheck(scan_ == 0 || (scene.params.global_size() == 1 && has_lower && has_upper), comm, PETSC_ERR_ARG_WRONG,
              "-inv_scan needs a single scalar parameter and both -inv_lower and -inv_upper");
   PetscCheck(tv_ >= 0 && tv_eps_ > 0, comm, PETSC_ERR_ARG_OUTOFRANGE,
@@ -193,7 +213,10 @@ PetscErrorCode Inversion::monitor(Tao tao, void *ctx) {
   PetscCall(TaoGetSolutionStatus(tao, &it, &f, &gnorm, &cnorm, &xdiff, &reason));
   PetscCall(TaoGetSolution(tao, &x));
   PetscCall(inv->rmse(x, &e));
-  if (inv->iteration_offset_ > 0 && it == 0) PetscFunctionReturn(0); // the resumed iterate is already recorded
+  if (inv->skip_first_ && it == 0) { // the resumed iterate is already recorded
+    inv->skip_first_ = false;
+    PetscFunctionReturn(0);
+  }
   inv->history_.push_back({it + inv->iteration_offset_, f, inv->last_misfit_, gnorm, e});
   if (!inv->checkpoint_file_.empty() && (it + inv->iteration_offset_) % inv->checkpoint_every_ == 0)
     PetscCall(inv->write_checkpoint(x));
@@ -303,6 +326,7 @@ PetscErrorCode Inversion::resume(Vec p) {
              "%s: /restart/p holds NaN/Inf", restart_file_.c_str());
   for (size_t k = 0; k < it.size(); ++k) history_.push_back({(PetscInt)it[k], f[k], mis[k], gn[k], rm[k]});
   iteration_offset_ = last.empty() ? 0 : (PetscInt)last[0];
+  skip_first_ = iteration_offset_ > 0;
   PetscCall(PetscPrintf(comm, "invert: resuming from iteration %" PetscInt_FMT " of %s (%" PetscInt_FMT " parameters)\n",
                         iteration_offset_, restart_file_.c_str(), n));
   PetscFunctionReturn(0);
@@ -313,6 +337,31 @@ PetscErrorCode Inversion::solve(Vec p) {
   history_.clear();
   iteration_offset_ = 0;
   if (!restart_file_.empty()) PetscCall(resume(p));
+  if (!bands_.empty()) {
+    MPI_Comm comm = scene_->comm();
+    iterations_ = 0;
+    for (size_t k = 0; k < bands_.size(); ++k) {
+      PetscInt its;
+      PetscReal f;
+      PetscCall(scene_->set_frequency_band(bands_[k]));
+      iteration_offset_ = history_.empty() ? 0 : history_.back().iteration + 1;
+      PetscCall(TaoSetSolution(tao_, p));
+      PetscCall(TaoSolve(tao_));
+      PetscCall(TaoGetConvergedReason(tao_, &reason_));
+      PetscCall(TaoGetSolutionStatus(tao_, &its, &f, nullptr, nullptr, nullptr, nullptr));
+      iterations_ += its;
+      PetscReal e = 0;
+      PetscCall(rmse(p, &e));
+      if (bands_[k] > 0)
+        PetscCall(PetscPrintf(comm, "invert: band %zu, frequencies up to %g: %s after %" PetscInt_FMT " iterations, objective %.6e, parameter RMSE %.6e\n",
+                              k + 1, (double)bands_[k], TaoConvergedReasons[reason_], its, (double)f, (double)e));
+      else
+        PetscCall(PetscPrintf(comm, "invert: band %zu, the whole band: %s after %" PetscInt_FMT " iterations, objective %.6e, parameter RMSE %.6e\n",
+                              k + 1, TaoConvergedReasons[reason_], its, (double)f, (double)e));
+    }
+    PetscCall(scene_->set_frequency_band(0));
+    PetscFunctionReturn(0);
+  }
   if (scan_ == 0) {
     PetscCall(TaoSetSolution(tao_, p));
     PetscCall(TaoSolve(tao_));
