@@ -111,26 +111,9 @@ TEST(FrequencyBands, FilteredSourceMakesFilteredData) {
 }
 
 TEST(FrequencyBands, ParallelMatchesSerial) {
-  PetscMPIInt size;
-  MPI_Comm_size(PETSC_COMM_WORLD, &size);
-  if (size < 2) GTEST_SKIP() << "needs 2 ranks";
   ScopedOptions o;
   survey_options(o, "rk");
-  SceneProblem par, ser;
-  PETSC_ASSERT_OK(par.setup(PETSC_COMM_WORLD));
-  PETSC_ASSERT_OK(ser.setup(PETSC_COMM_SELF));
-  PETSC_ASSERT_OK(par.scene.set_frequency_band(4.0));
-  PETSC_ASSERT_OK(ser.scene.set_frequency_band(4.0));
-  OwnedVec gpar, gser;
-  PETSC_ASSERT_OK(VecDuplicate(par.p, gpar.out()));
-  PETSC_ASSERT_OK(VecDuplicate(ser.p, gser.out()));
-  PetscReal Jpar, Jser;
-  PETSC_ASSERT_OK(par.scene.gradient(par.p, &Jpar, gpar));
-  PETSC_ASSERT_OK(ser.scene.gradient(ser.p, &Jser, gser));
-  std::vector<PetscReal> a, b;
-  PETSC_ASSERT_OK(flexipde_test::natural_parameters(par.scene, gpar, a));
-  PETSC_ASSERT_OK(flexipde_test::natural_parameters(ser.scene, gser, b));
-  flexipde_test::expect_matches_serial("band below 4", Jpar, Jser, a, b);
+  flexipde_test::expect_parallel_matches_serial("band below 4", [](Scene &s) { return s.set_frequency_band(4.0); });
 }
 
 // The 2D scene: wave2d on 31 x 31 points with its sponge, one shot, a line of receivers.

@@ -9,6 +9,7 @@
 #include "flexipde/scene.hpp"
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <gtest/gtest.h>
 #include <string>
 #include <utility>
@@ -218,10 +219,16 @@ inline PetscErrorCode natural_parameters(const flexipde::Scene &s, Vec v, std::v
 
 // The scene of the current options set up on PETSC_COMM_WORLD and on PETSC_COMM_SELF (each rank the
 // serial problem): J and dJ/dp (Scene::gradient, summed over a survey's shots) the same (1e-10).
-inline void expect_parallel_matches_serial(const std::string &label) {
+// `prepare`, if given, is applied to both scenes after their set-up.
+inline void expect_parallel_matches_serial(const std::string &label,
+                                           const std::function<PetscErrorCode(flexipde::Scene &)> &prepare = nullptr) {
   SceneProblem par, ser;
   PETSC_ASSERT_OK(par.setup(PETSC_COMM_WORLD));
   PETSC_ASSERT_OK(ser.setup(PETSC_COMM_SELF));
+  if (prepare) {
+    PETSC_ASSERT_OK(prepare(par.scene));
+    PETSC_ASSERT_OK(prepare(ser.scene));
+  }
   flexipde::OwnedVec gpar, gser;
   PETSC_ASSERT_OK(VecDuplicate(par.p, gpar.out()));
   PETSC_ASSERT_OK(VecDuplicate(ser.p, gser.out()));
