@@ -87,6 +87,9 @@ $MPI $BIN -task invert $LINEAR $RECEIVERS -survey_data_file results/fwi_receiver
 log "Case 4: 2D layered model with a slow disc, 4 shots, 48 receivers, sponge, BLMVM + TV (examples/fwi_2d)"
 $MPI build/fwi_2d -tao_max_it ${FWI2D_IT:-40} -output results/fwi_2d.h5 | tee results/fwi_2d.log | grep -v " TAO, "
 "$PYTHON" run/plot_fwi_2d.py results/fwi_2d.h5 results/fwi_2d
+log "Case 5: Marmousi-like section (layers, fault, high-velocity body), 12 shots in $NP groups, 3 frequency bands (examples/fwi_marmousi)"
+$MPI build/fwi_marmousi -shot_groups "$NP" -output results/fwi_marmousi.h5 | tee results/fwi_marmousi.log | grep -v " TAO, "
+"$PYTHON" run/plot_fwi_marmousi.py results/fwi_marmousi.h5 results/fwi_marmousi
 
 log "Learned discretisation: one Burgers stencil trained on 32 cells, checked on held-out starts (docs/learned_discretisation.md)"
 $MPI build/learned_burgers_train -output results/learned_stencil.h5 | tee results/learned_stencil.log
