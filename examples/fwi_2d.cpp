@@ -19,24 +19,13 @@
 //   mpiexec -n 2 build/fwi_2d -tao_monitor -output results/fwi_2d.h5
 //   mpiexec -n 2 build/fwi_2d -da_grid_x 61 -da_grid_y 61 -tao_max_it 5 -ts_dt 5e-3
 //   mpiexec -n 2 build/fwi_2d -tao_type adam -tao_adam_lr 5e-3 -inv_tv 0 -inv_tikhonov 1e-5
-#include "flexipde/inversion.hpp"
-#include "flexipde/io.hpp"
-#include "flexipde/scene.hpp"
+#include "fwi_2d_common.hpp"
 #include "flexipde/survey.hpp"
 #include <cmath>
 #include <string>
 #include <vector>
 
 using namespace flexipde;
-
-// Sets an option unless the user gave it.
-static PetscErrorCode default_option(const char *name, const std::string &value) {
-  PetscBool set;
-  PetscFunctionBeginUser;
-  PetscCall(PetscOptionsHasName(nullptr, nullptr, name, &set));
-  if (!set) PetscCall(PetscOptionsSetValue(nullptr, name, value.c_str()));
-  PetscFunctionReturn(0);
-}
 
 static std::string join(const std::vector<double> &v) {
   std::string s;
@@ -53,31 +42,6 @@ struct Model2D {
   }
   PetscReal initial(PetscReal, PetscReal y) const { return PetscMin(1.3, PetscMax(1.0, 1.0 + 0.3 * (y - 0.2) / 0.6)); }
 };
-
-static PetscErrorCode fill_field(const Scene &s, Vec p, bool truth, const Model2D &m) {
-  OwnedVec f;
-  PetscFunctionBeginUser;
-  PetscCall(DMCreateGlobalVector(s.grid.dm(), f.out()));
-  {
-    Array a(f);
-    PetscCall(a.error());
-    for (PetscInt k = 0; k < s.grid.local_points(); ++k) {
-      const PetscReal x = s.grid.x(s.grid.xs() + k % s.grid.xm()), y = s.grid.y(s.grid.ys() + k / s.grid.xm());
-      a[k] = truth ? m.truth(x, y) : m.initial(x, y);
-    }
-  }
-  PetscCall(s.params.set_field(p, s.params.find("wave2d_c"), f));
-  PetscFunctionReturn(0);
-}
-
-static PetscErrorCode write_field(H5Writer &w, const Scene &s, Vec p, const char *name) {
-  OwnedVec f;
-  PetscFunctionBeginUser;
-  PetscCall(DMCreateGlobalVector(s.grid.dm(), f.out()));
-  PetscCall(s.params.get_field(p, s.params.find("wave2d_c"), f));
-  PetscCall(w.write_vec("/fields", name, f));
-  PetscFunctionReturn(0);
-}
 
 static PetscErrorCode run() {
   MPI_Comm comm = PETSC_COMM_WORLD;
@@ -105,7 +69,7 @@ static PetscErrorCode run() {
       ry.push_back(0.2 + 0.05 * k);
     }
   }
-  const std::pair<const char *, std::string> defaults[] = {
+  PetscCall(fwi2d::default_options({
       {"-model", "wave2d"},
       {"-da_grid_x", "101"},
       {"-da_grid_y", "101"},
@@ -124,60 +88,29 @@ static PetscErrorCode run() {
       {"-inv_tv", "2e-5"},
       {"-inv_tv_eps", "0.5"},
       {"-tao_max_it", "40"},
-  };
-  for (auto &d : defaults) PetscCall(default_option(d.first, d.second));
+  }));
 
-  // 2. The scene: grid, model, survey (sources, receivers), integrator, all from the options.
-  Scene scene;
-  PetscCall(scene.setup(comm));
-
-  // 3. The true and initial models, made by code.
-  OwnedVec p, p_true, p0;
-  PetscCall(scene.params.create_vec(p.out()));
-  PetscCall(scene.params.create_vec(p_true.out()));
-  PetscCall(scene.params.create_vec(p0.out()));
-  PetscCall(fill_field(scene, p_true, true, m));
-  PetscCall(fill_field(scene, p, false, m));
-  PetscCall(VecCopy(p, p0));
-
-  // 4. Synthetic traces of every shot from the true model (or -survey_data_file).
-  PetscCall(scene.make_synthetic_data(p_true));
-
-  // 5. Inversion: TAO with bounds and total variation; history of misfit and RMSE per iteration.
-  Inversion inv;
-  PetscReal e0, e1;
-  PetscCall(inv.setup(scene, p_true));
-  PetscCall(inv.rmse(p, &e0));
-  PetscCall(inv.solve(p));
-  PetscCall(inv.rmse(p, &e1));
+  // 2. The scene from the options, the true and initial speeds from the model above, the synthetic
+  // traces of every shot, and the inversion (fwi_2d_common.hpp).
+  fwi2d::Inverted r;
+  PetscCall(r.run(comm, [&](PetscReal x, PetscReal y) { return m.truth(x, y); },
+                  [&](PetscReal x, PetscReal y) { return m.initial(x, y); }));
+  const Scene &scene = r.scene;
+  const Inversion &inv = r.inv;
   PetscCall(PetscPrintf(comm,
                         "fwi_2d: %" PetscInt_FMT " x %" PetscInt_FMT " grid, %" PetscInt_FMT " shots, %s after %" PetscInt_FMT
                         " iterations (%" PetscInt_FMT " gradient evaluations); velocity RMSE %.4e -> %.4e\n",
                         scene.grid.n(), scene.grid.ny(), scene.objective.survey()->shots(), TaoConvergedReasons[inv.converged_reason()],
-                        inv.iterations(), inv.evaluations(), (double)e0, (double)e1));
+                        inv.iterations(), inv.evaluations(), (double)r.rmse_initial, (double)r.rmse_recovered));
 
-  // 6. Results: the three models on the grid and the history, for run/plot_fwi_2d.py.
+  // 3. Results: the three models on the grid and the history, for run/plot_fwi_2d.py.
   if (output[0]) {
-    H5Writer w;
-    std::vector<PetscReal> it, f, mis, rm;
-    for (auto &h : inv.history()) {
-      it.push_back(h.iteration);
-      f.push_back(h.objective);
-      mis.push_back(h.misfit);
-      rm.push_back(h.rmse);
-    }
-    PetscCall(w.open(comm, output));
-    PetscCall(w.write_coordinates(scene.grid));
-    PetscCall(write_field(w, scene, p_true, "wave2d_c_true"));
-    PetscCall(write_field(w, scene, p0, "wave2d_c_initial"));
-    PetscCall(write_field(w, scene, p, "wave2d_c_recovered"));
-    PetscCall(w.write_series("/history", "iteration", it));
-    PetscCall(w.write_series("/history", "objective", f));
-    PetscCall(w.write_series("/history", "misfit", mis));
-    PetscCall(w.write_series("/history", "rmse", rm));
-    PetscCall(w.write_series("/survey", "receivers_x", std::vector<PetscReal>(rx.begin(), rx.end())));
-    PetscCall(w.write_series("/survey", "receivers_y", std::vector<PetscReal>(ry.begin(), ry.end())));
-    PetscCall(w.close());
+    PetscCall(fwi2d::write_results(output, scene, r.p_true, r.p0, r.p, inv, [&](H5Writer &w) -> PetscErrorCode {
+      PetscFunctionBeginUser;
+      PetscCall(w.write_series("/survey", "receivers_x", std::vector<PetscReal>(rx.begin(), rx.end())));
+      PetscCall(w.write_series("/survey", "receivers_y", std::vector<PetscReal>(ry.begin(), ry.end())));
+      PetscFunctionReturn(0);
+    }));
     PetscCall(PetscPrintf(comm, "fwi_2d: results written to %s\n", output));
   }
   PetscFunctionReturn(0);

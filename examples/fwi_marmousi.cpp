@@ -27,24 +27,13 @@
 //   mpiexec -n 2 build/fwi_marmousi -da_grid_x 301 -da_grid_y 121 -ts_dt 1.5e-3 -shot_groups 2
 //   mpiexec -n 2 build/fwi_marmousi -da_grid_x 101 -da_grid_y 41 -ts_max_time 1.2 -tao_max_it 2
 //     -survey_sources_x 1,2 -inv_frequency_bands 3,0
-#include "flexipde/inversion.hpp"
-#include "flexipde/io.hpp"
-#include "flexipde/scene.hpp"
+#include "fwi_2d_common.hpp"
 #include "flexipde/survey.hpp"
 #include <cmath>
 #include <string>
 #include <vector>
 
 using namespace flexipde;
-
-// Sets an option unless the user gave it.
-static PetscErrorCode default_option(const char *name, const std::string &value) {
-  PetscBool set;
-  PetscFunctionBeginUser;
-  PetscCall(PetscOptionsHasName(nullptr, nullptr, name, &set));
-  if (!set) PetscCall(PetscOptionsSetValue(nullptr, name, value.c_str()));
-  PetscFunctionReturn(0);
-}
 
 static std::string spread(double a, double b, int n) {
   std::string s;
@@ -70,31 +59,6 @@ struct Section {
   PetscReal initial(PetscReal, PetscReal y) const { return 1.5 + 1.9 * std::max<PetscReal>(0, y - water) / 1.1; }
 };
 
-static PetscErrorCode fill_field(const Scene &s, Vec p, bool truth, const Section &m) {
-  OwnedVec f;
-  PetscFunctionBeginUser;
-  PetscCall(DMCreateGlobalVector(s.grid.dm(), f.out()));
-  {
-    Array a(f);
-    PetscCall(a.error());
-    for (PetscInt k = 0; k < s.grid.local_points(); ++k) {
-      const PetscReal x = s.grid.x(s.grid.xs() + k % s.grid.xm()), y = s.grid.y(s.grid.ys() + k / s.grid.xm());
-      a[k] = truth ? m.truth(x, y) : m.initial(x, y);
-    }
-  }
-  PetscCall(s.params.set_field(p, s.params.find("wave2d_c"), f));
-  PetscFunctionReturn(0);
-}
-
-static PetscErrorCode write_field(H5Writer &w, const Scene &s, Vec p, const char *name) {
-  OwnedVec f;
-  PetscFunctionBeginUser;
-  PetscCall(DMCreateGlobalVector(s.grid.dm(), f.out()));
-  PetscCall(s.params.get_field(p, s.params.find("wave2d_c"), f));
-  PetscCall(w.write_vec("/fields", name, f));
-  PetscFunctionReturn(0);
-}
-
 static PetscErrorCode run() {
   MPI_Comm comm = PETSC_COMM_WORLD;
   Section m;
@@ -110,7 +74,7 @@ static PetscErrorCode run() {
   PetscCall(PetscOptionsString("-output", "HDF5 results file", "fwi_marmousi", output, output, sizeof(output), nullptr));
   PetscOptionsEnd();
   // 1. The scene as option defaults.
-  const std::pair<const char *, std::string> defaults[] = {
+  PetscCall(fwi2d::default_options({
       {"-model", "wave2d"},
       {"-grid_x1", "3"},
       {"-grid_y1", "1.2"},
@@ -138,61 +102,27 @@ static PetscErrorCode run() {
       {"-inv_tv", "1e-3"},
       {"-inv_tv_eps", "0.5"},
       {"-tao_max_it", "15"},
-  };
-  for (auto &d : defaults) PetscCall(default_option(d.first, d.second));
+  }));
 
-  // 2. The scene: grid, model, survey, integrator, shot groups, all from the options.
-  Scene scene;
-  PetscCall(scene.setup(comm));
-
-  // 3. The true and initial models, made by code.
-  OwnedVec p, p_true, p0;
-  PetscCall(scene.params.create_vec(p.out()));
-  PetscCall(scene.params.create_vec(p_true.out()));
-  PetscCall(scene.params.create_vec(p0.out()));
-  PetscCall(fill_field(scene, p_true, true, m));
-  PetscCall(fill_field(scene, p, false, m));
-  PetscCall(VecCopy(p, p0));
-
-  // 4. Synthetic traces of every shot from the true model.
+  // 2. The scene from the options, the true and initial speeds from the model above, the synthetic
+  // traces of every shot, and the inversion (fwi_2d_common.hpp).
+  fwi2d::Inverted r;
   double t0 = MPI_Wtime();
-  PetscCall(scene.make_synthetic_data(p_true));
-
-  // 5. Inversion through the frequency bands.
-  Inversion inv;
-  PetscReal e0, e1;
-  PetscCall(inv.setup(scene, p_true));
-  PetscCall(inv.rmse(p, &e0));
-  PetscCall(inv.solve(p));
-  PetscCall(inv.rmse(p, &e1));
+  PetscCall(r.run(comm, [&](PetscReal x, PetscReal y) { return m.truth(x, y); },
+                  [&](PetscReal x, PetscReal y) { return m.initial(x, y); }));
+  const Scene &scene = r.scene;
+  const Inversion &inv = r.inv;
   PetscCall(PetscPrintf(comm,
                         "fwi_marmousi: %" PetscInt_FMT " x %" PetscInt_FMT " grid, %" PetscInt_FMT " shots in %" PetscInt_FMT
                         " groups, %s after %" PetscInt_FMT " iterations (%" PetscInt_FMT
                         " gradient evaluations, %.0f s); velocity RMSE %.4e -> %.4e\n",
                         scene.grid.n(), scene.grid.ny(), scene.objective.survey()->shots(), scene.shot_groups(),
                         TaoConvergedReasons[inv.converged_reason()], inv.iterations(), inv.evaluations(), MPI_Wtime() - t0,
-                        (double)e0, (double)e1));
+                        (double)r.rmse_initial, (double)r.rmse_recovered));
 
-  // 6. Results: the three models and the history, for run/plot_fwi_marmousi.py.
+  // 3. Results: the three models and the history, for run/plot_fwi_marmousi.py.
   if (output[0]) {
-    H5Writer w;
-    std::vector<PetscReal> it, f, mis, rm;
-    for (auto &h : inv.history()) {
-      it.push_back(h.iteration);
-      f.push_back(h.objective);
-      mis.push_back(h.misfit);
-      rm.push_back(h.rmse);
-    }
-    PetscCall(w.open(comm, output));
-    PetscCall(w.write_coordinates(scene.grid));
-    PetscCall(write_field(w, scene, p_true, "wave2d_c_true"));
-    PetscCall(write_field(w, scene, p0, "wave2d_c_initial"));
-    PetscCall(write_field(w, scene, p, "wave2d_c_recovered"));
-    PetscCall(w.write_series("/history", "iteration", it));
-    PetscCall(w.write_series("/history", "objective", f));
-    PetscCall(w.write_series("/history", "misfit", mis));
-    PetscCall(w.write_series("/history", "rmse", rm));
-    PetscCall(w.close());
+    PetscCall(fwi2d::write_results(output, scene, r.p_true, r.p0, r.p, inv));
     PetscCall(PetscPrintf(comm, "fwi_marmousi: results written to %s\n", output));
   }
   PetscFunctionReturn(0);
