@@ -319,6 +319,40 @@ TEST(CheckpointGradient, MemoryBudget) {
   }
 }
 
+// -checkpoint_precision single: the states kept as floats. The gradient differs from the double one by
+// the states' rounding (not 0, below 1e-5 relative), J not at all (the forward solve is the same), and
+// the trajectory takes half the memory of the double states (the leapfrog's positions) or less (RK4 and
+// CN, whose double storage also keeps stages or records); refused with the binomial schedule.
+TEST(CheckpointGradient, SinglePrecision) {
+  for (const char *ts : {"leapfrog", "rk", "cn"}) {
+    std::vector<std::pair<std::string, std::string>> base = {{"-da_grid_x", "61"},       {"-ts_max_time", "0.12"},
+                                                             {"-ts_dt", "2e-3"},         {"-ts_type", ts},
+                                                             {"-wave_c_field", "1"},     {"-wave_c", "0.9"},
+                                                             {"-true_wave_c", "1.0"},    {"-true_wave_c_profile", "gaussian"},
+                                                             {"-true_wave_c_bump", "0.1"}};
+    Result full, single;
+    PETSC_ASSERT_OK(run_gradient(base, full));
+    auto opts = base;
+    opts.push_back({"-checkpoint_precision", "single"});
+    PETSC_ASSERT_OK(run_gradient(opts, single));
+    const PetscReal d = rel_diff(single.g, full.g);
+    PetscPrintf(PETSC_COMM_WORLD, "  [%s] single-precision states: rel diff dJ/dp %.1e, trajectory %.3f MB against %.3f MB\n", ts,
+                (double)d, (double)single.stats.stored_mb, (double)full.stats.stored_mb);
+    EXPECT_EQ(single.J, full.J);
+    EXPECT_GT(d, 0.0);
+    EXPECT_LT(d, 1e-5); // measured 5.5e-7 to 7.4e-7 (largest entry's difference over the largest entry)
+    EXPECT_GT(single.stats.stored_mb, 0.0);
+    EXPECT_LE(single.stats.stored_mb, 0.51 * full.stats.stored_mb + 1e-3);
+    opts.push_back({"-checkpoint_budget", "4"});
+    PetscErrorCode ierr;
+    {
+      flexipde_test::QuietErrors q;
+      ierr = run_gradient(opts, single);
+    }
+    EXPECT_NE(ierr, 0) << "single precision with the binomial schedule";
+  }
+}
+
 // Repeated evaluations on one Simulation (as TAO does) give identical results and statistics.
 TEST(CheckpointGradient, RepeatedEvaluations) {
   ScopedOptions opts{{"-da_grid_x", "81"}, {"-ts_max_time", "0.1"}, {"-ts_dt", "2e-3"},         {"-wave_c_field", "1"},

@@ -21,6 +21,7 @@
 //
 // Options (listed by -help with the TS options):
 //   -checkpoint_budget s   keep at most s states (s >= 1); unset: full storage (every state)
+//   -checkpoint_precision double|single   full storage's states as doubles or as floats (half the memory)
 //   -ts_trajectory_monitor prints the schedule (stores, restores, re-run steps)
 //
 //   mpiexec -n 2 ./flexipde -task gradient -wave_c_field 1 -wave_c 0.9 -da_grid_x 1000
@@ -132,6 +133,9 @@ PetscErrorCode store_trajectory_use_buffer(TSTrajectory tj, StateBuffer *buffer)
 // Keep each step's stages only while the whole buffer stays within mb per rank (the default of
 // -checkpoint_keep_stages_max_mb, which still overrides it).
 PetscErrorCode store_trajectory_cap_stages(TSTrajectory tj, PetscReal mb);
+// The states kept in single precision (-checkpoint_precision single): half the memory, gradients exact to
+// the states' rounding (about 1e-7 relative), every step but the leapfrog's re-run in the adjoint.
+PetscErrorCode store_trajectory_set_single(TSTrajectory tj, bool single);
 PetscInt64 store_trajectory_recomputed(TSTrajectory tj);
 PetscInt store_trajectory_states(TSTrajectory tj);
 bool store_trajectory_keeps_stages(TSTrajectory tj); // every step's stages at hand (stored, or solutions themselves): nothing re-run

@@ -367,7 +367,7 @@ PetscErrorCode binomial_create(TSTrajectory tj, TS) {
 // -checkpoint_memory: the states that fit in it on every rank. All of them (n + 1 for n steps): full
 // storage, which keeps stages too only within the same memory; fewer: the binomial schedule with as
 // many as fit.
-PetscErrorCode budget_from_memory(TS ts, const char *text, CheckpointStats *stats, PetscInt *budget) {
+PetscErrorCode budget_from_memory(TS ts, const char *text, bool single, CheckpointStats *stats, PetscInt *budget) {
   MPI_Comm comm = PetscObjectComm((PetscObject)ts);
   PetscFunctionBegin;
   const PetscReal bytes = parse_memory_size(text);
@@ -386,7 +386,7 @@ PetscErrorCode budget_from_memory(TS ts, const char *text, CheckpointStats *stat
     PetscCall(VecGetLocalSize(v, &n));
     PetscCall(DMRestoreGlobalVector(dm, &v));
   }
-  PetscReal state = (PetscReal)n * sizeof(PetscScalar);
+  PetscReal state = (PetscReal)n * (single ? sizeof(float) : sizeof(PetscScalar));
   PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, &state, 1, MPIU_REAL, MPI_MAX, comm));
   const PetscReal fit = std::floor(bytes / state);
   stats->memory_mb = bytes / 1048576.0, stats->state_mb = state / 1048576.0;
@@ -412,6 +412,8 @@ PetscErrorCode checkpoint_options(PetscObject obj, PetscOptionItems *PetscOption
   PetscInt budget = 0;
   PetscBool set = PETSC_FALSE, memory_set = PETSC_FALSE;
   char memory[64] = "";
+  const char *precisions[] = {"double", "single"};
+  PetscInt precision = 0;
   PetscFunctionBegin;
   PetscCall(TSGetTrajectory(ts, &tj));
   PetscOptionsHeadBegin(PetscOptionsObject, "Adjoint checkpointing (flexipde)");
@@ -422,10 +424,14 @@ PetscErrorCode checkpoint_options(PetscObject obj, PetscOptionItems *PetscOption
                                "Memory per rank for the states the adjoint keeps (e.g. 4GB, 512MB): every state when they "
                                "fit, else the binomial schedule with as many as fit",
                                "setup_adjoint_trajectory", memory, memory, sizeof memory, &memory_set));
+  PetscCall(PetscOptionsEList("-checkpoint_precision", "Full storage's states as doubles, or as floats: half the memory, "
+                              "the gradient exact to their rounding", "setup_adjoint_trajectory", precisions, 2,
+                              precisions[precision], &precision, nullptr));
+  const bool single = precision == 1;
   PetscCheck(!(set && memory_set), PetscObjectComm(obj), PETSC_ERR_ARG_INCOMP,
              "-checkpoint_budget (states) and -checkpoint_memory (bytes) both bound the trajectory: give one of them");
   if (memory_set) {
-    PetscCall(budget_from_memory(ts, memory, stats, &budget));
+    PetscCall(budget_from_memory(ts, memory, single, stats, &budget));
     set = budget > 0 ? PETSC_TRUE : PETSC_FALSE;
   }
   if (set) {
@@ -433,6 +439,9 @@ PetscErrorCode checkpoint_options(PetscObject obj, PetscOptionItems *PetscOption
                "-checkpoint_budget %" PetscInt_FMT ": the budget is a number of stored states and must be at least 1 "
                "(leave it unset to store every state)",
                budget);
+    PetscCheck(!single, PetscObjectComm(obj), PETSC_ERR_ARG_INCOMP,
+               "-checkpoint_precision single keeps every state: not with the binomial schedule of %s",
+               memory_set ? "-checkpoint_memory (the states in single precision do not all fit)" : "-checkpoint_budget");
     PetscCall(TSTrajectorySetType(tj, ts, FLEXIPDE_TSTRAJECTORY_BINOMIAL));
     PetscCall(binomial_trajectory_set_budget(tj, budget));
     stats->budget = budget;
@@ -447,10 +456,13 @@ PetscErrorCode checkpoint_options(PetscObject obj, PetscOptionItems *PetscOption
   PetscCall(TSGetType(ts, &type));
   PetscCall(PetscStrcmp(type, TSRK, &is_rk));
   if (is_rk) PetscCall(TSRKGetTableau(ts, nullptr, nullptr, nullptr, nullptr, nullptr, nullptr, nullptr, &fsal));
+  PetscCheck(!(single && fsal), PetscObjectComm(obj), PETSC_ERR_ARG_INCOMP,
+             "-checkpoint_precision single: not with -ts_rk_type %s, whose stages are kept in double", type);
   if (fsal) PetscCall(TSTrajectorySetSolutionOnly(tj, PETSC_FALSE));
   else {
     PetscCall(TSTrajectorySetType(tj, ts, FLEXIPDE_TSTRAJECTORY_STORE)); // one buffer, one memcpy per step
     if (memory_set) PetscCall(store_trajectory_cap_stages(tj, stats->memory_mb));
+    PetscCall(store_trajectory_set_single(tj, single));
   }
   PetscFunctionReturn(0);
 }

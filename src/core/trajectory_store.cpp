@@ -100,6 +100,10 @@ struct StoreTrajectory {
   bool theta_endpoint = false;
   bool use_prefetch = false; // prefetch the slot after next (slots of at most kPrefetchMaxBytes)
   bool use_stream = false;   // non-temporal stores: the leapfrog's states (not RK's)
+  // -checkpoint_precision single: the states (or positions) are kept as floats, two to a slot entry, and
+  // copied in and out converting; nothing is read in place (no placed or kept stages, no records), so
+  // every integrator but the leapfrog re-runs each step in the adjoint.
+  bool single = false;
 };
 
 // Prefetching the slot after next pays where slots are short (a few KB to a few hundred: the hardware
@@ -113,9 +117,23 @@ PetscScalar *at(const StoreTrajectory &st, PetscInt k, PetscInt part) {
   return st.buffer->data.get() + (size_t)k * st.slot + (size_t)part * st.nlocal;
 }
 
+float *at_single(const StoreTrajectory &st, PetscInt k) { return reinterpret_cast<float *>(at(st, k, 0)); }
+
 PetscErrorCode copy_out(const StoreTrajectory &st, PetscInt k, PetscInt part, Vec X) {
   PetscScalar *x;
   PetscFunctionBegin;
+  if (st.single) { // (part 0: nothing else is stored)
+    const float *b = at_single(st, k);
+    PetscCall(VecGetArray(X, &x));
+    const PetscInt m = st.pairs, d = st.dof;
+    if (m) // positions only: the other components of X are left as they are
+      for (PetscInt i = 0; i < st.nlocal / d; ++i)
+        for (PetscInt c = 0; c < m; ++c) x[i * d + c] = b[i * m + c];
+    else
+      for (PetscInt i = 0; i < st.nlocal; ++i) x[i] = b[i];
+    PetscCall(VecRestoreArray(X, &x));
+    PetscFunctionReturn(0);
+  }
   if (st.pairs) { // positions only: the other components of X are left as they are
     PetscCall(VecGetArray(X, &x));
     const PetscScalar *b = at(st, k, part);
@@ -152,7 +170,15 @@ PetscErrorCode copy_in(const StoreTrajectory &st, PetscInt k, PetscInt part, Vec
   const PetscScalar *x;
   PetscFunctionBegin;
   PetscCall(VecGetArrayRead(X, &x));
-  if (st.pairs) copy_positions(at(st, k, part), x, st.pairs, st.dof, st.nlocal / st.dof, st.use_stream);
+  if (st.single) {
+    float *b = at_single(st, k);
+    const PetscInt m = st.pairs, d = st.dof;
+    if (m)
+      for (PetscInt i = 0; i < st.nlocal / d; ++i)
+        for (PetscInt c = 0; c < m; ++c) b[i * m + c] = (float)PetscRealPart(x[i * d + c]);
+    else
+      for (PetscInt i = 0; i < st.nlocal; ++i) b[i] = (float)PetscRealPart(x[i]);
+  } else if (st.pairs) copy_positions(at(st, k, part), x, st.pairs, st.dof, st.nlocal / st.dof, st.use_stream);
   else if (st.use_stream) {
     stream_copy(at(st, k, part), x, st.nlocal); // (past the caches: the adjoint reads it much later)
     stream_fence();
@@ -268,11 +294,13 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
     }
     if (!st->keep_stages) st->rec_n = 0, st->place_stages = st->compact = st->rec_only = false;
   }
+  if (st->single) st->keep_stages = st->place_stages = st->compact = st->rec_only = st->use_stream = false, st->rec_n = 0;
   st->slot = st->pairs ? st->nlocal / st->dof * st->pairs : st->keep_stages ? stage_slot : st->nlocal;
+  if (st->single) st->slot = (st->slot + 1) / 2; // floats, two per entry
   // The leapfrog's position slots start on a cache line (padded to 8 entries): the step's streaming
   // stores need 16-byte alignment, and with 101^2 points an odd slot lost it (every other state was
   // then copied by Set, with plain stores).
-  if (st->pairs) st->slot = (st->slot + 7) / 8 * 8;
+  if (st->pairs && !st->single) st->slot = (st->slot + 7) / 8 * 8;
   st->use_prefetch = (size_t)st->slot * sizeof(PetscScalar) <= kPrefetchMaxBytes;
   if (ts->max_steps < PETSC_MAX_INT) { // reserve the planned trajectory once
     st->buffer->grow((size_t)(ts->max_steps + 1) * st->slot, false);
@@ -310,8 +338,8 @@ PetscErrorCode store_set(TSTrajectory tj, TS ts, PetscInt stepnum, PetscReal tim
     PetscCall(arm_records(*st, ts, st->placed));
     PetscFunctionReturn(0);
   }
-  if (!st->pairs || leapfrog_sunk_positions(ts) != at(*st, stepnum, 0)) PetscCall(copy_in(*st, stepnum, 0, X));
-  if (st->pairs && st->use_stream && (size_t)(stepnum + 2) * st->slot <= st->buffer->size)
+  if (!st->pairs || st->single || leapfrog_sunk_positions(ts) != at(*st, stepnum, 0)) PetscCall(copy_in(*st, stepnum, 0, X));
+  if (st->pairs && st->use_stream && !st->single && (size_t)(stepnum + 2) * st->slot <= st->buffer->size)
     PetscCall(leapfrog_sink_positions(ts, at(*st, stepnum + 1, 0))); // the next step writes its positions there itself
   if (st->keep_stages && stepnum > 0 && st->placed != stepnum) { // placed: the step wrote them here
     Vec *Y;
@@ -348,7 +376,8 @@ PetscErrorCode store_get(TSTrajectory tj, TS ts, PetscInt k, PetscReal *t) {
   if (is_leapfrog(ts)) { // its one stage is U_{k-1}, also for the last step (whose forward step did not keep it)
     Vec *Y;
     PetscCall(TSGetStages(ts, nullptr, &Y));
-    if (st->pairs) { // the model's kick reads the stored positions in place when it can
+    if (st->single) PetscCall(copy_out(*st, k - 1, 0, Y[0])); // (whole states or positions, converted)
+    else if (st->pairs) { // the model's kick reads the stored positions in place when it can
       bool placed;
       // the kick reading them in place also prefetches the next slot while it sweeps (a burst of
       // prefetches here, before it, holds up its own loads)
@@ -480,6 +509,14 @@ PetscErrorCode store_trajectory_cap_stages(TSTrajectory tj, PetscReal mb) {
   PetscFunctionBegin;
   PetscCall(PetscObjectTypeCompare((PetscObject)tj, FLEXIPDE_TSTRAJECTORY_STORE, &match));
   if (match) context(tj)->keep_stages_max_mb = mb;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode store_trajectory_set_single(TSTrajectory tj, bool single) {
+  PetscBool match;
+  PetscFunctionBegin;
+  PetscCall(PetscObjectTypeCompare((PetscObject)tj, FLEXIPDE_TSTRAJECTORY_STORE, &match));
+  if (match) context(tj)->single = single;
   PetscFunctionReturn(0);
 }
 
