@@ -119,30 +119,34 @@ PetscScalar *at(const StoreTrajectory &st, PetscInt k, PetscInt part) {
 
 float *at_single(const StoreTrajectory &st, PetscInt k) { return reinterpret_cast<float *>(at(st, k, 0)); }
 
+// x = the positions b (m per point) as the first m of every d components at npt points; the other
+// components are left as they are. T: double, or float for single-precision states.
+template <class T> void unpack_positions(PetscScalar *x, const T *b, PetscInt m, PetscInt d, PetscInt npt) {
+  if (m == 1)
+    for (PetscInt i = 0; i < npt; ++i) x[i * d] = b[i];
+  else
+    for (PetscInt i = 0; i < npt; ++i)
+      for (PetscInt c = 0; c < m; ++c) x[i * d + c] = b[i * m + c];
+}
+
+// b = the first m of every d components of x (npt points).
+template <class T> void pack_positions(T *b, const PetscScalar *x, PetscInt m, PetscInt d, PetscInt npt) {
+  if (m == 1)
+    for (PetscInt i = 0; i < npt; ++i) b[i] = (T)x[i * d];
+  else
+    for (PetscInt i = 0; i < npt; ++i)
+      for (PetscInt c = 0; c < m; ++c) b[i * m + c] = (T)x[i * d + c];
+}
+
 PetscErrorCode copy_out(const StoreTrajectory &st, PetscInt k, PetscInt part, Vec X) {
   PetscScalar *x;
   PetscFunctionBegin;
-  if (st.single) { // (part 0: nothing else is stored)
-    const float *b = at_single(st, k);
+  if (st.single || st.pairs) { // floats (part 0: nothing else is stored), or positions only
     PetscCall(VecGetArray(X, &x));
     const PetscInt m = st.pairs, d = st.dof;
-    if (m) // positions only: the other components of X are left as they are
-      for (PetscInt i = 0; i < st.nlocal / d; ++i)
-        for (PetscInt c = 0; c < m; ++c) x[i * d + c] = b[i * m + c];
-    else
-      for (PetscInt i = 0; i < st.nlocal; ++i) x[i] = b[i];
-    PetscCall(VecRestoreArray(X, &x));
-    PetscFunctionReturn(0);
-  }
-  if (st.pairs) { // positions only: the other components of X are left as they are
-    PetscCall(VecGetArray(X, &x));
-    const PetscScalar *b = at(st, k, part);
-    const PetscInt m = st.pairs, d = st.dof, npt = st.nlocal / d;
-    if (m == 1)
-      for (PetscInt i = 0; i < npt; ++i) x[i * d] = b[i];
-    else
-      for (PetscInt i = 0; i < npt; ++i)
-        for (PetscInt c = 0; c < m; ++c) x[i * d + c] = b[i * m + c];
+    if (!st.single) unpack_positions(x, at(st, k, part), m, d, st.nlocal / d);
+    else if (m) unpack_positions(x, at_single(st, k), m, d, st.nlocal / d);
+    else std::copy(at_single(st, k), at_single(st, k) + st.nlocal, x);
     PetscCall(VecRestoreArray(X, &x));
     PetscFunctionReturn(0);
   }
@@ -159,11 +163,7 @@ void copy_positions(PetscScalar *b, const PetscScalar *x, PetscInt m, PetscInt d
     for (; i + 1 < npt; i += 2) _mm_stream_pd(b + i, _mm_set_pd(x[(i + 1) * d], x[i * d]));
     for (; i < npt; ++i) b[i] = x[i * d];
     _mm_sfence();
-  } else if (m == 1)
-    for (PetscInt i = 0; i < npt; ++i) b[i] = x[i * d];
-  else
-    for (PetscInt i = 0; i < npt; ++i)
-      for (PetscInt c = 0; c < m; ++c) b[i * m + c] = x[i * d + c];
+  } else pack_positions(b, x, m, d, npt);
 }
 
 PetscErrorCode copy_in(const StoreTrajectory &st, PetscInt k, PetscInt part, Vec X) {
@@ -171,13 +171,8 @@ PetscErrorCode copy_in(const StoreTrajectory &st, PetscInt k, PetscInt part, Vec
   PetscFunctionBegin;
   PetscCall(VecGetArrayRead(X, &x));
   if (st.single) {
-    float *b = at_single(st, k);
-    const PetscInt m = st.pairs, d = st.dof;
-    if (m)
-      for (PetscInt i = 0; i < st.nlocal / d; ++i)
-        for (PetscInt c = 0; c < m; ++c) b[i * m + c] = (float)PetscRealPart(x[i * d + c]);
-    else
-      for (PetscInt i = 0; i < st.nlocal; ++i) b[i] = (float)PetscRealPart(x[i]);
+    if (st.pairs) pack_positions(at_single(st, k), x, st.pairs, st.dof, st.nlocal / st.dof);
+    else std::copy(x, x + st.nlocal, at_single(st, k));
   } else if (st.pairs) copy_positions(at(st, k, part), x, st.pairs, st.dof, st.nlocal / st.dof, st.use_stream);
   else if (st.use_stream) {
     stream_copy(at(st, k, part), x, st.nlocal); // (past the caches: the adjoint reads it much later)
