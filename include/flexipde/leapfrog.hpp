@@ -1,35 +1,40 @@
 // The leapfrog (Stormer-Verlet, kick-drift-kick) integrator as a PETSc TS type with its own
 // discrete adjoint, for models in second-order form (Model::second_order_pairs() = m > 0):
 //
-//   U = (q, p) per grid point, q_t = p, p_t = a(t, q; theta)       (G_q = p, G_p = a)
+//   U = (q, p) per grid point, q_t = p, p_t = a(t, q; theta) - sigma(x) p
+//   (G_q = p, G_p = a - sigma p, with sigma >= 0 a fixed damping, e.g. an absorbing sponge)
 //
-//   step t_k -> t_{k+1} = t_k + dt:
-//     p_h     = p_k + dt/2 a(t_k, q_k)          kick
-//     q_{k+1} = q_k + dt p_h                    drift
-//     p_{k+1} = p_h + dt/2 a(t_{k+1}, q_{k+1})  kick
+//   step t_k -> t_{k+1} = t_k + dt, with s = sigma dt / 2:
+//     (1 + s) p_h = p_k + dt/2 a(t_k, q_k)            kick (the damping implicit)
+//     q_{k+1}     = q_k + dt p_h                      drift
+//     p_{k+1}     = (1 - s) p_h + dt/2 a(t_{k+1}, q_{k+1})  kick (the damping explicit)
 //
-// Eliminating p gives q_{k+1} = 2 q_k - q_{k-1} + dt^2 a(q_k): the seed's leapfrog, second order,
-// symplectic, stable for dt * omega_max < 2 (omega_max^2 the largest eigenvalue of -da/dq, i.e.
-// the imaginary radius of the first-order system's spectrum). a(q_{k+1}) is kept for the next
-// step's first kick (first same as last), so a step costs ONE evaluation of G.
+// Eliminating p gives (1 + s) q_{k+1} = 2 q_k - (1 - s) q_{k-1} + dt^2 a(q_k): the seed's leapfrog
+// when sigma = 0 (second order, symplectic), and the centred damped scheme of FWI codes otherwise; stable
+// for dt * omega_max < 2 (omega_max^2 the largest eigenvalue of -da/dq, i.e. the imaginary radius of
+// the first-order system's spectrum). In terms of G: the second kick is p_{k+1} = p_h + dt/2 G_p(q_{k+1}, p_h),
+// and G there is kept for the next step's first kick (first same as last), which is then
+// p_h = p_k + dt/2 (1 - s)/(1 + s) G_p (p_k + dt/2 G_p/(1 + s) after a fresh evaluation of G at U_k),
+// so a step costs ONE evaluation of G. The Simulation finds sigma as -dG_p/dp (leapfrog_set_damping).
 //
 // Adjoint (lambda = dJ/dU, mu = dJ/dtheta), exact for the scheme above: a step's transpose is
 //   lambda_q += dt/2 A_{k+1}^T lambda_p,  lambda_p += dt lambda_q,  lambda_q += dt/2 A_k^T lambda_p
-// with A_k = da/dq(q_k) (and mu += dt/2 (da/dtheta)_k^T lambda_p likewise). The two half-kicks
+// with A_k = da/dq(q_k) (and mu += dt/2 (da/dtheta)_k^T lambda_p likewise); with damping the drift's
+// transpose is lambda_p = ((1 - s) lambda_p + dt lambda_q) / (1 + s), the rest unchanged. The two half-kicks
 // that meet at a time level k use the same lambda_p, so they are applied together, once per level,
 // with weight dt (dt/2 at t_0 and T): an adjoint step costs one product with (dG/dU)^T and one
 // with (dG/dtheta)^T, and needs only the state at the step's start (kept as the step's one
 // "stage", so PETSc's memory trajectory stores it and nothing is recomputed). With the model's fused kick
-// (Model::second_order_adjoint) the drift's transpose is handed to the kick, which may fold it into its
-// own sweep over lambda. Since G_q = p and
-// G_p does not depend on p, (dG/dU)^T lambda has A^T lambda_p in its q rows and (dG/dtheta)^T
-// lambda = (da/dtheta)^T lambda_p, so the full Jacobians serve without masking.
+// (Model::second_order_adjoint) the undamped drift's transpose is handed to the kick, which may fold it
+// into its own sweep over lambda. Since G_q = p, (dG/dU)^T lambda has A^T lambda_p in its q rows and
+// (dG/dtheta)^T lambda = (da/dtheta)^T lambda_p (sigma depends on no parameter), so the full Jacobians
+// serve without masking.
 //
 // Time-integrated objectives int_0^T r(t, U) dt use the trapezoidal rule on the time levels
 // (weights dt, dt/2 at both ends), accumulated in the forward sweep; the adjoint adds the same
 // weights times dr/dU and dr/dtheta at each level.
 //
-// Fixed steps only (the scheme is symplectic for a constant dt); the Simulation refuses
+// Fixed steps only (the scheme is symplectic for a constant dt and no damping); the Simulation refuses
 // adaptivity and models without the second-order form for -ts_type leapfrog.
 #pragma once
 #include "flexipde/petsc.hpp"
@@ -41,6 +46,12 @@ namespace flexipde {
 PetscErrorCode register_leapfrog_ts();
 // Number m of position/velocity pairs per grid point (components 0..m-1 and m..2m-1).
 PetscErrorCode leapfrog_set_pairs(TS ts, PetscInt m);
+// The damping sigma >= 0 in the velocity rows of a state-shaped Vec (the position rows unread), or null
+// for none; the TS keeps a reference.
+PetscErrorCode leapfrog_set_damping(TS ts, Vec sigma);
+// What a time-integrated objective's integrand r reads (Objective::integrand_reads_*): with no
+// velocity, the two half-kicks of a level are one sweep; with no parameter, dr/dp is not formed.
+PetscErrorCode leapfrog_set_integrand_reads(TS ts, bool velocities, bool parameters);
 bool is_leapfrog(TS ts);
 PetscInt leapfrog_pairs(TS ts); // m, or 0 for another TS type
 // Optional fused adjoint kick at one time level (Model::second_order_adjoint): first

@@ -68,8 +68,9 @@ public:
   virtual bool jacobian_constant() const { return false; }
   virtual PetscErrorCode spectrum(Spectrum *s) = 0;
   // Second-order-in-time structure, for the leapfrog (Stormer-Verlet) integrator: m > 0 when
-  // components 0..m-1 are positions q and m..2m-1 their velocities p, with G_q = p exactly and G_p
-  // independent of p (it may depend on t, q and the parameters). 0 when the model has no such form.
+  // components 0..m-1 are positions q and m..2m-1 their velocities p, with G_q = p exactly and
+  // G_p = a(t, q; p) - sigma(x) p: a damping sigma >= 0 that depends on neither the state nor the
+  // parameters (an absorbing sponge), else no p. 0 when the model has no such form.
   virtual PetscInt second_order_pairs() const { return 0; }
   // Optional, for second-order models: the leapfrog adjoint's work at one time level fused into one
   // sweep without any matrix: at state U, first lambda_p += drift lambda_q at every point (the

@@ -48,6 +48,14 @@ public:
     (void)t, (void)U;
     return VecSet(drdp, 0.0);
   }
+  // What r reads: component c of the state (else dr/dU is 0 in it), the parameters (else dr/dp = 0).
+  // The leapfrog's adjoint applies the two half-kicks of a time level in one sweep when r reads no
+  // velocity, and skips dr/dp when r reads no parameter.
+  virtual bool integrand_reads_component(PetscInt c) const {
+    (void)c;
+    return true;
+  }
+  virtual bool integrand_reads_parameters() const { return true; }
 };
 
 class TerminalMisfit final : public Objective {
@@ -107,6 +115,8 @@ public:
   PetscErrorCode integrand(PetscReal t, Vec U, PetscReal *r) override { return chosen_->integrand(t, U, r); }
   PetscErrorCode integrand_dU(PetscReal t, Vec U, Vec drdU) override { return chosen_->integrand_dU(t, U, drdU); }
   PetscErrorCode integrand_dp(PetscReal t, Vec U, Vec drdp) override { return chosen_->integrand_dp(t, U, drdp); }
+  bool integrand_reads_component(PetscInt c) const override { return chosen_->integrand_reads_component(c); }
+  bool integrand_reads_parameters() const override { return chosen_->integrand_reads_parameters(); }
   Vec data() const { return misfit_ ? misfit_->data() : nullptr; }
   // The survey (sources, receivers, traces) of -objective_type receivers, else null.
   Survey *survey() const { return survey_; }

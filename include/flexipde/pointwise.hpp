@@ -2,7 +2,7 @@
 //
 // A model is a class `Eq` (see src/models/burgers.cpp and docs/adding_a_model.md) that says
 //   static constexpr int dim, components, radius, parameters;   and optionally  shape (star/box),
-//   linear (G linear in U), second_order_pairs (m: G_q = p, G_p independent of p),
+//   linear (G linear in U), second_order_pairs (m: G_q = p, G_p = a(q) - sigma(x) p),
 //   const char *name() const;  const char *component_name(int) const;
 //   PetscErrorCode setup(const Grid &, Declarations &);          options, parameters
 //   template <class P> void rhs(const P &pt, typename P::Number *g) const;      G at one point

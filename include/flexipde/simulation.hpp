@@ -89,6 +89,9 @@ private:
   // through the Jacobians: the reference path, for checking
   PetscBool petsc_step_ = PETSC_FALSE;
   bool leapfrog_fused_ = false; // the last TS's leapfrog adjoint calls Model::second_order_adjoint
+  // The leapfrog's damping sigma = -dG_p/dp in the velocity rows of damping_ (*sigma null: none).
+  PetscErrorCode leapfrog_damping(Vec *sigma);
+  OwnedVec damping_, velocities_;
   bool rk_stage_fused_ = false; // the last adjoint TS's RK stages call Model::stage_adjoint
   bool rk_stage_records_ = false; // ... and its RHS evaluations may record (Model::stage_record_size)
   PetscErrorCode finish_solve(TS ts);

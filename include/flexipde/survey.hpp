@@ -140,6 +140,8 @@ public:
   bool has_integrand() const override { return true; }
   PetscErrorCode integrand(PetscReal t, Vec U, PetscReal *r) override;
   PetscErrorCode integrand_dU(PetscReal t, Vec U, Vec drdU) override;
+  bool integrand_reads_component(PetscInt c) const override { return c == component_; }
+  bool integrand_reads_parameters() const override { return false; }
 
 private:
   PetscErrorCode read_positions();

@@ -25,6 +25,12 @@ struct Leapfrog {
   // r(t_{k+1}, U_{k+1}) of the last forward-integral call, reused by the next step as its start.
   Vec r_end = nullptr;
   PetscInt r_end_step = -1;
+  // The damping sigma in the velocity rows (null: none), and the first kick's factor after a second kick
+  // (first same as last), (1 - s)/(1 + s) with s = sigma dt/2, for the step dt_scaled.
+  Vec sigma = nullptr, fsal_scale = nullptr;
+  // what the integrand of a time-integrated objective reads (leapfrog_set_integrand_reads)
+  bool integrand_reads_velocities = true, integrand_reads_parameters = true;
+  PetscReal dt_scaled = 0;
   // the model's fused adjoint kick, when it has one
   LeapfrogAdjointKick adjoint_kick = nullptr;
   void *adjoint_kick_ctx = nullptr;
@@ -72,15 +78,26 @@ PetscErrorCode kick(const Leapfrog &lf, Vec U, Vec F, PetscReal s) {
   PetscFunctionReturn(0);
 }
 
-// The drift's transpose on the adjoint: lambda_p += s * lambda_q (the forward drift is fused into
-// start_kick_drift).
-PetscErrorCode drift_transpose(const Leapfrog &lf, Vec lambda, PetscReal s) {
+// The drift's transpose on the adjoint: lambda_p += dt * lambda_q, and with damping (the two kicks'
+// factors on either side of it) lambda_p = ((1 - s) lambda_p + dt lambda_q) / (1 + s), s = sigma dt/2
+// (the forward drift is fused into start_kick_drift).
+PetscErrorCode drift_transpose(const Leapfrog &lf, Vec lambda, PetscReal dt) {
   PetscScalar *l;
   PetscInt n;
   PetscFunctionBegin;
   PetscCall(VecGetLocalSize(lambda, &n));
   PetscCall(VecGetArray(lambda, &l));
-  leapfrog_drift_transpose(l, 0, n / lf.dof, lf.pairs, s);
+  if (lf.sigma) {
+    const PetscScalar *sg;
+    const PetscInt m = lf.pairs, d = lf.dof;
+    PetscCall(VecGetArrayRead(lf.sigma, &sg));
+    for (PetscInt i = 0; i < n; i += d)
+      for (PetscInt c = 0; c < m; ++c) {
+        const PetscScalar s = 0.5 * dt * sg[i + m + c];
+        l[i + m + c] = ((1.0 - s) * l[i + m + c] + dt * l[i + c]) / (1.0 + s);
+      }
+    PetscCall(VecRestoreArrayRead(lf.sigma, &sg));
+  } else leapfrog_drift_transpose(l, 0, n / lf.dof, lf.pairs, dt);
   PetscCall(VecRestoreArray(lambda, &l));
   PetscFunctionReturn(0);
 }
@@ -142,18 +159,68 @@ void start_kick_drift_loop(PetscScalar *__restrict u, const PetscScalar *__restr
     }
 }
 
+// The damped first kick and the drift: p += dt/2 g F_p with g per velocity row (`scale`, or 1/(1 + s)
+// from sigma when F is fresh), then q += dt p; Y0 = U first and the new positions to `sink` when given.
+template <int M>
+void damped_start_kick_drift_loop(PetscScalar *__restrict u, const PetscScalar *__restrict f, PetscScalar *__restrict y,
+                                  PetscScalar *__restrict sink, const PetscScalar *__restrict scale,
+                                  const PetscScalar *__restrict sigma, PetscInt n, PetscInt m_rt, PetscReal dt) {
+  const PetscInt m = M ? M : m_rt, d = 2 * m;
+  if (y)
+    for (PetscInt i = 0; i < n; ++i) y[i] = u[i];
+  for (PetscInt i = 0, k = 0; i < n; i += d)
+    for (PetscInt c = 0; c < m; ++c, ++k) {
+      const PetscScalar g = scale ? scale[i + m + c] : 1.0 / (1.0 + 0.5 * dt * sigma[i + m + c]);
+      const PetscScalar ph = u[i + m + c] + 0.5 * dt * g * f[i + m + c];
+      u[i + m + c] = ph;
+      u[i + c] += dt * ph;
+      if (sink) sink[k] = u[i + c];
+    }
+}
+
+// (1 - s)/(1 + s), s = sigma dt/2, in the velocity rows of lf.fsal_scale, for the step dt.
+PetscErrorCode update_fsal_scale(Leapfrog &lf, PetscReal dt) {
+  PetscScalar *g;
+  const PetscScalar *sg;
+  PetscInt n;
+  PetscFunctionBegin;
+  if (lf.fsal_scale && lf.dt_scaled == dt) PetscFunctionReturn(0);
+  if (!lf.fsal_scale) PetscCall(VecDuplicate(lf.sigma, &lf.fsal_scale));
+  PetscCall(VecGetLocalSize(lf.sigma, &n));
+  PetscCall(VecGetArrayRead(lf.sigma, &sg));
+  PetscCall(VecGetArrayWrite(lf.fsal_scale, &g));
+  for (PetscInt i = 0; i < n; ++i) g[i] = (1.0 - 0.5 * dt * sg[i]) / (1.0 + 0.5 * dt * sg[i]);
+  PetscCall(VecRestoreArrayWrite(lf.fsal_scale, &g));
+  PetscCall(VecRestoreArrayRead(lf.sigma, &sg));
+  lf.dt_scaled = dt;
+  PetscFunctionReturn(0);
+}
+
 // Y0 = U (when asked for), then the first kick and the drift; the new positions also go to lf.sink
-// when there is one (and no Y0), recorded in lf.sunk.
-PetscErrorCode start_kick_drift(Leapfrog &lf, Vec U, Vec F, Vec Y0, PetscReal dt) {
+// when there is one (and no Y0), recorded in lf.sunk. fresh: F was evaluated at U itself (not kept
+// from the last step's second kick), which matters with damping only.
+PetscErrorCode start_kick_drift(Leapfrog &lf, Vec U, Vec F, Vec Y0, PetscReal dt, bool fresh) {
   PetscScalar *u, *y = nullptr;
   const PetscScalar *f;
   PetscInt n;
   PetscFunctionBegin;
+  if (lf.sigma && !fresh) PetscCall(update_fsal_scale(lf, dt));
   PetscCall(VecGetLocalSize(U, &n));
   PetscCall(VecGetArray(U, &u));
   if (Y0) PetscCall(VecGetArrayWrite(Y0, &y));
   PetscCall(VecGetArrayRead(F, &f));
   lf.sunk = nullptr;
+  if (lf.sigma) {
+    const PetscScalar *sg, *g = nullptr;
+    PetscScalar *sink = y ? nullptr : lf.sink;
+    PetscCall(VecGetArrayRead(lf.sigma, &sg));
+    if (!fresh) PetscCall(VecGetArrayRead(lf.fsal_scale, &g));
+    if (lf.pairs == 1) damped_start_kick_drift_loop<1>(u, f, y, sink, g, sg, n, 1, dt);
+    else damped_start_kick_drift_loop<0>(u, f, y, sink, g, sg, n, lf.pairs, dt);
+    if (!fresh) PetscCall(VecRestoreArrayRead(lf.fsal_scale, &g));
+    PetscCall(VecRestoreArrayRead(lf.sigma, &sg));
+    lf.sunk = sink;
+  } else
 #if defined(FLEXIPDE_LEAPFROG_SINK)
   if (lf.pairs == 1 && lf.sink && !y && reinterpret_cast<uintptr_t>(lf.sink) % 16 == 0) {
     start_kick_drift_sink(u, f, lf.sink, n, dt);
@@ -175,7 +242,8 @@ PetscErrorCode TSStep_Leapfrog(TS ts) {
   PetscObjectState st;
   PetscFunctionBegin;
   PetscCall(PetscObjectStateGet((PetscObject)U, &st));
-  if (!lf->F_valid || st != lf->F_state || t != lf->F_time) PetscCall(TSComputeRHSFunction(ts, t, U, lf->F));
+  const bool fresh = !lf->F_valid || st != lf->F_state || t != lf->F_time;
+  if (fresh) PetscCall(TSComputeRHSFunction(ts, t, U, lf->F));
   if (ts->steps == 0) { // once per solve: does anything read this solve's stages?
     PetscBool store = PETSC_FALSE;
     if (ts->trajectory) PetscCall(PetscObjectTypeCompare((PetscObject)ts->trajectory, FLEXIPDE_TSTRAJECTORY_STORE, &store));
@@ -183,9 +251,9 @@ PetscErrorCode TSStep_Leapfrog(TS ts) {
   }
   // the forward cost integral reads r(t_k, U_k) from Y0 when it does not have it from the last step
   const bool need_stage = lf->copy_stage || (ts->quadraturets && ts->costintegralfwd && lf->r_end_step != ts->steps);
-  PetscCall(start_kick_drift(*lf, U, lf->F, need_stage ? lf->Y0 : nullptr, dt));
+  PetscCall(start_kick_drift(*lf, U, lf->F, need_stage ? lf->Y0 : nullptr, dt, fresh));
   lf->sink = nullptr; // one step only
-  // G_p does not depend on p, so G at (q_{k+1}, p_h) already gives a(t_{k+1}, q_{k+1})
+  // the second kick p_{k+1} = p_h + dt/2 G_p(q_{k+1}, p_h), also with damping (leapfrog.hpp)
   PetscCall(TSComputeRHSFunction(ts, t + dt, U, lf->F));
   PetscCall(kick(*lf, U, lf->F, 0.5 * dt));
   PetscCall(PetscObjectStateGet((PetscObject)U, &lf->F_state));
@@ -225,6 +293,7 @@ PetscErrorCode TSReset_Leapfrog(TS ts) {
   PetscCall(VecDestroy(&lf->W));
   PetscCall(VecDestroy(&lf->dmu));
   PetscCall(VecDestroy(&lf->r_end));
+  PetscCall(VecDestroy(&lf->fsal_scale));
   if (lf->Q_placed) PetscCall(VecResetArray(lf->Q));
   lf->Q_placed = false;
   PetscCall(VecDestroy(&lf->Q));
@@ -236,10 +305,13 @@ PetscErrorCode TSReset_Leapfrog(TS ts) {
 PetscErrorCode TSDestroy_Leapfrog(TS ts) {
   PetscFunctionBegin;
   PetscCall(TSReset_Leapfrog(ts));
+  PetscCall(VecDestroy(&data(ts)->sigma));
   delete data(ts);
   ts->data = nullptr;
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetPairs_C", nullptr));
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetAdjointKick_C", nullptr));
+  PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetDamping_C", nullptr));
+  PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetIntegrandReads_C", nullptr));
   PetscFunctionReturn(0);
 }
 
@@ -284,8 +356,8 @@ PetscErrorCode TSAdjointSetUp_Leapfrog(TS ts) {
 // All contributions of time level (t, X): the half-kick of the step to its right (weight
 // w_right, reversed first, so it sees lambda without this level's integrand term), the integrand
 // with quadrature weight w_quad, then the half-kick of the step to its left (w_left), which sees the
-// complete dJ/dU at this level. Without an integrand both half-kicks see the same lambda_p and
-// take one product with weight w_right + w_left.
+// complete dJ/dU at this level. Without an integrand, or with one that reads no velocity, both
+// half-kicks see the same lambda_p and take one product with weight w_right + w_left.
 // drift: the model's fused kick first applies the drift's transpose lambda_p += drift lambda_q (0 without one).
 PetscErrorCode half_kicks(TS ts, Mat J, PetscReal t, Vec X, PetscReal w, PetscReal drift = 0,
                           const PetscScalar *prefetch = nullptr) {
@@ -324,21 +396,21 @@ PetscErrorCode adjoint_level(TS ts, PetscReal t, Vec X, PetscReal w_right, Petsc
     PetscCall(TSComputeRHSJacobian(ts, t, X, J, Jpre));
     if (ts->vecs_sensip) PetscCall(TSComputeRHSJacobianP(ts, t, X, ts->Jacprhs));
   }
-  if (!quadts) {
-    PetscCall(half_kicks(ts, J, t, X, w_right + w_left, drift, prefetch));
-    PetscFunctionReturn(0);
-  }
-  PetscCall(half_kicks(ts, J, t, X, w_right, drift, prefetch));
+  // an integrand that reads no velocity adds nothing to lambda_p, which is all the kicks read
+  const bool one_sweep = !quadts || !data(ts)->integrand_reads_velocities;
+  PetscCall(half_kicks(ts, J, t, X, one_sweep ? w_right + w_left : w_right, drift, prefetch));
+  if (!quadts) PetscFunctionReturn(0);
+  const bool with_p = ts->vecs_sensip && data(ts)->integrand_reads_parameters;
   PetscCall(TSGetRHSJacobian(quadts, &Jquad, nullptr, nullptr, nullptr));
   PetscCall(TSComputeRHSJacobian(quadts, t, X, Jquad, nullptr));
-  if (ts->vecs_sensip) PetscCall(TSComputeRHSJacobianP(quadts, t, X, quadts->Jacprhs));
+  if (with_p) PetscCall(TSComputeRHSJacobianP(quadts, t, X, quadts->Jacprhs));
   for (PetscInt k = 0; k < ts->numcost; ++k) {
     PetscCall(MatDenseGetColumn(Jquad, k, &col));
     PetscCall(VecPlaceArray(ts->vec_drdu_col, col));
     PetscCall(VecAXPY(ts->vecs_sensi[k], w_quad, ts->vec_drdu_col));
     PetscCall(VecResetArray(ts->vec_drdu_col));
     PetscCall(MatDenseRestoreColumn(Jquad, &col));
-    if (ts->vecs_sensip) {
+    if (with_p) {
       PetscCall(MatDenseGetColumn(quadts->Jacprhs, k, &col));
       PetscCall(VecPlaceArray(ts->vec_drdp_col, col));
       PetscCall(VecAXPY(ts->vecs_sensip[k], w_quad, ts->vec_drdp_col));
@@ -346,7 +418,7 @@ PetscErrorCode adjoint_level(TS ts, PetscReal t, Vec X, PetscReal w_right, Petsc
       PetscCall(MatDenseRestoreColumn(quadts->Jacprhs, &col));
     }
   }
-  PetscCall(half_kicks(ts, J, t, X, w_left));
+  if (!one_sweep) PetscCall(half_kicks(ts, J, t, X, w_left));
   PetscFunctionReturn(0);
 }
 
@@ -359,7 +431,7 @@ PetscErrorCode TSAdjointStep_Leapfrog(TS ts) {
   PetscFunctionBegin;
   if (ts->adjoint_steps == 0) PetscCall(adjoint_level(ts, tk, ts->vec_sol, 0, 0.5 * dt, 0.5 * dt));
   // the drift's transpose: in the model's kick at level k-1 when it has one (one sweep fewer), else here
-  const bool fuse_drift = lf->adjoint_kick != nullptr;
+  const bool fuse_drift = lf->adjoint_kick != nullptr && !lf->sigma;
   if (!fuse_drift)
     for (PetscInt k = 0; k < ts->numcost; ++k) PetscCall(drift_transpose(*lf, ts->vecs_sensi[k], dt));
   // level k-1: the right half-kick of this step, then (except at t_0) the left one of the step before
@@ -397,6 +469,23 @@ PetscErrorCode set_pairs(TS ts, PetscInt m) {
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode set_damping(TS ts, Vec sigma) {
+  Leapfrog *lf = data(ts);
+  PetscFunctionBegin;
+  if (sigma) PetscCall(PetscObjectReference((PetscObject)sigma));
+  PetscCall(VecDestroy(&lf->sigma));
+  PetscCall(VecDestroy(&lf->fsal_scale));
+  lf->sigma = sigma;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode set_integrand_reads(TS ts, PetscBool velocities, PetscBool parameters) {
+  PetscFunctionBegin;
+  data(ts)->integrand_reads_velocities = velocities;
+  data(ts)->integrand_reads_parameters = parameters;
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode set_adjoint_kick(TS ts, LeapfrogAdjointKick kick, void *ctx) {
   PetscFunctionBegin;
   data(ts)->adjoint_kick = kick;
@@ -421,6 +510,8 @@ PetscErrorCode TSCreate_Leapfrog(TS ts) {
   ts->usessnes = PETSC_FALSE;
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetPairs_C", set_pairs));
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetAdjointKick_C", set_adjoint_kick));
+  PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetDamping_C", set_damping));
+  PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetIntegrandReads_C", set_integrand_reads));
   PetscFunctionReturn(0);
 }
 
@@ -435,6 +526,19 @@ PetscErrorCode register_leapfrog_ts() {
 PetscErrorCode leapfrog_set_pairs(TS ts, PetscInt m) {
   PetscFunctionBegin;
   PetscTryMethod(ts, "FlexipdeLeapfrogSetPairs_C", (TS, PetscInt), (ts, m));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode leapfrog_set_damping(TS ts, Vec sigma) {
+  PetscFunctionBegin;
+  PetscTryMethod(ts, "FlexipdeLeapfrogSetDamping_C", (TS, Vec), (ts, sigma));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode leapfrog_set_integrand_reads(TS ts, bool velocities, bool parameters) {
+  PetscFunctionBegin;
+  PetscTryMethod(ts, "FlexipdeLeapfrogSetIntegrandReads_C", (TS, PetscBool, PetscBool),
+                 (ts, velocities ? PETSC_TRUE : PETSC_FALSE, parameters ? PETSC_TRUE : PETSC_FALSE));
   PetscFunctionReturn(0);
 }
 

@@ -384,6 +384,48 @@ PetscErrorCode Simulation::initial_condition(Vec p, Vec U0) {
   PetscFunctionReturn(0);
 }
 
+// A second-order model's G_p = a(t, q) - sigma(x) p: sigma is -dG/dU applied to the unit velocities, in
+// their rows (the Jacobian of any state: sigma depends on none, nor on the parameters; but the model
+// holds its coefficients from its first set_parameters on, so it is found again for every TS).
+PetscErrorCode Simulation::leapfrog_damping(Vec *sigma) {
+  const PetscInt m = model_->second_order_pairs(), d = model_->dof();
+  PetscScalar *a;
+  PetscInt n;
+  PetscReal largest;
+  PetscFunctionBeginUser;
+  *sigma = nullptr;
+  if (!damping_) {
+    PetscCall(DMCreateGlobalVector(dm_, damping_.out()));
+    PetscCall(VecDuplicate(damping_, velocities_.out()));
+    PetscCall(VecGetLocalSize(velocities_, &n));
+    PetscCall(VecGetArrayWrite(velocities_, &a));
+    for (PetscInt i = 0; i < n; ++i) a[i] = i % d >= m && i % d < 2 * m ? 1.0 : 0.0;
+    PetscCall(VecRestoreArrayWrite(velocities_, &a));
+  }
+  if (Jmf_) PetscCall(MatMult(Jmf_, velocities_, damping_));
+  else {
+    OwnedVec zero;
+    PetscCall(VecDuplicate(damping_, zero.out()));
+    PetscCall(VecSet(zero, 0.0));
+    PetscCall(model_->rhs_jacobian(0.0, zero, J_));
+    PetscCall(MatMult(J_, velocities_, damping_));
+    jac_state_ = -1; // assembled at another state: not the TS's
+  }
+  PetscCall(VecGetLocalSize(damping_, &n));
+  PetscCall(VecGetArray(damping_, &a));
+  for (PetscInt i = 0; i < n; ++i) a[i] = i % d >= m && i % d < 2 * m ? -a[i] : 0.0;
+  PetscCall(VecRestoreArray(damping_, &a));
+  PetscCall(VecNorm(damping_, NORM_INFINITY, &largest));
+  if (largest == 0) PetscFunctionReturn(0);
+  PetscReal smallest;
+  PetscCall(VecMin(damping_, nullptr, &smallest));
+  PetscCheck(smallest >= 0, grid_->comm(), PETSC_ERR_ARG_WRONG,
+             "-ts_type leapfrog: model %s's velocity damping -dG_p/dp is negative somewhere (%g): it would amplify",
+             model_->name(), (double)smallest);
+  *sigma = damping_;
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_integral) {
   MPI_Comm comm = grid_->comm();
   PetscMPIInt size;
@@ -502,6 +544,15 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
                "choose -ts_type rk, theta, cn or beuler",
                model_->name());
     PetscCall(leapfrog_set_pairs(ts, model_->second_order_pairs()));
+    Vec sigma;
+    PetscCall(leapfrog_damping(&sigma));
+    PetscCall(leapfrog_set_damping(ts, sigma));
+    if (objective_ && objective_->has_integrand()) {
+      bool velocities = false;
+      for (PetscInt c = model_->second_order_pairs(); c < 2 * model_->second_order_pairs(); ++c)
+        velocities = velocities || objective_->integrand_reads_component(c);
+      PetscCall(leapfrog_set_integrand_reads(ts, velocities, objective_->integrand_reads_parameters()));
+    }
     if (leapfrog_fused_)
       PetscCall(leapfrog_set_adjoint_kick(ts, adjoint_kick_cb, this));
   }

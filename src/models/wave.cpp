@@ -13,8 +13,8 @@
 //
 // Absorbing layers along the walls, of width W, at fraction s_d = (W - depth_d)/W into the layer along d:
 //   sponge (-<m>_sponge_width W, -<m>_sponge_strength sigma_max; W = 0.15 in 2D, 0 in 1D):
-//     sigma = sigma_max s^2 (s from the nearest wall). Without it the system is in second-order form
-//     (G_u = v, G_v independent of v) and the leapfrog applies.
+//     sigma = sigma_max s^2 (s from the nearest wall). The system keeps the second-order form
+//     (G_u = v, G_v = a(u) - sigma v) that the leapfrog integrates, the damping in its kicks.
 //   perfectly matched layer (-<m>_pml_width W, -<m>_pml_strength sigma_max, -<m>_pml_alpha alpha_max):
 //     the complex-frequency-shifted stretching d/dx_d -> (1/s_d) d/dx_d, s_d = 1 + sigma_d/(alpha_d + i omega),
 //     sigma_d = sigma_max s_d^2, alpha_d = alpha_max (1 - s_d), applied twice to u_tt = c^2 sum_d u_{x_d x_d}.
@@ -47,6 +47,9 @@
 //           -fd_order 4 -wave_c_field 1 -wave_c 0.9 -check_fd
 //   mpiexec -n 2 ./flexipde -model wave2d -task gradient -ts_type leapfrog -wave2d_sponge_width 0
 //           -wave2d_ic pulse -wave2d_c_field 1 -wave2d_c 0.9 -true_wave2d_c 1
+//   mpiexec -n 2 ./flexipde -model wave2d -task taylor -ts_type leapfrog -fd_order 8 -da_grid_x 41 -da_grid_y 41
+//           -wave2d_c_field 1 -true_wave2d_c 1.1 -objective_type receivers -survey_sources_x 0.5 -survey_sources_y 0.3
+//           -survey_receivers_spread 0.2,0.8,7 -survey_receivers_y 0.7 -ts_max_time 0.6 -ts_dt 2e-3
 //   mpiexec -n 2 ./flexipde -model wave2d -task taylor -da_grid_x 41 -da_grid_y 41 -wave2d_c_field 1
 //           -true_wave2d_c 1.1 -objective_type receivers -survey_sources_x 0.5 -survey_sources_y 0.3
 //           -survey_receivers_spread 0.2,0.8,7 -survey_receivers_y 0.7 -ts_max_time 0.6 -ts_dt 2e-3
@@ -82,7 +85,7 @@ public:
   void grid_defaults(GridOptions &o) const {
     if (D == 2) o.n = o.ny = 101;
   }
-  bool second_order_active() const { return A == Absorber::None; }
+  bool second_order_active() const { return !Pml; } // (the PML's memory variables have no such form)
   bool odd_walls() const { return boundary_ == Walls; }
   // The walls have no equation: the stencils read them as 0 whatever the state holds (no wall columns in dG/dU).
   bool held_walls() const { return boundary_ == Walls; }
