@@ -52,6 +52,10 @@ PetscErrorCode leapfrog_set_damping(TS ts, Vec sigma);
 // What a time-integrated objective's integrand r reads (Objective::integrand_reads_*): with no
 // velocity, the two half-kicks of a level are one sweep; with no parameter, dr/dp is not formed.
 PetscErrorCode leapfrog_set_integrand_reads(TS ts, bool velocities, bool parameters);
+// Whether the adjoint of this leapfrog TS reads the positions of the stored states alone: no cost
+// integrand, or one that reads no velocity (then its dr/dU is evaluated at positions alone, handed to
+// the quadrature TS's Jacobian as a Vec of m components per point).
+bool leapfrog_positions_suffice(TS ts);
 bool is_leapfrog(TS ts);
 PetscInt leapfrog_pairs(TS ts); // m, or 0 for another TS type
 // Optional fused adjoint kick at one time level (Model::second_order_adjoint): first

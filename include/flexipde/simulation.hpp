@@ -92,6 +92,8 @@ private:
   // The leapfrog's damping sigma = -dG_p/dp in the velocity rows of damping_ (*sigma null: none).
   PetscErrorCode leapfrog_damping(Vec *sigma);
   OwnedVec damping_, velocities_;
+  PetscErrorCode integrand_state(Vec X, Vec *U);
+  OwnedVec positions_state_; // integrand_state's state
   bool rk_stage_fused_ = false; // the last adjoint TS's RK stages call Model::stage_adjoint
   bool rk_stage_records_ = false; // ... and its RHS evaluations may record (Model::stage_record_size)
   PetscErrorCode finish_solve(TS ts);

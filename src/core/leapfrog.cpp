@@ -25,9 +25,11 @@ struct Leapfrog {
   // r(t_{k+1}, U_{k+1}) of the last forward-integral call, reused by the next step as its start.
   Vec r_end = nullptr;
   PetscInt r_end_step = -1;
-  // The damping sigma in the velocity rows (null: none), and the first kick's factor after a second kick
-  // (first same as last), (1 - s)/(1 + s) with s = sigma dt/2, for the step dt_scaled.
-  Vec sigma = nullptr, fsal_scale = nullptr;
+  // The damping sigma in the velocity rows (null: none), and the factors of the step dt_scaled, with
+  // s = sigma dt/2: (1 - s)/(1 + s) in the velocity rows (the first kick after a second kick, first
+  // same as last; the adjoint drift's lambda_p), 1/(1 + s) in the position rows (the first kick after a
+  // fresh G; the adjoint drift's lambda_q), so that the adjoint reads them in lambda's layout.
+  Vec sigma = nullptr, factors = nullptr;
   // what the integrand of a time-integrated objective reads (leapfrog_set_integrand_reads)
   bool integrand_reads_velocities = true, integrand_reads_parameters = true;
   PetscReal dt_scaled = 0;
@@ -78,25 +80,25 @@ PetscErrorCode kick(const Leapfrog &lf, Vec U, Vec F, PetscReal s) {
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode update_factors(Leapfrog &lf, PetscReal dt);
+
 // The drift's transpose on the adjoint: lambda_p += dt * lambda_q, and with damping (the two kicks'
 // factors on either side of it) lambda_p = ((1 - s) lambda_p + dt lambda_q) / (1 + s), s = sigma dt/2
 // (the forward drift is fused into start_kick_drift).
-PetscErrorCode drift_transpose(const Leapfrog &lf, Vec lambda, PetscReal dt) {
+PetscErrorCode drift_transpose(Leapfrog &lf, Vec lambda, PetscReal dt) {
   PetscScalar *l;
   PetscInt n;
   PetscFunctionBegin;
   PetscCall(VecGetLocalSize(lambda, &n));
   PetscCall(VecGetArray(lambda, &l));
   if (lf.sigma) {
-    const PetscScalar *sg;
+    const PetscScalar *g;
     const PetscInt m = lf.pairs, d = lf.dof;
-    PetscCall(VecGetArrayRead(lf.sigma, &sg));
+    PetscCall(update_factors(lf, dt));
+    PetscCall(VecGetArrayRead(lf.factors, &g));
     for (PetscInt i = 0; i < n; i += d)
-      for (PetscInt c = 0; c < m; ++c) {
-        const PetscScalar s = 0.5 * dt * sg[i + m + c];
-        l[i + m + c] = ((1.0 - s) * l[i + m + c] + dt * l[i + c]) / (1.0 + s);
-      }
-    PetscCall(VecRestoreArrayRead(lf.sigma, &sg));
+      for (PetscInt c = 0; c < m; ++c) l[i + m + c] = g[i + m + c] * l[i + m + c] + dt * g[i + c] * l[i + c];
+    PetscCall(VecRestoreArrayRead(lf.factors, &g));
   } else leapfrog_drift_transpose(l, 0, n / lf.dof, lf.pairs, dt);
   PetscCall(VecRestoreArray(lambda, &l));
   PetscFunctionReturn(0);
@@ -159,18 +161,19 @@ void start_kick_drift_loop(PetscScalar *__restrict u, const PetscScalar *__restr
     }
 }
 
-// The damped first kick and the drift: p += dt/2 g F_p with g per velocity row (`scale`, or 1/(1 + s)
-// from sigma when F is fresh), then q += dt p; Y0 = U first and the new positions to `sink` when given.
+// The damped first kick and the drift: p += dt/2 g F_p with g from the factors (those of the velocity
+// rows after a second kick, of the position rows when F is fresh), then q += dt p; Y0 = U first and the
+// new positions to `sink` when given.
 template <int M>
 void damped_start_kick_drift_loop(PetscScalar *__restrict u, const PetscScalar *__restrict f, PetscScalar *__restrict y,
-                                  PetscScalar *__restrict sink, const PetscScalar *__restrict scale,
-                                  const PetscScalar *__restrict sigma, PetscInt n, PetscInt m_rt, PetscReal dt) {
-  const PetscInt m = M ? M : m_rt, d = 2 * m;
+                                  PetscScalar *__restrict sink, const PetscScalar *__restrict factors, bool fresh,
+                                  PetscInt n, PetscInt m_rt, PetscReal dt) {
+  const PetscInt m = M ? M : m_rt, d = 2 * m, row = fresh ? 0 : m;
   if (y)
     for (PetscInt i = 0; i < n; ++i) y[i] = u[i];
   for (PetscInt i = 0, k = 0; i < n; i += d)
     for (PetscInt c = 0; c < m; ++c, ++k) {
-      const PetscScalar g = scale ? scale[i + m + c] : 1.0 / (1.0 + 0.5 * dt * sigma[i + m + c]);
+      const PetscScalar g = factors[i + row + c];
       const PetscScalar ph = u[i + m + c] + 0.5 * dt * g * f[i + m + c];
       u[i + m + c] = ph;
       u[i + c] += dt * ph;
@@ -178,19 +181,25 @@ void damped_start_kick_drift_loop(PetscScalar *__restrict u, const PetscScalar *
     }
 }
 
-// (1 - s)/(1 + s), s = sigma dt/2, in the velocity rows of lf.fsal_scale, for the step dt.
-PetscErrorCode update_fsal_scale(Leapfrog &lf, PetscReal dt) {
+// lf.factors for the step dt.
+PetscErrorCode update_factors(Leapfrog &lf, PetscReal dt) {
   PetscScalar *g;
   const PetscScalar *sg;
   PetscInt n;
   PetscFunctionBegin;
-  if (lf.fsal_scale && lf.dt_scaled == dt) PetscFunctionReturn(0);
-  if (!lf.fsal_scale) PetscCall(VecDuplicate(lf.sigma, &lf.fsal_scale));
+  if (lf.factors && lf.dt_scaled == dt) PetscFunctionReturn(0);
+  if (!lf.factors) PetscCall(VecDuplicate(lf.sigma, &lf.factors));
   PetscCall(VecGetLocalSize(lf.sigma, &n));
   PetscCall(VecGetArrayRead(lf.sigma, &sg));
-  PetscCall(VecGetArrayWrite(lf.fsal_scale, &g));
-  for (PetscInt i = 0; i < n; ++i) g[i] = (1.0 - 0.5 * dt * sg[i]) / (1.0 + 0.5 * dt * sg[i]);
-  PetscCall(VecRestoreArrayWrite(lf.fsal_scale, &g));
+  PetscCall(VecGetArrayWrite(lf.factors, &g));
+  const PetscInt m = lf.pairs, d = 2 * m;
+  for (PetscInt i = 0; i < n; i += d)
+    for (PetscInt c = 0; c < m; ++c) {
+      const PetscScalar s = 0.5 * dt * sg[i + m + c];
+      g[i + c] = 1.0 / (1.0 + s);
+      g[i + m + c] = (1.0 - s) / (1.0 + s);
+    }
+  PetscCall(VecRestoreArrayWrite(lf.factors, &g));
   PetscCall(VecRestoreArrayRead(lf.sigma, &sg));
   lf.dt_scaled = dt;
   PetscFunctionReturn(0);
@@ -204,21 +213,19 @@ PetscErrorCode start_kick_drift(Leapfrog &lf, Vec U, Vec F, Vec Y0, PetscReal dt
   const PetscScalar *f;
   PetscInt n;
   PetscFunctionBegin;
-  if (lf.sigma && !fresh) PetscCall(update_fsal_scale(lf, dt));
+  if (lf.sigma) PetscCall(update_factors(lf, dt));
   PetscCall(VecGetLocalSize(U, &n));
   PetscCall(VecGetArray(U, &u));
   if (Y0) PetscCall(VecGetArrayWrite(Y0, &y));
   PetscCall(VecGetArrayRead(F, &f));
   lf.sunk = nullptr;
   if (lf.sigma) {
-    const PetscScalar *sg, *g = nullptr;
+    const PetscScalar *g;
     PetscScalar *sink = y ? nullptr : lf.sink;
-    PetscCall(VecGetArrayRead(lf.sigma, &sg));
-    if (!fresh) PetscCall(VecGetArrayRead(lf.fsal_scale, &g));
-    if (lf.pairs == 1) damped_start_kick_drift_loop<1>(u, f, y, sink, g, sg, n, 1, dt);
-    else damped_start_kick_drift_loop<0>(u, f, y, sink, g, sg, n, lf.pairs, dt);
-    if (!fresh) PetscCall(VecRestoreArrayRead(lf.fsal_scale, &g));
-    PetscCall(VecRestoreArrayRead(lf.sigma, &sg));
+    PetscCall(VecGetArrayRead(lf.factors, &g));
+    if (lf.pairs == 1) damped_start_kick_drift_loop<1>(u, f, y, sink, g, fresh, n, 1, dt);
+    else damped_start_kick_drift_loop<0>(u, f, y, sink, g, fresh, n, lf.pairs, dt);
+    PetscCall(VecRestoreArrayRead(lf.factors, &g));
     lf.sunk = sink;
   } else
 #if defined(FLEXIPDE_LEAPFROG_SINK)
@@ -293,7 +300,7 @@ PetscErrorCode TSReset_Leapfrog(TS ts) {
   PetscCall(VecDestroy(&lf->W));
   PetscCall(VecDestroy(&lf->dmu));
   PetscCall(VecDestroy(&lf->r_end));
-  PetscCall(VecDestroy(&lf->fsal_scale));
+  PetscCall(VecDestroy(&lf->factors));
   if (lf->Q_placed) PetscCall(VecResetArray(lf->Q));
   lf->Q_placed = false;
   PetscCall(VecDestroy(&lf->Q));
@@ -474,7 +481,7 @@ PetscErrorCode set_damping(TS ts, Vec sigma) {
   PetscFunctionBegin;
   if (sigma) PetscCall(PetscObjectReference((PetscObject)sigma));
   PetscCall(VecDestroy(&lf->sigma));
-  PetscCall(VecDestroy(&lf->fsal_scale));
+  PetscCall(VecDestroy(&lf->factors));
   lf->sigma = sigma;
   PetscFunctionReturn(0);
 }
@@ -542,6 +549,10 @@ PetscErrorCode leapfrog_set_integrand_reads(TS ts, bool velocities, bool paramet
   PetscFunctionReturn(0);
 }
 
+bool leapfrog_positions_suffice(TS ts) {
+  return is_leapfrog(ts) && (!ts->quadraturets || !data(ts)->integrand_reads_velocities);
+}
+
 PetscInt leapfrog_pairs(TS ts) { return is_leapfrog(ts) ? data(ts)->pairs : 0; }
 
 PetscErrorCode leapfrog_set_adjoint_kick(TS ts, LeapfrogAdjointKick kick, void *ctx) {
@@ -563,7 +574,7 @@ PetscErrorCode leapfrog_place_positions(TS ts, const PetscScalar *q, const Petsc
   *placed = false;
   if (!is_leapfrog(ts)) PetscFunctionReturn(0);
   Leapfrog *lf = data(ts);
-  if (!lf->adjoint_kick || ts->quadraturets) PetscFunctionReturn(0);
+  if (!lf->adjoint_kick || !leapfrog_positions_suffice(ts)) PetscFunctionReturn(0);
   if (!lf->Q) {
     PetscInt n;
     PetscCall(VecGetLocalSize(ts->vec_sol, &n));

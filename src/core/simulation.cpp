@@ -281,12 +281,44 @@ PetscErrorCode Simulation::quad_rhs_cb(TS, PetscReal t, Vec U, Vec F, void *ctx)
   PetscFunctionReturn(0);
 }
 
+// The leapfrog's adjoint hands an integrand that reads no velocity the stored positions alone (m per
+// grid point, leapfrog_positions_suffice): the objective sees them as a state with zero velocities.
+PetscErrorCode Simulation::integrand_state(Vec X, Vec *U) {
+  PetscInt n, nx;
+  PetscFunctionBeginUser;
+  *U = X;
+  PetscCall(VecGetLocalSize(lambda_, &n));
+  PetscCall(VecGetLocalSize(X, &nx));
+  if (nx == n) PetscFunctionReturn(0);
+  const PetscInt m = model_->second_order_pairs(), d = model_->dof();
+  PetscCheck(m > 0 && nx * d == n * m, grid_->comm(), PETSC_ERR_PLIB, "integrand: a state of %" PetscInt_FMT " local entries",
+             nx);
+  if (!positions_state_) {
+    PetscCall(VecDuplicate(lambda_, positions_state_.out()));
+    PetscCall(VecSet(positions_state_, 0.0)); // the velocities stay 0
+  }
+  ConstArray x(X);
+  Array u(positions_state_);
+  PetscCall(x.error());
+  PetscCall(u.error());
+  const PetscScalar *__restrict q = x.data();
+  PetscScalar *__restrict w = u.data();
+  if (m == 1 && d == 2)
+    for (PetscInt i = 0; i < nx; ++i) w[2 * i] = q[i];
+  else
+    for (PetscInt i = 0; i < nx / m; ++i)
+      for (PetscInt c = 0; c < m; ++c) w[i * d + c] = q[i * m + c];
+  *U = positions_state_;
+  PetscFunctionReturn(0);
+}
+
 // The quadrature TS reads column 0 of these dense matrices (MatDenseGetColumn) with the layout of
 // lambda (resp. mu), so the objective writes straight into that column.
 PetscErrorCode Simulation::quad_jacobian_cb(TS, PetscReal t, Vec U, Mat A, Mat, void *ctx) {
   auto *sim = static_cast<Simulation *>(ctx);
   PetscScalar *col;
   PetscFunctionBeginUser;
+  PetscCall(sim->integrand_state(U, &U));
   PetscCall(MatDenseGetColumn(A, 0, &col));
   PetscCall(VecPlaceArray(sim->drdU_col_, col));
   PetscCall(sim->objective_->integrand_dU(t, U, sim->drdU_col_));
@@ -299,6 +331,7 @@ PetscErrorCode Simulation::quad_jacobian_p_cb(TS, PetscReal t, Vec U, Mat A, voi
   auto *sim = static_cast<Simulation *>(ctx);
   PetscScalar *col;
   PetscFunctionBeginUser;
+  PetscCall(sim->integrand_state(U, &U));
   PetscCall(MatDenseGetColumn(A, 0, &col));
   PetscCall(VecPlaceArray(sim->drdp_col_, col));
   PetscCall(sim->objective_->integrand_dp(t, U, sim->drdp_col_));

@@ -72,7 +72,8 @@ struct StoreTrajectory {
   PetscReal keep_stages_max_mb = 2048;
   bool keep_stages = false;
   PetscInt nstages = 0, slot = 0; // entries per step: (1 + nstages) * nlocal when keeping stages
-  // Leapfrog without a cost integrand: only the first `pairs` of every `dof` components are kept.
+  // Leapfrog without a cost integrand, or with one that reads no velocity: only the first `pairs` of
+  // every `dof` components are kept.
   PetscInt pairs = 0, dof = 0;
   // Explicit RK keeping its stages: the stage Vecs write straight into the buffer (VecPlaceArray on
   // the next step's slot before it runs; in the adjoint, on the slot being reversed), so no stage is
@@ -234,7 +235,7 @@ PetscErrorCode store_setup(TSTrajectory tj, TS ts) {
     }
   }
   st->pairs = 0;
-  if (is_leapfrog(ts) && !ts->quadraturets) {
+  if (leapfrog_positions_suffice(ts)) {
     PetscCall(VecGetBlockSize(ts->vec_sol, &st->dof));
     st->pairs = leapfrog_pairs(ts);
   }
