@@ -573,8 +573,8 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
   leapfrog_fused_ = leapfrog && with_adjoint && model_->has_second_order_adjoint() && !petsc_step_;
   if (leapfrog) {
     PetscCheck(model_->second_order_pairs() > 0, comm, PETSC_ERR_ARG_WRONG,
-               "-ts_type leapfrog needs a model in second-order form (q_t = p, p_t = a(t, q)); model %s is not: "
-               "choose -ts_type rk, theta, cn or beuler",
+               "-ts_type leapfrog needs a model in second-order form (q_t = p, p_t = a(t, q) - sigma p); model %s is "
+               "not, with these options: choose -ts_type rk, theta, cn or beuler",
                model_->name());
     PetscCall(leapfrog_set_pairs(ts, model_->second_order_pairs()));
     Vec sigma;
