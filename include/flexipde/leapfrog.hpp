@@ -56,6 +56,11 @@ PetscErrorCode leapfrog_set_integrand_reads(TS ts, bool velocities, bool paramet
 // integrand, or one that reads no velocity (then its dr/dU is evaluated at positions alone, handed to
 // the quadrature TS's Jacobian as a Vec of m components per point).
 bool leapfrog_positions_suffice(TS ts);
+// Optional: lambda += w dr/dU(t, X) in place, X a state or (leapfrog_positions_suffice) the positions
+// alone, for integrands with a sparse dr/dU (Objective::integrand_dU_add); else the adjoint adds the
+// quadrature TS's dense dr/dU.
+using LeapfrogIntegrandAdjoint = PetscErrorCode (*)(void *ctx, PetscReal t, Vec X, PetscReal w, Vec lambda);
+PetscErrorCode leapfrog_set_integrand_adjoint(TS ts, LeapfrogIntegrandAdjoint fn, void *ctx);
 bool is_leapfrog(TS ts);
 PetscInt leapfrog_pairs(TS ts); // m, or 0 for another TS type
 // Optional fused adjoint kick at one time level (Model::second_order_adjoint): first

@@ -56,6 +56,14 @@ public:
     return true;
   }
   virtual bool integrand_reads_parameters() const { return true; }
+  // Optional, for an integrand whose dr/dU is sparse (the receivers): lambda += w dr/dU(t, U) in place,
+  // without a state-sized dr/dU. U is a state or, for an integrand that reads no velocity, the positions
+  // alone (m per grid point, as the leapfrog's adjoint stores them).
+  virtual bool adds_integrand_dU() const { return false; }
+  virtual PetscErrorCode integrand_dU_add(PetscReal t, Vec U, PetscReal w, Vec lambda) {
+    (void)t, (void)U, (void)w;
+    SETERRQ(PetscObjectComm((PetscObject)lambda), PETSC_ERR_SUP, "This objective has no integrand_dU_add");
+  }
 };
 
 class TerminalMisfit final : public Objective {
@@ -117,6 +125,10 @@ public:
   PetscErrorCode integrand_dp(PetscReal t, Vec U, Vec drdp) override { return chosen_->integrand_dp(t, U, drdp); }
   bool integrand_reads_component(PetscInt c) const override { return chosen_->integrand_reads_component(c); }
   bool integrand_reads_parameters() const override { return chosen_->integrand_reads_parameters(); }
+  bool adds_integrand_dU() const override { return chosen_->adds_integrand_dU(); }
+  PetscErrorCode integrand_dU_add(PetscReal t, Vec U, PetscReal w, Vec lambda) override {
+    return chosen_->integrand_dU_add(t, U, w, lambda);
+  }
   Vec data() const { return misfit_ ? misfit_->data() : nullptr; }
   // The survey (sources, receivers, traces) of -objective_type receivers, else null.
   Survey *survey() const { return survey_; }

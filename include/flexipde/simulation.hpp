@@ -93,6 +93,7 @@ private:
   PetscErrorCode leapfrog_damping(Vec *sigma);
   OwnedVec damping_, velocities_;
   PetscErrorCode integrand_state(Vec X, Vec *U);
+  static PetscErrorCode integrand_adjoint_cb(void *, PetscReal, Vec, PetscReal, Vec);
   OwnedVec positions_state_; // integrand_state's state
   bool rk_stage_fused_ = false; // the last adjoint TS's RK stages call Model::stage_adjoint
   bool rk_stage_records_ = false; // ... and its RHS evaluations may record (Model::stage_record_size)

@@ -142,6 +142,8 @@ public:
   PetscErrorCode integrand_dU(PetscReal t, Vec U, Vec drdU) override;
   bool integrand_reads_component(PetscInt c) const override { return c == component_; }
   bool integrand_reads_parameters() const override { return false; }
+  bool adds_integrand_dU() const override { return true; }
+  PetscErrorCode integrand_dU_add(PetscReal t, Vec U, PetscReal w, Vec lambda) override;
 
 private:
   PetscErrorCode read_positions();
@@ -149,7 +151,9 @@ private:
   PetscErrorCode build_receiver_matrix(DM state_dm);
   // d(t) of the current shot into dvec_ (rank 0 holds every entry).
   PetscErrorCode data_at(PetscReal t);
-  PetscErrorCode residual(PetscReal t, Vec U); // res_ = R U - d(t)
+  PetscErrorCode residual(PetscReal t, Vec U); // res_ = R U - d(t), U a state or the positions alone
+  // R for vectors of `per_point` components per grid point (the state's dof_, or the positions alone)
+  PetscErrorCode assemble_sampling(PetscInt per_point, Vec like, Mat *R) const;
 
   const Grid *grid_ = nullptr;
   Model *model_ = nullptr;
@@ -169,7 +173,7 @@ private:
   bool banded_ = false;
   bool recording_ = false;
   char data_file_[PETSC_MAX_PATH_LEN] = "", write_file_[PETSC_MAX_PATH_LEN] = "";
-  OwnedMat R_;
+  OwnedMat R_, R_positions_; // sampling from states, and from the positions alone (made when first needed)
   OwnedVec y_, dvec_;
 };
 

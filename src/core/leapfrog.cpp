@@ -32,6 +32,9 @@ struct Leapfrog {
   Vec sigma = nullptr, factors = nullptr;
   // what the integrand of a time-integrated objective reads (leapfrog_set_integrand_reads)
   bool integrand_reads_velocities = true, integrand_reads_parameters = true;
+  // adds w dr/dU to lambda in place, when the objective can (leapfrog_set_integrand_adjoint)
+  LeapfrogIntegrandAdjoint integrand_adjoint = nullptr;
+  void *integrand_adjoint_ctx = nullptr;
   PetscReal dt_scaled = 0;
   // the model's fused adjoint kick, when it has one
   LeapfrogAdjointKick adjoint_kick = nullptr;
@@ -319,6 +322,7 @@ PetscErrorCode TSDestroy_Leapfrog(TS ts) {
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetAdjointKick_C", nullptr));
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetDamping_C", nullptr));
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetIntegrandReads_C", nullptr));
+  PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetIntegrandAdjoint_C", nullptr));
   PetscFunctionReturn(0);
 }
 
@@ -407,23 +411,29 @@ PetscErrorCode adjoint_level(TS ts, PetscReal t, Vec X, PetscReal w_right, Petsc
   const bool one_sweep = !quadts || !data(ts)->integrand_reads_velocities;
   PetscCall(half_kicks(ts, J, t, X, one_sweep ? w_right + w_left : w_right, drift, prefetch));
   if (!quadts) PetscFunctionReturn(0);
-  const bool with_p = ts->vecs_sensip && data(ts)->integrand_reads_parameters;
-  PetscCall(TSGetRHSJacobian(quadts, &Jquad, nullptr, nullptr, nullptr));
-  PetscCall(TSComputeRHSJacobian(quadts, t, X, Jquad, nullptr));
-  if (with_p) PetscCall(TSComputeRHSJacobianP(quadts, t, X, quadts->Jacprhs));
-  for (PetscInt k = 0; k < ts->numcost; ++k) {
-    PetscCall(MatDenseGetColumn(Jquad, k, &col));
-    PetscCall(VecPlaceArray(ts->vec_drdu_col, col));
-    PetscCall(VecAXPY(ts->vecs_sensi[k], w_quad, ts->vec_drdu_col));
-    PetscCall(VecResetArray(ts->vec_drdu_col));
-    PetscCall(MatDenseRestoreColumn(Jquad, &col));
-    if (with_p) {
-      PetscCall(MatDenseGetColumn(quadts->Jacprhs, k, &col));
-      PetscCall(VecPlaceArray(ts->vec_drdp_col, col));
-      PetscCall(VecAXPY(ts->vecs_sensip[k], w_quad, ts->vec_drdp_col));
-      PetscCall(VecResetArray(ts->vec_drdp_col));
-      PetscCall(MatDenseRestoreColumn(quadts->Jacprhs, &col));
+  Leapfrog *lf = data(ts);
+  const bool with_p = ts->vecs_sensip && lf->integrand_reads_parameters;
+  if (lf->integrand_adjoint) // lambda += w dr/dU in place (a sparse dr/dU)
+    for (PetscInt k = 0; k < ts->numcost; ++k)
+      PetscCall(lf->integrand_adjoint(lf->integrand_adjoint_ctx, t, X, w_quad, ts->vecs_sensi[k]));
+  else {
+    PetscCall(TSGetRHSJacobian(quadts, &Jquad, nullptr, nullptr, nullptr));
+    PetscCall(TSComputeRHSJacobian(quadts, t, X, Jquad, nullptr));
+    for (PetscInt k = 0; k < ts->numcost; ++k) {
+      PetscCall(MatDenseGetColumn(Jquad, k, &col));
+      PetscCall(VecPlaceArray(ts->vec_drdu_col, col));
+      PetscCall(VecAXPY(ts->vecs_sensi[k], w_quad, ts->vec_drdu_col));
+      PetscCall(VecResetArray(ts->vec_drdu_col));
+      PetscCall(MatDenseRestoreColumn(Jquad, &col));
     }
+  }
+  if (with_p) PetscCall(TSComputeRHSJacobianP(quadts, t, X, quadts->Jacprhs));
+  for (PetscInt k = 0; k < ts->numcost && with_p; ++k) {
+    PetscCall(MatDenseGetColumn(quadts->Jacprhs, k, &col));
+    PetscCall(VecPlaceArray(ts->vec_drdp_col, col));
+    PetscCall(VecAXPY(ts->vecs_sensip[k], w_quad, ts->vec_drdp_col));
+    PetscCall(VecResetArray(ts->vec_drdp_col));
+    PetscCall(MatDenseRestoreColumn(quadts->Jacprhs, &col));
   }
   if (!one_sweep) PetscCall(half_kicks(ts, J, t, X, w_left));
   PetscFunctionReturn(0);
@@ -493,6 +503,13 @@ PetscErrorCode set_integrand_reads(TS ts, PetscBool velocities, PetscBool parame
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode set_integrand_adjoint(TS ts, LeapfrogIntegrandAdjoint fn, void *ctx) {
+  PetscFunctionBegin;
+  data(ts)->integrand_adjoint = fn;
+  data(ts)->integrand_adjoint_ctx = ctx;
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode set_adjoint_kick(TS ts, LeapfrogAdjointKick kick, void *ctx) {
   PetscFunctionBegin;
   data(ts)->adjoint_kick = kick;
@@ -519,6 +536,7 @@ PetscErrorCode TSCreate_Leapfrog(TS ts) {
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetAdjointKick_C", set_adjoint_kick));
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetDamping_C", set_damping));
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetIntegrandReads_C", set_integrand_reads));
+  PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetIntegrandAdjoint_C", set_integrand_adjoint));
   PetscFunctionReturn(0);
 }
 
@@ -546,6 +564,12 @@ PetscErrorCode leapfrog_set_integrand_reads(TS ts, bool velocities, bool paramet
   PetscFunctionBegin;
   PetscTryMethod(ts, "FlexipdeLeapfrogSetIntegrandReads_C", (TS, PetscBool, PetscBool),
                  (ts, velocities ? PETSC_TRUE : PETSC_FALSE, parameters ? PETSC_TRUE : PETSC_FALSE));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode leapfrog_set_integrand_adjoint(TS ts, LeapfrogIntegrandAdjoint fn, void *ctx) {
+  PetscFunctionBegin;
+  PetscTryMethod(ts, "FlexipdeLeapfrogSetIntegrandAdjoint_C", (TS, LeapfrogIntegrandAdjoint, void *), (ts, fn, ctx));
   PetscFunctionReturn(0);
 }
 

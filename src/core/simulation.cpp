@@ -281,6 +281,13 @@ PetscErrorCode Simulation::quad_rhs_cb(TS, PetscReal t, Vec U, Vec F, void *ctx)
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode Simulation::integrand_adjoint_cb(void *ctx, PetscReal t, Vec X, PetscReal w, Vec lambda) {
+  auto *sim = static_cast<Simulation *>(ctx);
+  PetscFunctionBeginUser;
+  PetscCall(sim->objective_->integrand_dU_add(t, X, w, lambda));
+  PetscFunctionReturn(0);
+}
+
 // The leapfrog's adjoint hands an integrand that reads no velocity the stored positions alone (m per
 // grid point, leapfrog_positions_suffice): the objective sees them as a state with zero velocities.
 PetscErrorCode Simulation::integrand_state(Vec X, Vec *U) {
@@ -585,6 +592,7 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
       for (PetscInt c = model_->second_order_pairs(); c < 2 * model_->second_order_pairs(); ++c)
         velocities = velocities || objective_->integrand_reads_component(c);
       PetscCall(leapfrog_set_integrand_reads(ts, velocities, objective_->integrand_reads_parameters()));
+      if (objective_->adds_integrand_dU()) PetscCall(leapfrog_set_integrand_adjoint(ts, integrand_adjoint_cb, this));
     }
     if (leapfrog_fused_)
       PetscCall(leapfrog_set_adjoint_kick(ts, adjoint_kick_cb, this));

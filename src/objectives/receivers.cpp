@@ -280,29 +280,35 @@ PetscErrorCode Survey::read_positions() {
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode Survey::build_receiver_matrix(DM state_dm) {
-  OwnedVec U;
+PetscErrorCode Survey::assemble_sampling(PetscInt per_point, Vec like, Mat *R) const {
   PetscInt nloc, rstart;
   const PetscInt nrec = receivers();
   PetscFunctionBeginUser;
-  PetscCall(DMCreateGlobalVector(state_dm, U.out()));
-  PetscCall(VecGetLocalSize(U, &nloc));
-  PetscCall(VecGetOwnershipRange(U, &rstart, nullptr));
-  PetscCall(MatCreate(comm_, R_.out()));
-  PetscCall(MatSetSizes(R_, rank_ == 0 ? nrec : 0, nloc, nrec, PETSC_DETERMINE));
-  PetscCall(MatSetType(R_, MATAIJ));
+  PetscCall(VecGetLocalSize(like, &nloc));
+  PetscCall(VecGetOwnershipRange(like, &rstart, nullptr));
+  PetscCall(MatCreate(comm_, R));
+  PetscCall(MatSetSizes(*R, rank_ == 0 ? nrec : 0, nloc, nrec, PETSC_DETERMINE));
+  PetscCall(MatSetType(*R, MATAIJ));
   const PetscInt per_row = interpolation_ == Interpolation::Sinc ? PointStencil::max_points : 4;
-  PetscCall(MatSeqAIJSetPreallocation(R_, per_row, nullptr));
-  PetscCall(MatMPIAIJSetPreallocation(R_, per_row, nullptr, per_row, nullptr));
-  PetscCall(MatSetOption(R_, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_FALSE));
+  PetscCall(MatSeqAIJSetPreallocation(*R, per_row, nullptr));
+  PetscCall(MatMPIAIJSetPreallocation(*R, per_row, nullptr, per_row, nullptr));
+  PetscCall(MatSetOption(*R, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_FALSE));
   for (PetscInt r = 0; r < nrec; ++r) {
     PointStencil st;
     PetscCall(point_stencil(*grid_, rec_x_[r], rec_y_[r], &st, interpolation_));
     for (PetscInt k = 0; k < st.n; ++k)
-      PetscCall(MatSetValue(R_, r, rstart + st.local[k] * dof_ + component_, st.weight[k], ADD_VALUES));
+      PetscCall(MatSetValue(*R, r, rstart + st.local[k] * per_point + component_, st.weight[k], ADD_VALUES));
   }
-  PetscCall(MatAssemblyBegin(R_, MAT_FINAL_ASSEMBLY));
-  PetscCall(MatAssemblyEnd(R_, MAT_FINAL_ASSEMBLY));
+  PetscCall(MatAssemblyBegin(*R, MAT_FINAL_ASSEMBLY));
+  PetscCall(MatAssemblyEnd(*R, MAT_FINAL_ASSEMBLY));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Survey::build_receiver_matrix(DM state_dm) {
+  OwnedVec U;
+  PetscFunctionBeginUser;
+  PetscCall(DMCreateGlobalVector(state_dm, U.out()));
+  PetscCall(assemble_sampling(dof_, U, R_.out()));
   PetscCall(MatCreateVecs(R_, nullptr, y_.out()));
   PetscCall(VecDuplicate(y_, dvec_.out()));
   PetscFunctionReturn(0);
@@ -647,7 +653,17 @@ PetscErrorCode Survey::data_at(PetscReal t) {
 PetscErrorCode Survey::residual(PetscReal t, Vec U) {
   PetscFunctionBeginUser;
   PetscCheck(nt_ > 0, comm_, PETSC_ERR_ORDER, "The survey has no data: record synthetic data or give -survey_data_file");
-  PetscCall(MatMult(R_, U, y_));
+  PetscInt n, nstate;
+  PetscCall(VecGetLocalSize(U, &n));
+  PetscCall(MatGetLocalSize(R_, nullptr, &nstate));
+  if (n == nstate) PetscCall(MatMult(R_, U, y_));
+  else { // the positions alone: n / points components per grid point, the recorded one among them
+    const PetscInt points = nstate / dof_, per_point = points ? n / points : 0;
+    PetscCheck(points == 0 || (n == points * per_point && component_ < per_point), PETSC_COMM_SELF, PETSC_ERR_PLIB,
+               "Survey: a vector of %" PetscInt_FMT " local entries is neither a state nor its positions", n);
+    if (!R_positions_) PetscCall(assemble_sampling(per_point, U, R_positions_.out()));
+    PetscCall(MatMult(R_positions_, U, y_));
+  }
   PetscCall(data_at(t));
   PetscCall(VecAXPY(y_, -1.0, dvec_));
   PetscFunctionReturn(0);
@@ -698,6 +714,15 @@ PetscErrorCode Survey::integrand_dU(PetscReal t, Vec U, Vec drdU) {
   PetscFunctionBeginUser;
   PetscCall(residual(t, U));
   PetscCall(MatMultTranspose(R_, y_, drdU));
+  PetscFunctionReturn(0);
+}
+
+// lambda += w R^T (R U - d(t)): a few entries per receiver, not a state-sized dr/dU.
+PetscErrorCode Survey::integrand_dU_add(PetscReal t, Vec U, PetscReal w, Vec lambda) {
+  PetscFunctionBeginUser;
+  PetscCall(residual(t, U));
+  PetscCall(VecScale(y_, w));
+  PetscCall(MatMultTransposeAdd(R_, y_, lambda, lambda));
   PetscFunctionReturn(0);
 }
 
