@@ -26,7 +26,8 @@
 #
 # Environment: FLEXIPDE (default build/flexipde), ROUNDS (3), REPS (7), CN_REPS (3: a CN gradient at
 # N = 4096 takes seconds), CN (1; 0 leaves CN out), OUT (default a new /tmp/bench_burgers.XXXXXX),
-# MPIEXEC (mpiexec, --allow-run-as-root as root), PYTHON (python3), CC (cc).
+# MPIEXEC (mpiexec, --allow-run-as-root as root), PYTHON (python3), CC (cc),
+# REF_CFLAGS (-O3 -march=native -ffp-contract=off).
 set -euo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 root=$(dirname "$here")
@@ -45,8 +46,9 @@ MPIEXEC=${MPIEXEC:-mpiexec}
 # a copy, so that a rebuild of the build directory during the rounds cannot mix two binaries
 cp "$FLEXIPDE" "$OUT/flexipde"
 
-# portable, as flexipde's own build (no -march=native)
-$CC -O3 -march=x86-64 -o "$OUT/reference_burgers" "$here/reference_burgers.c" -lm
+# the flags of flexipde's own build (CMakeLists.txt, FLEXIPDE_NATIVE)
+REF_CFLAGS=${REF_CFLAGS:--O3 -march=native -ffp-contract=off}
+$CC $REF_CFLAGS -o "$OUT/reference_burgers" "$here/reference_burgers.c" -lm
 
 # name  N  dt  T  nu  nu_true  field
 scenes="n128_scalar  128  1e-3 0.5  0.01 0.02   0

@@ -19,6 +19,7 @@
 #
 # Environment: FLEXIPDE (default build/flexipde), REPS (7), SCALE (1: also the large-grid part),
 # PYTHON (/usr/bin/python3), OUT (default a new /tmp/bench_peers.XXXXXX), MPIEXEC, PEERS_INSTALL (1),
+# REF_CFLAGS (-O3 -march=native -ffp-contract=off: the flags of flexipde's build),
 # ROUNDS (0: the seed pair of flexipde and the hand-written loop once; N: also in N alternating rounds).
 set -euo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
@@ -33,7 +34,9 @@ MPIEXEC=${MPIEXEC:-mpiexec}
 [ "$(id -u)" = 0 ] && MPIEXEC="$MPIEXEC --allow-run-as-root"
 [ -x "$FLEXIPDE" ] || { echo "bench_peers: $FLEXIPDE not found (build first: bash run/build.sh)" >&2; exit 1; }
 
-cc -O3 -o "$OUT/reference_leapfrog" "$here/reference_leapfrog.c" -lm
+# the hand-written references with the flags of flexipde's own build (CMakeLists.txt, FLEXIPDE_NATIVE)
+REF_CFLAGS=${REF_CFLAGS:--O3 -march=native -ffp-contract=off}
+cc $REF_CFLAGS -o "$OUT/reference_leapfrog" "$here/reference_leapfrog.c" -lm
 seed="-ts_type leapfrog -wave_c_field 1 -wave_c 0.9"
 
 echo "## Gradient speed against peers (seed FWI, 1000 parameters, 5000 steps, 1 core)"
@@ -51,7 +54,7 @@ done
 "$OUT/reference_leapfrog" 1000 5000 5e-4 0.9 "$REPS" "$OUT/reference_gradient.txt" > "$OUT/reference.log"
 # the 2D wave at the model survey's size (run/bench_models.sh: 101^2, walls, 5000 leapfrog steps, field c)
 # against the hand-written 2D loop at the same size: both gradients and both forwards alone
-cc -O3 -o "$OUT/reference_leapfrog_2d" "$here/reference_leapfrog_2d.c" -lm
+cc $REF_CFLAGS -o "$OUT/reference_leapfrog_2d" "$here/reference_leapfrog_2d.c" -lm
 $MPIEXEC -n 1 "$FLEXIPDE" -task gradient -model wave2d -da_grid_x 101 -da_grid_y 101 -ts_type leapfrog -wave2d_sponge_width 0 \
   -wave2d_ic pulse -wave2d_c_field 1 -wave2d_c 0.9 -true_wave2d_c 1 -timing_repeats "$REPS" > "$OUT/small2d.log"
 "$OUT/reference_leapfrog_2d" 101 5000 5e-4 0.9 "$REPS" > "$OUT/reference_small2d.log"

@@ -17,7 +17,8 @@
 #   N2=201 N3=41 REPS=3 bash run/bench_throughput.sh   # a quick pass
 #
 # Environment: FLEXIPDE (build/flexipde), OUT (a new /tmp/bench_throughput.XXXXXX), REPS (5), N2 (1001),
-# N3 (101), STEPS (100), MPIEXEC (mpiexec, --allow-run-as-root as root).
+# N3 (101), STEPS (100), MPIEXEC (mpiexec, --allow-run-as-root as root), REF_CFLAGS
+# (-O3 -march=native -ffp-contract=off: the flags of flexipde's build).
 # Full storage takes (STEPS + 1) n^dim 8 bytes: 0.81 GB for 1001^2 and 0.83 GB for 101^3 at 100 steps.
 set -euo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
@@ -33,8 +34,10 @@ MPIEXEC=${MPIEXEC:-mpiexec}
 [ -x "$FLEXIPDE" ] || { echo "bench_throughput: $FLEXIPDE not found (build first: bash run/build.sh)" >&2; exit 1; }
 mkdir -p "$OUT"
 
-cc -O3 -o "$OUT/stream_triad" "$here/stream_triad.c"
-cc -O3 -o "$OUT/reference_wave" "$here/reference_wave.c" -lm
+# the hand-written references with the flags of flexipde's own build (CMakeLists.txt, FLEXIPDE_NATIVE)
+REF_CFLAGS=${REF_CFLAGS:--O3 -march=native -ffp-contract=off}
+cc $REF_CFLAGS -o "$OUT/stream_triad" "$here/stream_triad.c"
+cc $REF_CFLAGS -o "$OUT/reference_wave" "$here/reference_wave.c" -lm
 
 # grid size, time step and final time of a (dim, order) scene
 npoints() { [ "$1" = 2 ] && echo "$N2" || echo "$N3"; }
