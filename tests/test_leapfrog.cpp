@@ -2,6 +2,7 @@
 // at second order in time, and its gradient does not depend on how the trajectory is kept.
 // (Taylor tests, dJ/dU0 and 1 vs 2 ranks for leapfrog run with the other integrators in
 // test_gradient.cpp.)
+#include "flexipde/leapfrog.hpp"
 #include "flexipde/scene.hpp"
 #include "test_support.hpp"
 #include <cmath>
@@ -179,5 +180,111 @@ TEST(Leapfrog, CheckpointedGradientEqualsFullStorage) {
     EXPECT_LE(rel_diff(J[1], J[0]), 1e-14);
     EXPECT_LE(dg, 1e-13);
     EXPECT_GT(flexipde_test::norm(g[0]), 0.0);
+  }
+}
+
+namespace {
+
+PetscErrorCode model_rhs(TS, PetscReal t, Vec U, Vec G, void *ctx) { return static_cast<Model *>(ctx)->rhs(t, U, G); }
+
+PetscErrorCode model_step(void *ctx, PetscReal t, Vec U, Vec F, const LeapfrogStepParts &parts) {
+  return static_cast<Model *>(ctx)->second_order_step(t, U, F, parts);
+}
+
+// U(T) by the leapfrog TS, from the Simulation's U0: in three passes per step (kick and drift, G, kick)
+// driven by the model's rhs() alone, or (one_sweep) in the model's one sweep per step; sigma: the
+// damping in the velocity rows (null: none).
+PetscErrorCode leapfrog_solve(Scene &scene, Vec p, Vec sigma, PetscReal dt, PetscInt steps, bool one_sweep, Vec U) {
+  OwnedTS ts;
+  PetscFunctionBeginUser;
+  PetscCall(scene.sim.initial_condition(p, U));
+  PetscCall(TSCreate(scene.grid.comm(), ts.out()));
+  PetscCall(TSSetProblemType(ts, TS_NONLINEAR));
+  PetscCall(TSSetType(ts, FLEXIPDE_TSLEAPFROG));
+  PetscCall(TSSetRHSFunction(ts, nullptr, model_rhs, scene.model.get()));
+  PetscCall(leapfrog_set_pairs(ts, 1));
+  PetscCall(leapfrog_set_damping(ts, sigma));
+  if (one_sweep) PetscCall(leapfrog_set_step(ts, model_step, scene.model.get()));
+  PetscCall(TSSetTimeStep(ts, dt));
+  PetscCall(TSSetMaxSteps(ts, steps));
+  PetscCall(TSSetMaxTime(ts, dt * (steps + 1)));
+  PetscCall(TSSetExactFinalTime(ts, TS_EXACTFINALTIME_MATCHSTEP));
+  PetscCall(TSSolve(ts, U));
+  PetscFunctionReturn(0);
+}
+
+} // namespace
+
+// A 2D second-order model's leapfrog step as one sweep over the grid (Model::second_order_step, which
+// the Simulation takes for states beyond the caches): the three passes' numbers exactly, with the
+// sponge's damped kicks and with a point source inside the grid (its forcing added row by row), on
+// a grid that is not square, on 1 and 2 ranks; and the Simulation's solve is the three passes' too.
+TEST(Leapfrog, OneSweepStepIsTheThreePasses) {
+  const PetscReal dt = 2e-3;
+  const PetscInt steps = 150;
+  for (int source = 0; source < 2; ++source) {
+    ScopedOptions opts{{"-model", "wave2d"},      {"-da_grid_x", "37"},        {"-da_grid_y", "29"},
+                       {"-ts_dt", "2e-3"},        {"-ts_max_time", "0.3"},     {"-ts_type", "leapfrog"},
+                       {"-wave2d_c_field", "1"},  {"-wave2d_c", "0.9"}};
+    if (source) {
+      opts.set("-objective_type", "receivers");
+      opts.set("-survey_sources_x", "0.31");
+      opts.set("-survey_sources_y", "0.58");
+      opts.set("-survey_receivers_spread", "0.1,0.9,5");
+      opts.set("-survey_receivers_y", "0.2");
+      opts.set("-wave2d_ic", "zero");
+      opts.set("-wave2d_sponge_width", "0");
+    } else {
+      opts.set("-wave2d_ic", "pulse");
+      opts.set("-wave2d_ic_x", "0.3");
+      opts.set("-wave2d_sponge_width", "0.2");
+    }
+    Scene scene;
+    OwnedVec p, simulation, passes, sweep, sigma;
+    PETSC_ASSERT_OK(scene.setup(PETSC_COMM_WORLD));
+    ASSERT_TRUE(scene.model->has_second_order_step());
+    PETSC_ASSERT_OK(scene.params.create_vec(p.out()));
+    PETSC_ASSERT_OK(scene.parameters_from_options("", p));
+    { // a speed that varies from point to point
+      PetscScalar *a;
+      PetscInt lo, hi;
+      PETSC_ASSERT_OK(VecGetOwnershipRange(p, &lo, &hi));
+      PETSC_ASSERT_OK(VecGetArray(p, &a));
+      for (PetscInt i = lo; i < hi; ++i) a[i - lo] = 0.9 + 0.1 * std::sin(0.37 * (PetscReal)i);
+      PETSC_ASSERT_OK(VecRestoreArray(p, &a));
+    }
+    PETSC_ASSERT_OK(scene.sim.create_state(simulation.out()));
+    PETSC_ASSERT_OK(VecDuplicate(simulation, passes.out()));
+    PETSC_ASSERT_OK(VecDuplicate(simulation, sweep.out()));
+    PETSC_ASSERT_OK(scene.sim.forward(p, simulation));
+    ASSERT_EQ(scene.sim.stats().steps, steps);
+    Vec damping = nullptr;
+    if (!source) { // sigma = -G_p at U = (0, 1): G_p = a(q) - sigma p, and a(0) = 0
+      OwnedVec u;
+      PETSC_ASSERT_OK(VecDuplicate(simulation, u.out()));
+      PETSC_ASSERT_OK(VecDuplicate(simulation, sigma.out()));
+      PETSC_ASSERT_OK(VecStrideSet(u, 0, 0.0));
+      PETSC_ASSERT_OK(VecStrideSet(u, 1, 1.0));
+      PETSC_ASSERT_OK(scene.model->rhs(0.0, u, sigma));
+      PETSC_ASSERT_OK(VecScale(sigma, -1.0));
+      PETSC_ASSERT_OK(VecStrideSet(sigma, 0, 0.0));
+      PetscReal smax;
+      PETSC_ASSERT_OK(VecMax(sigma, nullptr, &smax));
+      EXPECT_GT(smax, 0.0) << "the sponge damps";
+      damping = sigma;
+    }
+    PETSC_ASSERT_OK(leapfrog_solve(scene, p, damping, dt, steps, false, passes));
+    PETSC_ASSERT_OK(leapfrog_solve(scene, p, damping, dt, steps, true, sweep));
+    PetscReal scale, diff, diff_sim;
+    PETSC_ASSERT_OK(VecNorm(passes, NORM_INFINITY, &scale));
+    PETSC_ASSERT_OK(VecAXPY(simulation, -1.0, passes));
+    PETSC_ASSERT_OK(VecNorm(simulation, NORM_INFINITY, &diff_sim));
+    PETSC_ASSERT_OK(VecAXPY(sweep, -1.0, passes));
+    PETSC_ASSERT_OK(VecNorm(sweep, NORM_INFINITY, &diff));
+    PetscPrintf(PETSC_COMM_WORLD, "  one sweep vs three passes (%s): max |U| %.3e, max |diff| %.3e (Simulation: %.3e)\n",
+                source ? "point source" : "sponge", (double)scale, (double)diff, (double)diff_sim);
+    EXPECT_GT(scale, 1e-3);
+    EXPECT_EQ(diff, 0.0);
+    EXPECT_EQ(diff_sim, 0.0);
   }
 }

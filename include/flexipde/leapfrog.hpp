@@ -88,6 +88,29 @@ inline void leapfrog_drift_transpose(PetscScalar *lambda, PetscInt lo, PetscInt 
     for (PetscInt i = lo; i < hi; ++i)
       for (PetscInt c = 0; c < m; ++c) lambda[2 * m * i + m + c] += s * lambda[2 * m * i + c];
 }
+// Optional fused forward step (Model::second_order_step): the model sweeps a whole step in one pass
+// over the grid, applying the integrator's point-local parts below to ranges of owned points in an
+// order its stencil allows, so that the state passes through the cache once instead of three times.
+// The same operations on every point as the three passes (kick and drift, G, kick): the same numbers.
+class LeapfrogStepParts {
+public:
+  // u, f: the local arrays of U and F (2m entries per point); points [begin, end).
+  // The first kick and the drift, p += dt/2 g F_p and q += dt p (and q to the trajectory's slot):
+  // before G reads the point's positions anywhere.
+  virtual void kick_drift(PetscScalar *u, const PetscScalar *f, PetscInt begin, PetscInt end) const = 0;
+  // The second kick p += dt/2 F_p: once the point's G is final.
+  virtual void kick(PetscScalar *u, const PetscScalar *f, PetscInt begin, PetscInt end) const = 0;
+
+protected:
+  ~LeapfrogStepParts() = default;
+};
+// F = G(t, U) at the state after kick_drift, and U after kick (t: the step's end).
+using LeapfrogStep = PetscErrorCode (*)(void *ctx, PetscReal t, Vec U, Vec F, const LeapfrogStepParts &parts);
+PetscErrorCode leapfrog_set_step(TS ts, LeapfrogStep step, void *ctx);
+// Whether one sweep beats three passes for a rank whose U and F take `bytes`: when they exceed the
+// last-level cache's share per core. Within the caches the three passes stream faster; beyond them one
+// sweep saves two passes over memory (docs/performance.md).
+bool leapfrog_one_sweep_pays(size_t bytes);
 // The kick takes U as a whole state or as the positions alone.
 PetscErrorCode leapfrog_set_adjoint_kick(TS ts, LeapfrogAdjointKick kick, void *ctx);
 // For a trajectory that stores the positions alone (m of every 2m components, contiguous): the next

@@ -3,7 +3,11 @@
 #include "flexipde/checkpoint.hpp" // FLEXIPDE_TSTRAJECTORY_STORE
 #include <petsc/private/petscimpl.h> // PetscObjectStateGet
 #include <petsc/private/tsimpl.h>
+#include <algorithm>
 #include <cstdint>
+#include <cstdlib>
+#include <fstream>
+#include <string>
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
@@ -39,6 +43,9 @@ struct Leapfrog {
   // the model's fused adjoint kick, when it has one
   LeapfrogAdjointKick adjoint_kick = nullptr;
   void *adjoint_kick_ctx = nullptr;
+  // the model's fused forward step, when it has one
+  LeapfrogStep step = nullptr;
+  void *step_ctx = nullptr;
   // It reads the positions alone: a full-storage trajectory points Q (a Vec of the positions, no array
   // of its own) at the stored ones of level k-1 before the adjoint of step k-1 -> k, which reads them
   // there instead of from Y0 (leapfrog_place_positions).
@@ -63,8 +70,11 @@ Leapfrog *data(TS ts) { return static_cast<Leapfrog *>(ts->data); }
 template <int M>
 void kick_loop(PetscScalar *__restrict u, const PetscScalar *__restrict f, PetscInt n, PetscInt m_rt, PetscReal s) {
   const PetscInt m = M ? M : m_rt, d = 2 * m;
-  for (PetscInt i = 0; i < n; i += d)
-    for (PetscInt c = m; c < d; ++c) u[i + c] += s * f[i + c];
+  if (M == 1) // every entry, the positions stored back unchanged: whole-vector stores
+    for (PetscInt i = 0; i < n; ++i) u[i] = (i & 1) ? u[i] + s * f[i] : u[i];
+  else
+    for (PetscInt i = 0; i < n; i += d)
+      for (PetscInt c = m; c < d; ++c) u[i + c] += s * f[i + c];
 }
 
 // p += s * F_p on every grid point (the kick).
@@ -208,6 +218,53 @@ PetscErrorCode update_factors(Leapfrog &lf, PetscReal dt) {
   PetscFunctionReturn(0);
 }
 
+// The point-local parts of a step for a model's fused sweep (leapfrog_set_step): the loops of
+// start_kick_drift and kick on ranges of points.
+class StepParts final : public LeapfrogStepParts {
+public:
+  StepParts(PetscInt pairs, const PetscScalar *factors, PetscScalar *sink, bool fresh, PetscReal dt)
+      : m_(pairs), factors_(factors), sink_(sink), fresh_(fresh), dt_(dt) {}
+  void kick_drift(PetscScalar *u, const PetscScalar *f, PetscInt begin, PetscInt end) const override {
+    const PetscInt d = 2 * m_, a = begin * d, n = (end - begin) * d;
+    PetscScalar *q = sink_ ? sink_ + begin * m_ : nullptr;
+    if (factors_) {
+      if (m_ == 1) damped_start_kick_drift_loop<1>(u + a, f + a, nullptr, q, factors_ + a, fresh_, n, 1, dt_);
+      else damped_start_kick_drift_loop<0>(u + a, f + a, nullptr, q, factors_ + a, fresh_, n, m_, dt_);
+    } else if (q) {
+      if (m_ == 1) start_kick_drift_loop<1>(u + a, f + a, nullptr, n, 1, dt_);
+      else start_kick_drift_loop<0>(u + a, f + a, nullptr, n, m_, dt_);
+      copy_positions(u + a, q, end - begin);
+    } else if (m_ == 1) start_kick_drift_loop<1>(u + a, f + a, nullptr, n, 1, dt_);
+    else start_kick_drift_loop<0>(u + a, f + a, nullptr, n, m_, dt_);
+  }
+  void kick(PetscScalar *u, const PetscScalar *f, PetscInt begin, PetscInt end) const override {
+    const PetscInt a = begin * 2 * m_, n = (end - begin) * 2 * m_;
+    if (m_ == 1) kick_loop<1>(u + a, f + a, n, 1, 0.5 * dt_);
+    else kick_loop<0>(u + a, f + a, n, m_, 0.5 * dt_);
+  }
+
+private:
+  // The positions of npt points of u (2m entries each) to q (m each): the cache lines of q that the
+  // range covers whole with non-temporal stores (the trajectory is not read again until the adjoint),
+  // the partial ones at its ends with plain stores, which other ranges of the step complete.
+  void copy_positions(const PetscScalar *u, PetscScalar *q, PetscInt npt) const {
+    const PetscInt m = m_, d = 2 * m, nq = npt * m;
+    PetscInt k = 0;
+#if defined(FLEXIPDE_LEAPFROG_SINK)
+    for (; k < nq && reinterpret_cast<uintptr_t>(q + k) % 64 != 0; ++k) q[k] = u[(k / m) * d + k % m];
+    if (m == 1)
+      for (; k + 8 <= nq; k += 8)
+        for (PetscInt e = 0; e < 8; e += 2) _mm_stream_pd(q + k + e, _mm_set_pd(u[2 * (k + e + 1)], u[2 * (k + e)]));
+#endif
+    for (; k < nq; ++k) q[k] = u[(k / m) * d + k % m];
+  }
+  PetscInt m_;
+  const PetscScalar *factors_;
+  PetscScalar *sink_;
+  bool fresh_;
+  PetscReal dt_;
+};
+
 // Y0 = U (when asked for), then the first kick and the drift; the new positions also go to lf.sink
 // when there is one (and no Y0), recorded in lf.sunk. fresh: F was evaluated at U itself (not kept
 // from the last step's second kick), which matters with damping only.
@@ -261,11 +318,28 @@ PetscErrorCode TSStep_Leapfrog(TS ts) {
   }
   // the forward cost integral reads r(t_k, U_k) from Y0 when it does not have it from the last step
   const bool need_stage = lf->copy_stage || (ts->quadraturets && ts->costintegralfwd && lf->r_end_step != ts->steps);
-  PetscCall(start_kick_drift(*lf, U, lf->F, need_stage ? lf->Y0 : nullptr, dt, fresh));
+  if (lf->step) { // the model's one sweep: the parts below on every point, in its order
+    if (need_stage) PetscCall(VecCopy(U, lf->Y0));
+    PetscScalar *sink = need_stage ? nullptr : lf->sink;
+    const PetscScalar *g = nullptr;
+    if (lf->sigma) {
+      PetscCall(update_factors(*lf, dt));
+      PetscCall(VecGetArrayRead(lf->factors, &g));
+    }
+    lf->sunk = nullptr;
+    PetscCall(lf->step(lf->step_ctx, t + dt, U, lf->F, StepParts(lf->pairs, g, sink, fresh, dt)));
+    lf->sunk = sink;
+#if defined(FLEXIPDE_LEAPFROG_SINK)
+    if (sink) _mm_sfence(); // the non-temporal stores of the positions, before anyone reads them
+#endif
+    if (g) PetscCall(VecRestoreArrayRead(lf->factors, &g));
+  } else {
+    PetscCall(start_kick_drift(*lf, U, lf->F, need_stage ? lf->Y0 : nullptr, dt, fresh));
+    // the second kick p_{k+1} = p_h + dt/2 G_p(q_{k+1}, p_h), also with damping (leapfrog.hpp)
+    PetscCall(TSComputeRHSFunction(ts, t + dt, U, lf->F));
+    PetscCall(kick(*lf, U, lf->F, 0.5 * dt));
+  }
   lf->sink = nullptr; // one step only
-  // the second kick p_{k+1} = p_h + dt/2 G_p(q_{k+1}, p_h), also with damping (leapfrog.hpp)
-  PetscCall(TSComputeRHSFunction(ts, t + dt, U, lf->F));
-  PetscCall(kick(*lf, U, lf->F, 0.5 * dt));
   PetscCall(PetscObjectStateGet((PetscObject)U, &lf->F_state));
   lf->F_time = t + dt;
   lf->F_valid = true;
@@ -320,6 +394,7 @@ PetscErrorCode TSDestroy_Leapfrog(TS ts) {
   ts->data = nullptr;
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetPairs_C", nullptr));
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetAdjointKick_C", nullptr));
+  PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetStep_C", nullptr));
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetDamping_C", nullptr));
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetIntegrandReads_C", nullptr));
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetIntegrandAdjoint_C", nullptr));
@@ -517,6 +592,13 @@ PetscErrorCode set_adjoint_kick(TS ts, LeapfrogAdjointKick kick, void *ctx) {
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode set_step(TS ts, LeapfrogStep step, void *ctx) {
+  PetscFunctionBegin;
+  data(ts)->step = step;
+  data(ts)->step_ctx = ctx;
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode TSCreate_Leapfrog(TS ts) {
   PetscFunctionBegin;
   ts->data = new Leapfrog();
@@ -534,6 +616,7 @@ PetscErrorCode TSCreate_Leapfrog(TS ts) {
   ts->usessnes = PETSC_FALSE;
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetPairs_C", set_pairs));
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetAdjointKick_C", set_adjoint_kick));
+  PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetStep_C", set_step));
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetDamping_C", set_damping));
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetIntegrandReads_C", set_integrand_reads));
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetIntegrandAdjoint_C", set_integrand_adjoint));
@@ -582,6 +665,38 @@ PetscInt leapfrog_pairs(TS ts) { return is_leapfrog(ts) ? data(ts)->pairs : 0; }
 PetscErrorCode leapfrog_set_adjoint_kick(TS ts, LeapfrogAdjointKick kick, void *ctx) {
   PetscFunctionBegin;
   PetscTryMethod(ts, "FlexipdeLeapfrogSetAdjointKick_C", (TS, LeapfrogAdjointKick, void *), (ts, kick, ctx));
+  PetscFunctionReturn(0);
+}
+
+bool leapfrog_one_sweep_pays(size_t bytes) {
+  static const size_t share = [] { // the last-level cache per core that shares it (16 MB if unknown)
+    size_t best = 0;
+    for (int index = 0; index < 8; ++index) {
+      const std::string dir = "/sys/devices/system/cpu/cpu0/cache/index" + std::to_string(index) + "/";
+      std::ifstream size_file(dir + "size"), cpus_file(dir + "shared_cpu_list");
+      std::string size, cpus;
+      if (!(size_file >> size) || !(cpus_file >> cpus)) continue;
+      size_t value = std::strtoul(size.c_str(), nullptr, 10);
+      if (size.back() == 'K') value <<= 10;
+      else if (size.back() == 'M') value <<= 20;
+      size_t sharing = 0; // "0-1,4" -> 3
+      for (size_t at = 0; at < cpus.size();) {
+        const size_t comma = std::min(cpus.find(',', at), cpus.size());
+        const std::string range = cpus.substr(at, comma - at);
+        const size_t dash = range.find('-');
+        sharing += dash == std::string::npos ? 1 : std::stoul(range.substr(dash + 1)) - std::stoul(range) + 1;
+        at = comma + 1;
+      }
+      if (sharing > 0) best = value / sharing; // the indices go outwards: the last one read is the largest
+    }
+    return best > 0 ? best : (size_t)16 << 20;
+  }();
+  return bytes > share;
+}
+
+PetscErrorCode leapfrog_set_step(TS ts, LeapfrogStep step, void *ctx) {
+  PetscFunctionBegin;
+  PetscTryMethod(ts, "FlexipdeLeapfrogSetStep_C", (TS, LeapfrogStep, void *), (ts, step, ctx));
   PetscFunctionReturn(0);
 }
 
