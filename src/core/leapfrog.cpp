@@ -70,11 +70,8 @@ Leapfrog *data(TS ts) { return static_cast<Leapfrog *>(ts->data); }
 template <int M>
 void kick_loop(PetscScalar *__restrict u, const PetscScalar *__restrict f, PetscInt n, PetscInt m_rt, PetscReal s) {
   const PetscInt m = M ? M : m_rt, d = 2 * m;
-  if (M == 1) // every entry, the positions stored back unchanged: whole-vector stores
-    for (PetscInt i = 0; i < n; ++i) u[i] = (i & 1) ? u[i] + s * f[i] : u[i];
-  else
-    for (PetscInt i = 0; i < n; i += d)
-      for (PetscInt c = m; c < d; ++c) u[i + c] += s * f[i + c];
+  for (PetscInt i = 0; i < n; i += d)
+    for (PetscInt c = m; c < d; ++c) u[i + c] += s * f[i + c];
 }
 
 // p += s * F_p on every grid point (the kick).
