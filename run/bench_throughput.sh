@@ -7,8 +7,8 @@
 #              and writes u_{k+1}) and bandwidth / 88 B for the gradient (the storing forward's 32 B
 #              plus an adjoint step's 56: reads u_k, c, mu_{k+1}, mu_{k+2}, g, writes mu_k, g)
 #   reference  run/reference_wave.c: hand-written C loops, one thread, 2D (N2^2) and 3D (N3^3)
-#   flexipde   -model wave2d on 1 and 2 ranks, the same scene (walls, -wave2d_ic pulse, one c per
-#              point, c = 0.9 against data from c = 1, no sponge); its J and ||dJ/dc|| are compared
+#   flexipde   -model wave2d and wave3d on 1 and 2 ranks, the same scenes (walls, -<m>_ic pulse, one c
+#              per point, c = 0.9 against data from c = 1, no sponge); its J and ||dJ/dc|| are compared
 #              with the reference's (the same scene: equal to ~1e-12).
 # STEPS leapfrog steps of dt = f h, f = 0.4 (order 2) and 0.3 (order 8) in 2D, 0.3 and 0.25 in 3D
 # (the stability limits for c = 1 are 0.71, 0.55, 0.58 and 0.45).
@@ -72,16 +72,16 @@ for dim in 2 3; do
     printf '%s\t%s\t1\treference\t%s\t%s\t%s\t%s\t%s\n' $dim $order "$n" "$fwd" "$grad" "$J" "$gn" >> "$rows"
   done
 done
-# flexipde: 2D only (no 3D wave model yet; a 3D scene's options go in flexipde_scene and 3 into the list)
+# flexipde: the reference's scenes
 flexipde_scene() {
   local dim=$1 n=$2
   case $dim in
   2) echo "-model wave2d -da_grid_x $n -da_grid_y $n -wave2d_sponge_width 0 -wave2d_ic pulse -wave2d_c_field 1 -wave2d_c 0.9 -true_wave2d_c 1" ;;
+  3) echo "-model wave3d -da_grid_x $n -da_grid_y $n -da_grid_z $n -wave3d_sponge_width 0 -wave3d_ic pulse -wave3d_c_field 1 -wave3d_c 0.9 -true_wave3d_c 1" ;;
   *) echo "bench_throughput: no flexipde scene for dim $dim" >&2; return 1 ;;
   esac
 }
-# shellcheck disable=SC2043 # one dimension until flexipde has a 3D wave
-for dim in 2; do
+for dim in 2 3; do
   n=$(npoints $dim)
   scene=$(flexipde_scene $dim "$n")
   for order in 2 8; do

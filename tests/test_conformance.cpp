@@ -36,8 +36,10 @@ std::vector<ConformanceCase> registered_cases() {
   std::vector<ConformanceCase> cases;
   for (auto &kv : model_registry())
     for (bool f : {false, true}) cases.push_back({kv.first, f, "", {}});
-  // the wave's perfectly matched layer: four (2D) or two (1D) equations more, and first differences
+  // the wave's perfectly matched layer: 2D (six in 3D, four in 2D, two in 1D) equations more, and first
+  // differences
   for (bool f : {false, true}) {
+    cases.push_back({"wave3d", f, "pml", {{"-wave3d_pml_width", "0.25"}, {"-wave3d_pml_alpha", "5"}, {"-da_grid_x", "14"}, {"-da_grid_y", "12"}}});
     cases.push_back({"wave", f, "pml", {{"-wave_pml_width", "0.2"}, {"-wave_pml_alpha", "5"}}});
     cases.push_back({"wave2d", f, "pml", {{"-wave2d_pml_width", "0.2"}, {"-wave2d_pml_alpha", "5"}}});
     cases.push_back({"wave2d", f, "pml_order8", {{"-wave2d_pml_width", "0.3"}, {"-fd_order", "8"}, {"-da_grid_y", "20"}}});
@@ -50,10 +52,12 @@ void small_scene(ScopedOptions &o, const std::string &model, const OptionList &v
   o.set("-model", model);
   o.set("-da_grid_x", "24");
   o.set("-da_grid_y", "16");
+  o.set("-da_grid_z", "12");
   o.set("-ts_dt", "1e-3");
   o.set("-ts_max_time", "0.02");
-  // wave2d starts at rest by default (its waves come from point sources): a pulse gives it dynamics
+  // wave2d and wave3d start at rest by default (their waves come from point sources): a pulse gives them dynamics
   o.set("-wave2d_ic", "pulse");
+  o.set("-wave3d_ic", "pulse");
   // advection declares its diffusivity only with diffusion on: on here, so that D is checked too
   o.set("-advection_diffusion", "1");
   for (auto &kv : variant) o.set(kv.first, kv.second);

@@ -215,29 +215,35 @@ PetscErrorCode leapfrog_solve(Scene &scene, Vec p, Vec sigma, PetscReal dt, Pets
 
 } // namespace
 
-// A 2D second-order model's leapfrog step as one sweep over the grid (Model::second_order_step, which
-// the Simulation takes for states beyond the caches): the three passes' numbers exactly, with the
+// A 2D or 3D second-order model's leapfrog step as one sweep over the grid (Model::second_order_step,
+// which the Simulation takes for states beyond the caches): the three passes' numbers exactly, with the
 // sponge's damped kicks and with a point source inside the grid (its forcing added row by row), on
 // a grid that is not square, on 1 and 2 ranks; and the Simulation's solve is the three passes' too.
 TEST(Leapfrog, OneSweepStepIsTheThreePasses) {
   const PetscReal dt = 2e-3;
   const PetscInt steps = 150;
+  for (const std::string m : {"wave2d", "wave3d"})
   for (int source = 0; source < 2; ++source) {
-    ScopedOptions opts{{"-model", "wave2d"},      {"-da_grid_x", "37"},        {"-da_grid_y", "29"},
-                       {"-ts_dt", "2e-3"},        {"-ts_max_time", "0.3"},     {"-ts_type", "leapfrog"},
-                       {"-wave2d_c_field", "1"},  {"-wave2d_c", "0.9"}};
+    const bool three = m == "wave3d";
+    ScopedOptions opts{{"-da_grid_x", three ? "31" : "37"}, {"-da_grid_y", three ? "27" : "29"}, {"-da_grid_z", "29"},
+                       {"-ts_dt", "2e-3"}, {"-ts_max_time", "0.3"}, {"-ts_type", "leapfrog"}};
+    opts.set("-model", m);
+    opts.set("-" + m + "_c_field", "1");
+    opts.set("-" + m + "_c", "0.9");
     if (source) {
       opts.set("-objective_type", "receivers");
       opts.set("-survey_sources_x", "0.31");
       opts.set("-survey_sources_y", "0.58");
+      opts.set("-survey_sources_z", "0.44");
       opts.set("-survey_receivers_spread", "0.1,0.9,5");
       opts.set("-survey_receivers_y", "0.2");
-      opts.set("-wave2d_ic", "zero");
-      opts.set("-wave2d_sponge_width", "0");
+      opts.set("-survey_receivers_z", "0.6");
+      opts.set("-" + m + "_ic", "zero");
+      opts.set("-" + m + "_sponge_width", "0");
     } else {
-      opts.set("-wave2d_ic", "pulse");
-      opts.set("-wave2d_ic_x", "0.3");
-      opts.set("-wave2d_sponge_width", "0.2");
+      opts.set("-" + m + "_ic", "pulse");
+      opts.set("-" + m + "_ic_x", "0.3");
+      opts.set("-" + m + "_sponge_width", "0.2");
     }
     Scene scene;
     OwnedVec p, simulation, passes, sweep, sigma;
@@ -281,8 +287,8 @@ TEST(Leapfrog, OneSweepStepIsTheThreePasses) {
     PETSC_ASSERT_OK(VecNorm(simulation, NORM_INFINITY, &diff_sim));
     PETSC_ASSERT_OK(VecAXPY(sweep, -1.0, passes));
     PETSC_ASSERT_OK(VecNorm(sweep, NORM_INFINITY, &diff));
-    PetscPrintf(PETSC_COMM_WORLD, "  one sweep vs three passes (%s): max |U| %.3e, max |diff| %.3e (Simulation: %.3e)\n",
-                source ? "point source" : "sponge", (double)scale, (double)diff, (double)diff_sim);
+    PetscPrintf(PETSC_COMM_WORLD, "  one sweep vs three passes (%s, %s): max |U| %.3e, max |diff| %.3e (Simulation: %.3e)\n",
+                m.c_str(), source ? "point source" : "sponge", (double)scale, (double)diff, (double)diff_sim);
     EXPECT_GT(scale, 1e-3);
     EXPECT_EQ(diff, 0.0);
     EXPECT_EQ(diff_sim, 0.0);

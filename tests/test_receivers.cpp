@@ -8,6 +8,8 @@
 //     receivers from a text file (-survey_receivers_file) against the same ones from a list,
 //   - the discrete delta of a source integrates to one, receivers interpolate linear functions exactly,
 //   - Tikhonov + smoothed TV in 2D (Taylor test of the regularised objective), TV of a step,
+//   - 3D: trilinear and sinc weights on a 3D grid, the injection against the sampling's transpose, positions
+//     (lists, an "x y z" file, refusals) and the data file with z, with a stand-in model (SourceProbe3D),
 //   - Adam's first two steps against hand-computed values on a quadratic.
 // Scenes are small (101 points, 0.6 time units) so that the file runs in a few seconds.
 #include "flexipde/inversion.hpp"
@@ -15,6 +17,7 @@
 #include "flexipde/tao_adam.hpp"
 #include "flexipde/taylor.hpp"
 #include "test_support.hpp"
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <functional>
@@ -323,7 +326,7 @@ TEST(ReceiverMisfit, InterpolationWeights) {
   PETSC_ASSERT_OK(Grid::from_options(PETSC_COMM_WORLD, 1, go, grid));
   for (PetscReal x : {0.0, 0.123, 0.5, 0.77, 1.0}) {
     PointStencil st;
-    PETSC_ASSERT_OK(point_stencil(grid, x, 0.0, &st));
+    PETSC_ASSERT_OK(point_stencil(grid, x, 0.0, 0.0, &st));
     PetscReal sum = 0, value = 0;
     for (PetscInt k = 0; k < st.n; ++k) {
       sum += st.weight[k];
@@ -345,7 +348,7 @@ TEST(ReceiverMisfit, SincInterpolation) {
   PETSC_ASSERT_OK(Grid::from_options(PETSC_COMM_WORLD, 1, go, grid));
   auto sample = [&](PetscReal x, Interpolation how, const std::function<PetscReal(PetscReal)> &f, PetscReal out[3]) {
     PointStencil st;
-    PetscErrorCode ierr = point_stencil(grid, x, 0.0, &st, how);
+    PetscErrorCode ierr = point_stencil(grid, x, 0.0, 0.0, &st, how);
     out[0] = out[1] = 0, out[2] = 0;
     for (PetscInt k = 0; k < st.n; ++k) {
       out[0] += st.weight[k];
@@ -523,6 +526,348 @@ TEST(ReceiverMisfit, WaveletFromFile) {
   Scene scene;
   flexipde_test::QuietErrors q;
   EXPECT_EQ(scene.setup(PETSC_COMM_WORLD), PETSC_ERR_FILE_OPEN);
+}
+
+// ---- 3D ----
+
+// The 3D grid of these tests: 13 x 15 x 17 points on [0, 1]^3, ghost width 4 (the sinc's half-width);
+// z the longest direction, so that PETSc splits z among 2 ranks and the owned blocks start at zs > 0.
+PetscErrorCode grid3d(MPI_Comm comm, Grid &grid) {
+  GridOptions go;
+  go.dim = 3, go.n = 13, go.ny = 15, go.nz = 17;
+  return Grid::create(comm, 4, go, grid);
+}
+
+// The global (i, j, k) of owned point q: q = ((k - zs) ym + (j - ys)) xm + (i - xs).
+void owned_ijk(const Grid &g, PetscInt q, PetscInt ijk[3]) {
+  ijk[0] = g.xs() + q % g.xm(), ijk[1] = g.ys() + (q / g.xm()) % g.ym(), ijk[2] = g.zs() + q / (g.xm() * g.ym());
+}
+
+// Trilinear and sinc weights on a 3D grid, on any number of ranks: on a grid point that point alone with
+// weight 1; between points 8 (linear) or 8^3 (sinc) points whose weights sum to 1 (sinc: within 1e-3,
+// more than 4 cells from the walls), the trilinear ones reproducing a + b x + c y + d z + e xyz exactly.
+// (On 2 ranks the second point's stencils straddle the ranks' boundary in z.)
+TEST(ReceiverMisfit3D, PointStencilWeights) {
+  Grid grid;
+  PETSC_ASSERT_OK(grid3d(PETSC_COMM_WORLD, grid));
+  ASSERT_EQ(grid.dim(), 3);
+  auto f = [](PetscReal x, PetscReal y, PetscReal z) { return 0.3 + 1.7 * x - 0.8 * y + 2.1 * z + 0.9 * x * y * z; };
+  for (Interpolation how : {Interpolation::Linear, Interpolation::Sinc}) {
+    const char *label = how == Interpolation::Linear ? "linear" : "sinc";
+    for (auto p : {std::array<PetscInt, 3>{0, 0, 0}, {6, 7, 8}, {12, 14, 16}, {2, 11, 3}, {10, 1, 12}}) {
+      PointStencil st;
+      PETSC_ASSERT_OK(point_stencil(grid, grid.x(p[0]), grid.y(p[1]), grid.z(p[2]), &st, how));
+      PetscReal at[3] = {0, 0, 0}; // weight at p, |weight| elsewhere, points
+      for (PetscInt m = 0; m < st.n; ++m) {
+        PetscInt ijk[3];
+        owned_ijk(grid, st.local[m], ijk);
+        const bool here = ijk[0] == p[0] && ijk[1] == p[1] && ijk[2] == p[2];
+        at[here ? 0 : 1] += here ? st.weight[m] : std::fabs(st.weight[m]);
+        at[2] += 1;
+      }
+      MPI_Allreduce(MPI_IN_PLACE, at, 3, MPIU_REAL, MPI_SUM, PETSC_COMM_WORLD);
+      EXPECT_NEAR(at[0], 1.0, 1e-14) << label << " at grid point " << p[0] << " " << p[1] << " " << p[2];
+      EXPECT_EQ(at[1], 0.0) << label << " at grid point " << p[0] << " " << p[1] << " " << p[2];
+      EXPECT_EQ(at[2], 1.0) << label << " at grid point " << p[0] << " " << p[1] << " " << p[2];
+    }
+    for (auto x : {std::array<PetscReal, 3>{0.4613, 0.5271, 0.4838}, {0.3377, 0.4102, 0.5313}}) {
+      PointStencil st;
+      PETSC_ASSERT_OK(point_stencil(grid, x[0], x[1], x[2], &st, how));
+      PetscReal sum[3] = {0, 0, (PetscReal)st.n}; // weights, interpolated f, points
+      for (PetscInt m = 0; m < st.n; ++m) {
+        PetscInt ijk[3];
+        owned_ijk(grid, st.local[m], ijk);
+        sum[0] += st.weight[m];
+        sum[1] += st.weight[m] * f(grid.x(ijk[0]), grid.y(ijk[1]), grid.z(ijk[2]));
+      }
+      MPI_Allreduce(MPI_IN_PLACE, sum, 3, MPIU_REAL, MPI_SUM, PETSC_COMM_WORLD);
+      const PetscReal error = sum[1] - f(x[0], x[1], x[2]);
+      PetscPrintf(PETSC_COMM_WORLD, "  [3D %s] (%g, %g, %g): %d points, weights sum to 1 %+.1e, f error %.1e\n", label,
+                  (double)x[0], (double)x[1], (double)x[2], (int)sum[2], (double)(sum[0] - 1), (double)error);
+      if (how == Interpolation::Linear) {
+        EXPECT_EQ(sum[2], 8.0);
+        EXPECT_NEAR(sum[0], 1.0, 1e-14);
+        EXPECT_NEAR(sum[1], f(x[0], x[1], x[2]), 1e-14);
+      } else {
+        EXPECT_EQ(sum[2], 512.0);
+        EXPECT_NEAR(sum[0], 1.0, 1e-3);
+      }
+    }
+  }
+}
+
+// A stand-in for a 3D model that takes point sources (u, v per point; the source forces v as the wave
+// does, through the PointSource the survey hands it): enough for a Survey on a 3D grid without the 3D
+// wave. `dim` 2 makes it a 2D one (a 2D survey that must refuse 3D data).
+class SourceProbe3D final : public Model {
+public:
+  explicit SourceProbe3D(PetscInt dim = 3) : dim_(dim) {}
+  const char *name() const override { return "source_probe"; }
+  PetscInt dof() const override { return 2; }
+  const char *component_name(PetscInt c) const override { return c ? "v" : "u"; }
+  PetscInt stencil_width(MPI_Comm) const override { return 4; }
+  PetscInt dim() const override { return dim_; }
+  PetscErrorCode setup(const Grid &, DM, Parameters &) override { return 0; }
+  PetscErrorCode create_jacobian(Mat *J) override {
+    *J = nullptr;
+    return 0;
+  }
+  PetscErrorCode create_jacobian_p(Mat *Jp) override {
+    *Jp = nullptr;
+    return 0;
+  }
+  PetscErrorCode set_parameters(Vec) override { return 0; }
+  // G = the source's forcing density in v at its points, 0 elsewhere.
+  PetscErrorCode rhs(PetscReal t, Vec, Vec G) override {
+    PetscFunctionBeginUser;
+    PetscCall(VecSet(G, 0.0));
+    if (!source_) PetscFunctionReturn(0);
+    Array g(G);
+    PetscCall(g.error());
+    for (PetscInt k = 0; k < source_->stencil.n; ++k) g[source_->stencil.local[k] * 2 + 1] += source_->density(k, t);
+    PetscFunctionReturn(0);
+  }
+  PetscErrorCode rhs_jacobian(PetscReal, Vec, Mat) override { return 0; }
+  PetscErrorCode rhs_jacobian_p(PetscReal, Vec, Mat) override { return 0; }
+  PetscErrorCode spectrum(Spectrum *) override { return 0; }
+  bool accepts_point_source() const override { return true; }
+  PetscErrorCode set_point_source(const PointSource *s) override {
+    source_ = s;
+    return 0;
+  }
+  PetscErrorCode initial_condition(Vec, Vec U0) override { return VecSet(U0, 0.0); }
+  PetscErrorCode initial_condition_transpose(Vec, Vec, Vec) override { return 0; }
+
+private:
+  PetscInt dim_;
+  const PointSource *source_ = nullptr;
+};
+
+// A Survey on a 3D grid (or `dim` below 3) with the probe model, from the options in force.
+struct Survey3D {
+  Grid grid;
+  SourceProbe3D model;
+  OwnedDM dm;
+  Survey survey;
+  explicit Survey3D(PetscInt dim = 3) : model(dim) {}
+  PetscErrorCode setup(MPI_Comm comm) {
+    PetscFunctionBeginUser;
+    if (model.dim() == 3) PetscCall(grid3d(comm, grid));
+    else {
+      GridOptions go;
+      go.dim = model.dim(), go.n = 17, go.ny = 15;
+      PetscCall(Grid::create(comm, 4, go, grid));
+    }
+    PetscCall(grid.create_dm(model.dof(), dm.out()));
+    PetscCall(survey.setup(grid, model, dm, 0, model.dof()));
+    PetscFunctionReturn(0);
+  }
+};
+
+// As ReceiverMisfit2D.InjectionIsSamplingTransposed in 3D: the source's forcing of v at a time t equals
+// w(t) / (h hy hz) times R^T e_r, R's row of a receiver at the source's position, at every point, on 8
+// (linear) or 512 (sinc) points; and <R u, e_r> = <u, R^T e_r> for a random u. On any number of ranks.
+TEST(ReceiverMisfit3D, InjectionIsSamplingTransposed) {
+  for (const char *how : {"sinc", "linear"}) {
+    ScopedOptions o{{"-survey_sources_x", "0.4613"},   {"-survey_sources_y", "0.5271"},   {"-survey_sources_z", "0.4838"},
+                    {"-survey_receivers_x", "0.4613"}, {"-survey_receivers_y", "0.5271"}, {"-survey_receivers_z", "0.4838"},
+                    {"-survey_ricker_f0", "5"},        {"-survey_interpolation", how}};
+    Survey3D s;
+    PETSC_ASSERT_OK(s.setup(PETSC_COMM_WORLD));
+    EXPECT_EQ(s.survey.shots(), 1);
+    EXPECT_EQ(s.survey.receivers(), 1);
+    OwnedVec U, G, q, ur, e;
+    PETSC_ASSERT_OK(DMCreateGlobalVector(s.dm, U.out()));
+    PETSC_ASSERT_OK(VecDuplicate(U, G.out()));
+    PETSC_ASSERT_OK(VecDuplicate(U, q.out()));
+    PETSC_ASSERT_OK(flexipde_test::fill_random(U, -1.0, 1.0, 91));
+    const PetscReal t = 0.21;
+    PETSC_ASSERT_OK(s.model.rhs(t, U, G)); // the injection
+    Mat R = s.survey.receiver_matrix();
+    PETSC_ASSERT_OK(MatCreateVecs(R, nullptr, e.out()));
+    PETSC_ASSERT_OK(VecDuplicate(e, ur.out()));
+    PETSC_ASSERT_OK(VecSet(e, 1.0));
+    PETSC_ASSERT_OK(MatMultTranspose(R, e, q));
+    Ricker w;
+    w.f0 = 5, w.t0 = 1.2 / 5;
+    const PetscReal vol = s.grid.h() * s.grid.hy() * s.grid.hz(), scale = w(t) / vol;
+    EXPECT_EQ(s.grid.cell_volume(), vol);
+    PetscReal diff = 0, norm = 0, nonzero = 0;
+    {
+      ConstArray a(q), b(G);
+      PETSC_ASSERT_OK(a.error());
+      PETSC_ASSERT_OK(b.error());
+      for (PetscInt k = 0; k < s.grid.local_points(); ++k) {
+        diff = std::max(diff, std::fabs(scale * PetscRealPart(a[2 * k]) - PetscRealPart(b[2 * k + 1])));
+        norm = std::max(norm, std::fabs(PetscRealPart(b[2 * k + 1])));
+        nonzero += PetscRealPart(a[2 * k]) != 0.0;
+        diff = std::max(diff, std::fabs(PetscRealPart(a[2 * k + 1]))); // R samples u alone
+      }
+    }
+    MPI_Allreduce(MPI_IN_PLACE, &diff, 1, MPIU_REAL, MPI_MAX, PETSC_COMM_WORLD);
+    MPI_Allreduce(MPI_IN_PLACE, &norm, 1, MPIU_REAL, MPI_MAX, PETSC_COMM_WORLD);
+    MPI_Allreduce(MPI_IN_PLACE, &nonzero, 1, MPIU_REAL, MPI_SUM, PETSC_COMM_WORLD);
+    PETSC_ASSERT_OK(MatMult(R, U, ur));
+    PetscReal Ru, uq;
+    PETSC_ASSERT_OK(VecDot(ur, e, &Ru));
+    PETSC_ASSERT_OK(VecDot(U, q, &uq));
+    PetscPrintf(PETSC_COMM_WORLD, "  [3D %s] %d points, injection - w/V R^T e: %.1e of %.1e; <Ru, e> %.15e, <u, R^T e> %.15e\n",
+                how, (int)nonzero, (double)diff, (double)norm, (double)Ru, (double)uq);
+    EXPECT_GT(norm, 0.0);
+    EXPECT_LE(diff, 1e-12 * norm);
+    EXPECT_EQ(nonzero, std::string(how) == "sinc" ? 512 : 8);
+    EXPECT_LE(std::fabs(Ru - uq), 1e-13 * std::max(std::fabs(Ru), 1.0));
+  }
+}
+
+// R u for a random u (every rank gets rank 0's values).
+PetscErrorCode sample(Survey3D &s, std::vector<PetscReal> &out) {
+  OwnedVec U, y;
+  PetscFunctionBeginUser;
+  PetscCall(DMCreateGlobalVector(s.dm, U.out()));
+  PetscCall(flexipde_test::fill_random(U, -1.0, 1.0, 17));
+  PetscCall(MatCreateVecs(s.survey.receiver_matrix(), nullptr, y.out()));
+  PetscCall(MatMult(s.survey.receiver_matrix(), U, y));
+  PetscCall(flexipde_test::gather_all(y, out));
+  PetscFunctionReturn(0);
+}
+
+// 3D positions: receivers from an "x y z" file sample as the same receivers from the lists (a single
+// -survey_receivers_z for all of them); a 3D survey without z, or with a point outside the box in z,
+// is refused.
+TEST(ReceiverMisfit3D, Positions) {
+  char name[256];
+  std::snprintf(name, sizeof name, "/tmp/flexipde_test_receivers3d_%d.txt", (int)getpid());
+  MPI_Bcast(name, sizeof name, MPI_CHAR, 0, PETSC_COMM_WORLD);
+  if (flexipde_test::is_rank0()) {
+    FILE *f = std::fopen(name, "w");
+    ASSERT_NE(f, nullptr);
+    std::fprintf(f, "# x y z\n0.1 0.45 0.7\n0.45 0.2 0.7\n\n0.9 0.8 0.7\n");
+    std::fclose(f);
+  }
+  MPI_Barrier(PETSC_COMM_WORLD);
+  std::vector<PetscReal> y[2];
+  for (int k = 0; k < 2; ++k) {
+    ScopedOptions o{{"-survey_interpolation", "sinc"}};
+    if (k == 0) {
+      o.set("-survey_receivers_x", "0.1,0.45,0.9");
+      o.set("-survey_receivers_y", "0.45,0.2,0.8");
+      o.set("-survey_receivers_z", "0.7");
+    } else o.set("-survey_receivers_file", name);
+    Survey3D s;
+    PETSC_ASSERT_OK(s.setup(PETSC_COMM_WORLD));
+    EXPECT_EQ(s.survey.receivers(), 3);
+    PETSC_ASSERT_OK(sample(s, y[k]));
+  }
+  MPI_Barrier(PETSC_COMM_WORLD);
+  if (flexipde_test::is_rank0()) std::remove(name);
+  ASSERT_EQ(y[0].size(), 3u);
+  EXPECT_EQ(y[0], y[1]);
+  EXPECT_NE(y[0][0], 0.0);
+
+  const std::vector<std::pair<std::vector<std::pair<const char *, const char *>>, PetscErrorCode>> bad = {
+      {{{"-survey_receivers_x", "0.5"}, {"-survey_receivers_y", "0.5"}}, PETSC_ERR_ARG_WRONG}, // no z
+      {{{"-survey_receivers_x", "0.5"}, {"-survey_receivers_y", "0.5"}, {"-survey_receivers_z", "1.2"}},
+       PETSC_ERR_ARG_OUTOFRANGE},
+      {{{"-survey_receivers_x", "0.5"}, {"-survey_receivers_y", "0.5"}, {"-survey_receivers_z", "0.5"},
+        {"-survey_sources_x", "0.5"}, {"-survey_sources_y", "0.5"}, {"-survey_sources_z", "-0.1"}},
+       PETSC_ERR_ARG_OUTOFRANGE},
+      {{{"-survey_receivers_x", "0.5,0.6"}, {"-survey_receivers_y", "0.5"}, {"-survey_receivers_z", "0.5,0.6,0.7"}},
+       PETSC_ERR_ARG_SIZ}};
+  for (const auto &b : bad) {
+    ScopedOptions o;
+    for (const auto &kv : b.first) o.set(kv.first, kv.second);
+    Survey3D s;
+    PetscErrorCode ierr;
+    {
+      flexipde_test::QuietErrors q;
+      ierr = s.setup(PETSC_COMM_WORLD);
+    }
+    EXPECT_EQ(ierr, b.second) << "options starting " << b.first[0].second;
+  }
+}
+
+// Records traces of u = a random U (one per shot, the same for each of its samples) as the Scene does
+// in time: samples 0, 1 and 2 at t = 0, 0.1, 0.2 of every shot; end_recording writes -survey_data_write.
+PetscErrorCode record(Survey3D &s) {
+  OwnedVec U;
+  PetscReal r;
+  PetscFunctionBeginUser;
+  PetscCall(DMCreateGlobalVector(s.dm, U.out()));
+  PetscCall(s.survey.begin_recording(0.1, 0.2));
+  for (PetscInt shot = 0; shot < s.survey.shots(); ++shot) {
+    PetscCall(flexipde_test::fill_random(U, -1.0, 1.0, 5 + shot));
+    PetscCall(s.survey.select_shot(shot));
+    PetscCall(s.survey.record_initial(U));
+    PetscCall(s.survey.integrand(0.1, U, &r));
+    PetscCall(s.survey.terminal(U, &r, nullptr));
+  }
+  PetscCall(s.survey.end_recording());
+  PetscFunctionReturn(0);
+}
+
+// The 3D data file: written with receivers_z and sources_z, read back to the same traces; refused by a
+// survey whose receivers differ in z only, and by a 2D survey (the file holds 3D data).
+TEST(ReceiverMisfit3D, DataFileRoundTrip) {
+  char file[256];
+  std::snprintf(file, sizeof file, "/tmp/flexipde_test_survey3d_%d.h5", (int)getpid());
+  MPI_Bcast(file, sizeof file, MPI_CHAR, 0, PETSC_COMM_WORLD);
+  auto options = [](ScopedOptions &o, const char *rz) {
+    o.set("-survey_sources_x", "0.3,0.7");
+    o.set("-survey_sources_y", "0.5");
+    o.set("-survey_sources_z", "0.25,0.75");
+    o.set("-survey_receivers_spread", "0.1,0.9,5");
+    o.set("-survey_receivers_y", "0.4");
+    o.set("-survey_receivers_z", rz);
+  };
+  std::vector<PetscReal> written;
+  {
+    ScopedOptions o;
+    options(o, "0.6");
+    o.set("-survey_data_write", file);
+    Survey3D s;
+    PETSC_ASSERT_OK(s.setup(PETSC_COMM_WORLD));
+    EXPECT_EQ(s.survey.shots(), 2);
+    PETSC_ASSERT_OK(record(s));
+    written = s.survey.traces(); // on rank 0
+  }
+  {
+    ScopedOptions o;
+    options(o, "0.6");
+    o.set("-survey_data_file", file);
+    Survey3D s;
+    PETSC_ASSERT_OK(s.setup(PETSC_COMM_WORLD));
+    PetscBool read;
+    PETSC_ASSERT_OK(s.survey.read_data(0.2, &read));
+    EXPECT_TRUE(read);
+    EXPECT_EQ(s.survey.samples(), 3);
+    if (flexipde_test::is_rank0()) {
+      EXPECT_EQ(written.size(), 2u * 5u * 3u);
+      EXPECT_EQ(s.survey.traces(), written);
+    }
+  }
+  {
+    ScopedOptions o;
+    options(o, "0.61"); // z differs
+    o.set("-survey_data_file", file);
+    Survey3D s;
+    PETSC_ASSERT_OK(s.setup(PETSC_COMM_WORLD));
+    PetscBool read;
+    flexipde_test::QuietErrors q;
+    EXPECT_EQ(s.survey.read_data(0.2, &read), PETSC_ERR_FILE_UNEXPECTED);
+  }
+  {
+    ScopedOptions o{{"-survey_sources_x", "0.3,0.7"}, {"-survey_sources_y", "0.5"}, {"-survey_receivers_spread", "0.1,0.9,5"},
+                    {"-survey_receivers_y", "0.4"}, {"-survey_data_file", file}};
+    Survey3D s(2);
+    PETSC_ASSERT_OK(s.setup(PETSC_COMM_WORLD));
+    EXPECT_EQ(s.grid.dim(), 2);
+    PetscBool read;
+    flexipde_test::QuietErrors q;
+    EXPECT_EQ(s.survey.read_data(0.2, &read), PETSC_ERR_FILE_UNEXPECTED);
+  }
+  MPI_Barrier(PETSC_COMM_WORLD);
+  if (flexipde_test::is_rank0()) std::remove(file);
 }
 
 // ---- Adam ----

@@ -1,11 +1,12 @@
-// The acoustic wave at space order 2, 4 and 8 (-fd_order), in 1D and 2D:
+// The acoustic wave at space order 2, 4 and 8 (-fd_order), in 1D, 2D and 3D:
 //   - convergence against an exact solution: G at the standing mode u = prod_d sin(2 pi x_d) (walls
 //     at 0 and 1, v = 0) is [0, c^2 Lap_h u], and Lap_h u -> -D (2 pi)^2 u at the stencil's order as h
 //     halves (the odd reflection beyond the walls is exact for this mode, so the rows next to the walls
 //     keep the order too);
 //   - at order 8, the gradient of a field c: a Taylor test (remainders falling ~2x and ~4x as the step
-//     halves) in 1D with the leapfrog and in 2D with RK4, and the same J and gradient on
-//     PETSC_COMM_WORLD as on PETSC_COMM_SELF (each rank the serial problem).
+//     halves) in 1D with the leapfrog, in 2D with RK4, and in 3D with the leapfrog, the sponge and a
+//     survey whose source and receivers lie between grid points (windowed-sinc weights), and the same J
+//     and gradient on PETSC_COMM_WORLD as on PETSC_COMM_SELF (each rank the serial problem).
 #include "flexipde/scene.hpp"
 #include "flexipde/taylor.hpp"
 #include "test_support.hpp"
@@ -26,12 +27,13 @@ std::ostream &operator<<(std::ostream &os, const OrderCase &c) { return os << c.
 // max over the points off the walls of |G_v - c^2 (-dim (2 pi)^2) u| on an n-point (per direction)
 // grid, c = 0.8; reduced over the ranks.
 PetscReal laplacian_error(const OrderCase &oc, PetscInt n) {
-  const bool two_d = std::string(oc.model) == "wave2d";
   const std::string m = oc.model;
+  const int dim = m == "wave3d" ? 3 : m == "wave2d" ? 2 : 1;
   ScopedOptions opts{{"-model", oc.model},
                      {"-fd_order", std::to_string(oc.order).c_str()},
                      {"-da_grid_x", std::to_string(n).c_str()},
                      {"-da_grid_y", std::to_string(n).c_str()},
+                     {"-da_grid_z", std::to_string(n).c_str()},
                      {("-" + m + "_sponge_width").c_str(), "0"},
                      {("-" + m + "_c").c_str(), "0.8"}};
   Scene scene;
@@ -42,25 +44,31 @@ PetscReal laplacian_error(const OrderCase &oc, PetscInt n) {
     return err;
   const Grid &g = scene.grid;
   const PetscReal k = 2 * PETSC_PI, c = 0.8;
-  auto mode = [&](PetscInt i, PetscInt j) { return std::sin(k * g.x(i)) * (two_d ? std::sin(k * g.y(j)) : 1.0); };
+  auto mode = [&](PetscInt i, PetscInt j, PetscInt l) {
+    return std::sin(k * g.x(i)) * (dim > 1 ? std::sin(k * g.y(j)) : 1.0) * (dim > 2 ? std::sin(k * g.z(l)) : 1.0);
+  };
   {
     PetscScalar *u;
     if (VecGetArray(U, &u)) return err;
-    for (PetscInt jl = 0, q = 0; jl < (two_d ? g.ym() : 1); ++jl)
-      for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i, ++q) u[2 * q] = mode(i, g.ys() + jl), u[2 * q + 1] = 0.0;
+    PetscInt q = 0;
+    for (PetscInt l = g.zs(); l < g.zs() + g.zm(); ++l)
+      for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j)
+        for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i, ++q) u[2 * q] = mode(i, j, l), u[2 * q + 1] = 0.0;
     if (VecRestoreArray(U, &u)) return err;
   }
   if (scene.model->rhs(0.0, U, G)) return err;
   const PetscScalar *gv;
   if (VecGetArrayRead(G, &gv)) return err;
   err = 0;
-  for (PetscInt jl = 0, q = 0; jl < (two_d ? g.ym() : 1); ++jl)
-    for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i, ++q) {
-      const PetscInt j = g.ys() + jl;
-      if (i == 0 || i == g.n() - 1 || (two_d && (j == 0 || j == g.ny() - 1))) continue;
-      const PetscReal exact = -c * c * (two_d ? 2 : 1) * k * k * mode(i, j);
-      err = std::max(err, std::fabs(PetscRealPart(gv[2 * q + 1]) - exact));
-    }
+  PetscInt q = 0;
+  for (PetscInt l = g.zs(); l < g.zs() + g.zm(); ++l)
+    for (PetscInt j = g.ys(); j < g.ys() + g.ym(); ++j)
+      for (PetscInt i = g.xs(); i < g.xs() + g.xm(); ++i, ++q) {
+        if (i == 0 || i == g.n() - 1 || (dim > 1 && (j == 0 || j == g.ny() - 1)) || (dim > 2 && (l == 0 || l == g.nz() - 1)))
+          continue;
+        const PetscReal exact = -c * c * dim * k * k * mode(i, j, l);
+        err = std::max(err, std::fabs(PetscRealPart(gv[2 * q + 1]) - exact));
+      }
   if (VecRestoreArrayRead(G, &gv)) return -1;
   MPI_Allreduce(MPI_IN_PLACE, &err, 1, MPIU_REAL, MPI_MAX, PETSC_COMM_WORLD);
   return err;
@@ -85,7 +93,8 @@ TEST_P(WaveSpaceOrder, LaplacianConvergesAtTheStencilOrder) {
 
 INSTANTIATE_TEST_SUITE_P(Wave, WaveSpaceOrder,
                          ::testing::Values(OrderCase{"wave", 2}, OrderCase{"wave", 4}, OrderCase{"wave", 8},
-                                           OrderCase{"wave2d", 2}, OrderCase{"wave2d", 4}, OrderCase{"wave2d", 8}),
+                                           OrderCase{"wave2d", 2}, OrderCase{"wave2d", 4}, OrderCase{"wave2d", 8},
+                                           OrderCase{"wave3d", 2}, OrderCase{"wave3d", 4}, OrderCase{"wave3d", 8}),
                          [](const ::testing::TestParamInfo<OrderCase> &i) {
                            return std::string(i.param.model) + "_order" + std::to_string(i.param.order);
                          });
@@ -126,6 +135,28 @@ const GradientCase order8_cases[] = {
       {"-wave2d_c_field", "1"},
       {"-wave2d_c", "0.9"},
       {"-true_wave2d_c", "1.0"}}},
+    {"wave3d_leapfrog_survey",
+     {{"-model", "wave3d"},
+      {"-fd_order", "8"},
+      {"-ts_type", "leapfrog"},
+      {"-da_grid_x", "23"},
+      {"-da_grid_y", "21"},
+      {"-da_grid_z", "20"},
+      {"-ts_dt", "5e-3"},
+      {"-ts_max_time", "0.35"},
+      {"-wave3d_sponge_width", "0.2"},
+      {"-wave3d_c_field", "1"},
+      {"-wave3d_c", "0.9"},
+      {"-true_wave3d_c", "1.0"},
+      {"-objective_type", "receivers"},
+      {"-survey_interpolation", "sinc"},
+      {"-survey_ricker_f0", "5"},
+      {"-survey_sources_x", "0.43"},
+      {"-survey_sources_y", "0.52"},
+      {"-survey_sources_z", "0.37"},
+      {"-survey_receivers_spread", "0.3,0.7,4"},
+      {"-survey_receivers_y", "0.47"},
+      {"-survey_receivers_z", "0.62"}}},
 };
 
 class WaveOrder8Gradient : public ::testing::TestWithParam<GradientCase> {};

@@ -1,7 +1,7 @@
 // Inversion: TAO minimises J(p) + R(p) with the Simulation's exact discrete gradient.
 //
-// R is an optional regularisation of every field parameter, in 1D or 2D (forward differences D p,
-// |Dp|^2 = (dp/dx)^2 + (dp/dy)^2, sums times the cell volume):
+// R is an optional regularisation of every field parameter, in 1D, 2D or 3D (forward differences D p,
+// |Dp|^2 = (dp/dx)^2 + (dp/dy)^2 + (dp/dz)^2, the terms the grid has, sums times the cell volume):
 //   Tikhonov  0.5 alpha sum |Dp|^2      (-inv_tikhonov alpha; 1D: 0.5 alpha sum_i (p_{i+1} - p_i)^2 / h)
 //   smoothed total variation  beta sum sqrt(|Dp|^2 + eps^2)   (-inv_tv beta, -inv_tv_eps eps, default 1e-2)
 // (both default 0);

@@ -2,8 +2,9 @@
 // XDMF companion for ParaView.
 //
 // Layout of a results file (datasets are plain arrays; a grid field of a 2D grid has shape
-// (ny, nx), a state with several components per point (n, dof) or (ny, nx, dof)):
-//   /grid/x, /grid/y             coordinates of every grid point
+// (ny, nx), of a 3D grid (nz, ny, nx), a state with several components per point (n, dof),
+// (ny, nx, dof) or (nz, ny, nx, dof)):
+//   /grid/x, /grid/y, /grid/z    coordinates of every grid point (y in 2D and 3D, z in 3D)
 //   /fields/<name>               parameter fields and states on the grid (e.g. wave_c_true,
 //                                wave_c_initial, wave_c_recovered, U_final, data)
 //   /history/<name>              one entry per optimisation iteration (iteration, objective,
@@ -13,7 +14,7 @@
 // In Python:  import h5py;  f = h5py.File("results/fwi_field.h5");  c = f["/fields/wave_c_recovered"][:]
 //
 // close() writes <file>.xmf next to <file>.h5 (rank 0): a structured grid (1D as a line of points,
-// 2D as an image) with every grid-shaped dataset of the file as a point attribute, states split
+// 2D as an image, 3D as a volume) with every grid-shaped dataset of the file as a point attribute, states split
 // into their components, so that ParaView opens the .xmf directly.
 #pragma once
 #include "flexipde/grid.hpp"

@@ -114,19 +114,20 @@ namespace pointwise {
 // Compile-time stencil offsets: entry e of a star or box stencil of the given radius in D dimensions.
 template <int D, int R, StencilShape S>
 struct Stencil {
-  static constexpr int size = S == StencilShape::Star ? 1 + 2 * R * D : (D == 1 ? 2 * R + 1 : (2 * R + 1) * (2 * R + 1));
-  static constexpr std::array<int, 2> offset(int e) {
+  static constexpr int width = 2 * R + 1;
+  static constexpr int size = S == StencilShape::Star ? 1 + 2 * R * D : (D == 1 ? width : D == 2 ? width * width : width * width * width);
+  static constexpr std::array<int, 3> offset(int e) {
     if constexpr (S == StencilShape::Star) {
-      if (e == 0) return {0, 0};
+      if (e == 0) return {0, 0, 0};
       const int d = (e - 1) / (2 * R), k = (e - 1) % (2 * R), o = k < R ? k - R : k - R + 1;
-      return d == 0 ? std::array<int, 2>{o, 0} : std::array<int, 2>{0, o};
+      return {d == 0 ? o : 0, d == 1 ? o : 0, d == 2 ? o : 0};
     } else {
-      return {e % (2 * R + 1) - R, D == 1 ? 0 : e / (2 * R + 1) - R};
+      return {e % width - R, D == 1 ? 0 : (e / width) % width - R, D == 3 ? e / (width * width) - R : 0};
     }
   }
-  static constexpr int entry(int dx, int dy) {
+  static constexpr int entry(int dx, int dy, int dz = 0) {
     for (int e = 0; e < size; ++e)
-      if (offset(e)[0] == dx && offset(e)[1] == dy) return e;
+      if (offset(e)[0] == dx && offset(e)[1] == dy && offset(e)[2] == dz) return e;
     return -1;
   }
 };
@@ -134,9 +135,9 @@ struct Stencil {
 enum class Mode { Value, Tangent, Rows, Gather };
 
 // Everything a sweep reads around one point (x fastest, components interleaved). The state and its
-// direction are read in place from the owned block (index `own`, row length `syo`) and, beyond it,
-// from ghosted arrays whose ghost entries alone are filled (index `at`, row length `sy`); parameters
-// and auxiliary fields are ghosted arrays (index `at`).
+// direction are read in place from the owned block (index `own`, row length `syo`, plane size `szo`)
+// and, beyond it, from ghosted arrays whose ghost entries alone are filled (index `at`, row length
+// `sy`, plane size `sz`); parameters and auxiliary fields are ghosted arrays (index `at`).
 struct Frame {
   const PetscScalar *U = nullptr;  // state, owned block
   const PetscScalar *Ug = nullptr; // state, ghosted (ghost entries)
@@ -151,15 +152,15 @@ struct Frame {
   PetscInt line_pad = 0;
   const PetscReal *theta = nullptr, *dtheta = nullptr; // parameter vectors' entries, and their direction
   const PetscReal *pconst = nullptr; // the parameters' values when every one G reads is a constant (Point's SC)
-  PetscInt np = 0, na = 0, sy = 0, syo = 0;
-  PetscInt xs = 0, ys = 0, xm = 0, ym = 1; // the owned block
+  PetscInt np = 0, na = 0, sy = 0, syo = 0, sz = 0, szo = 0;
+  PetscInt xs = 0, ys = 0, zs = 0, xm = 0, ym = 1, zm = 1; // the owned block
   PetscReal t = 0;
-  PetscReal h[2] = {1, 1}, ih[2] = {1, 1}, x0[2] = {0, 0};
-  PetscInt n[2] = {1, 1};
-  bool periodic[2] = {false, false};
+  PetscReal h[3] = {1, 1, 1}, ih[3] = {1, 1, 1}, x0[3] = {0, 0, 0};
+  PetscInt n[3] = {1, 1, 1};
+  bool periodic[3] = {false, false, false};
   // Beyond a wall the state is the odd reflection of the inside (u = 0 on the wall, fourth-order
   // stencils stay consistent next to it), else 0.
-  bool odd[2] = {false, false};
+  bool odd[3] = {false, false, false};
   // Wall points are held (no equation, value 0): the stencils read them as 0 whatever the state holds.
   bool held = false;
   // For each position of the ghosted box: the ghosted index of the point whose value it holds (itself,
@@ -175,9 +176,9 @@ struct Frame {
 //   Value    double;  Tangent  Dual<double, 1> in the direction (X, dP);
 //   Rows     Dual<double, E * C>, lane e * C + c for state component c at stencil entry e;
 //   Gather   Dual<double, C + K + NP>, lanes c for U_c, C + k for auxiliary field k and C + K + k for
-//            parameter k, at offset (SX, SY) only.
+//            parameter k, at offset (SX, SY, SZ) only.
 // CK: the point is near a wall or the ghost band, and every read is checked: positions beyond a wall
-// are reflected or zero, and (Gather) the seeded input is found by its position (ti, tj) at run time.
+// are reflected or zero, and (Gather) the seeded input is found by its position (ti, tj, tk) at run time.
 // CS < C: the state arrays hold the first CS components alone (a second-order model's positions), and
 // the others read as 0. NP: the parameters with a lane (those G reads: Eq::rhs_parameters, the first ones).
 // KL: the auxiliary fields are lines (Frame::line_pad).
@@ -187,47 +188,52 @@ struct Frame {
 // which the compiler keeps in a register and shares between the evaluations of a gather, and a gather
 // differentiates it in the evaluation at the target point alone, with respect to its reads at every
 // offset (the sum over the points of a scalar's gradient is all that is wanted).
+// Offsets along y and z default to 0: a model's rhs() reads pt.u(c, dx), pt.u(c, dx, dy) or
+// pt.u(c, dx, dy, dz) by its dimension.
 template <int C, int K, int NP, class Sten, Mode M, int SX = 0, int SY = 0, bool CK = false, int CS = C, bool WL = CK,
-          bool KL = false, bool SC = false>
+          bool KL = false, bool SC = false, int SZ = 0>
 class Point {
 public:
   using Number = std::conditional_t<
       M == Mode::Value, double,
       std::conditional_t<M == Mode::Tangent, Dual<double, 1>,
                          std::conditional_t<M == Mode::Rows, Dual<double, Sten::size * C>, Dual<double, C + K + NP>>>>;
-  Point(const Frame &f, PetscInt at, PetscInt own, PetscInt i, PetscInt j, PetscInt ti = 0, PetscInt tj = 0)
-      : f_(f), at_(at), own_(own), i_(i), j_(j), ti_(ti), tj_(tj) {}
+  Point(const Frame &f, PetscInt at, PetscInt own, PetscInt i, PetscInt j, PetscInt k, PetscInt ti = 0, PetscInt tj = 0,
+        PetscInt tk = 0)
+      : f_(f), at_(at), own_(own), i_(i), j_(j), k_(k), ti_(ti), tj_(tj), tk_(tk) {}
 
-  // State component c at offset (dx, dy) from the point.
-  Number u(int c, int dx, int dy = 0) const {
+  // State component c at offset (dx, dy, dz) from the point.
+  Number u(int c, int dx, int dy = 0, int dz = 0) const {
     if constexpr (CS < C)
-      if (c >= CS) return unstored(c, dx, dy);
-    if constexpr (CK) return u_checked(c, dx, dy);
-    const PetscInt k = (own_ + dx + dy * f_.syo) * CS + c;
+      if (c >= CS) return unstored(c, dx, dy, dz);
+    if constexpr (CK) return u_checked(c, dx, dy, dz);
+    const PetscInt k = (own_ + dx + dy * f_.syo + dz * f_.szo) * CS + c;
     const double v = PetscRealPart(f_.U[k]);
     if constexpr (M == Mode::Value) return v;
     else if constexpr (M == Mode::Tangent) {
       Number r(v);
       r.d[0] = f_.X ? PetscRealPart(f_.X[k]) : 0.0;
       return r;
-    } else if constexpr (M == Mode::Rows) return Number::seeded(v, Sten::entry(dx, dy) * C + c);
-    else return dx == SX && dy == SY ? Number::seeded(v, c) : Number(v);
+    } else if constexpr (M == Mode::Rows) return Number::seeded(v, Sten::entry(dx, dy, dz) * C + c);
+    else return dx == SX && dy == SY && dz == SZ ? Number::seeded(v, c) : Number(v);
   }
   // Parameter k (a field's value at the offset; a scalar's value anywhere).
-  Number param(int k, int dx = 0, int dy = 0) const {
+  Number param(int k, int dx = 0, int dy = 0, int dz = 0) const {
     if constexpr (SC && M == Mode::Value) return f_.pconst[k];
     else if constexpr (SC && M == Mode::Gather) {
-      const bool seed = k < NP && (CK ? i_ == ti_ && j_ == tj_ : SX == 0 && SY == 0);
+      const bool seed = k < NP && (CK ? i_ == ti_ && j_ == tj_ && k_ == tk_ : SX == 0 && SY == 0 && SZ == 0);
       return seed ? Number::seeded(f_.pconst[k], C + K + k) : Number(f_.pconst[k]);
-    } else return field(f_.P, f_.dP, f_.np, k, k < NP ? C + K + k : -1, dx, dy);
+    } else return field(f_.P, f_.dP, f_.np, k, k < NP ? C + K + k : -1, dx, dy, dz);
   }
   // Coefficient field k (Eq::coefficients: fixed by the geometry, computed once) at the offset: a constant.
-  Number coefficient(int k, int dx = 0, int dy = 0) const { return field(f_.P, nullptr, f_.np, f_.coef0 + k, -1, dx, dy); }
+  Number coefficient(int k, int dx = 0, int dy = 0, int dz = 0) const {
+    return field(f_.P, nullptr, f_.np, f_.coef0 + k, -1, dx, dy, dz);
+  }
   // Auxiliary field k (Eq::auxiliaries: a = L U from the model's non-local linear maps) at the offset.
-  Number aux(int k, int dx = 0, int dy = 0) const {
+  Number aux(int k, int dx = 0, int dy = 0, int dz = 0) const {
     static_assert(M != Mode::Rows, "a model with auxiliary fields has no assembled Jacobian");
     if constexpr (KL) return line(k, dx);
-    return field(f_.A, f_.dA, K, k, C + k, dx, dy);
+    return field(f_.A, f_.dA, K, k, C + k, dx, dy, dz);
   }
   // Entry e of the parameter vectors (Declarations::vector). In Rows and Gather modes a constant: their
   // transposes come from the reverse sweep (ReversePoint).
@@ -239,32 +245,43 @@ public:
     } else return Number(f_.theta[e]);
   }
   PetscReal t() const { return f_.t; }
-  PetscInt index(int d = 0) const { return d == 0 ? i_ : j_; }
+  PetscInt index(int d = 0) const { return d == 0 ? i_ : d == 1 ? j_ : k_; }
   PetscReal h(int d = 0) const { return f_.h[d]; }
   PetscReal inv_h(int d = 0) const { return f_.ih[d]; } // 1/h: a product instead of a division per point
-  PetscReal x(int d = 0) const { return f_.x0[d] + (d == 0 ? i_ : j_) * f_.h[d]; }
+  PetscReal x(int d = 0) const { return f_.x0[d] + index(d) * f_.h[d]; }
   PetscInt points(int d = 0) const { return f_.n[d]; }
   // True on a non-periodic direction's first (side 0) or last (side 1) point.
   bool wall(int d, int side) const {
     if (!WL || f_.periodic[d]) return false;
-    const PetscInt i = d == 0 ? i_ : j_;
+    const PetscInt i = index(d);
     return side == 0 ? i == 0 : i == f_.n[d] - 1;
   }
-  bool on_wall() const { return wall(0, 0) || wall(0, 1) || (f_.dim > 1 && (wall(1, 0) || wall(1, 1))); }
+  bool on_wall() const {
+    return wall(0, 0) || wall(0, 1) || (f_.dim > 1 && (wall(1, 0) || wall(1, 1))) || (f_.dim > 2 && (wall(2, 0) || wall(2, 1)));
+  }
   bool on_wall_at(int d, PetscInt g) const { return !f_.periodic[d] && (g == 0 || g == f_.n[d] - 1); }
 
 private:
+  // The ghosted index of the point at the offset.
+  PetscInt ghosted(int dx, int dy, int dz) const { return at_ + dx + dy * f_.sy + dz * f_.sz; }
+  // Whether the gather's seeded input is the point at this offset.
+  bool target(int dx, int dy, int dz) const {
+    if constexpr (CK) return i_ + dx == ti_ && j_ + dy == tj_ && k_ + dz == tk_;
+    return dx == SX && dy == SY && dz == SZ;
+  }
+  // The ghosted index of the gather's seeded input (checked points).
+  PetscInt target_at() const { return at_ + (ti_ - i_) + (tj_ - j_) * f_.sy + (tk_ - k_) * f_.sz; }
   // Entry k of a ghosted array with `stride` entries per point (a; its direction da in Tangent mode) at
   // the offset, 0 beyond a wall; in Gather mode seeded at `lane` (>= 0) when the offset is the seed's.
-  Number field(const PetscScalar *a, const PetscScalar *da, PetscInt stride, int k, int lane, int dx, int dy) const {
-    const PetscInt at = (at_ + dx + dy * f_.sy) * stride + k;
+  Number field(const PetscScalar *a, const PetscScalar *da, PetscInt stride, int k, int lane, int dx, int dy, int dz) const {
+    const PetscInt at = ghosted(dx, dy, dz) * stride + k;
     const double v = PetscRealPart(a[at]);
     if constexpr (M == Mode::Tangent) {
       Number r(v);
       r.d[0] = da ? PetscRealPart(da[at]) : 0.0;
       return r;
     } else if constexpr (M == Mode::Gather) {
-      const bool seed = lane >= 0 && (CK ? i_ + dx == ti_ && j_ + dy == tj_ : dx == SX && dy == SY);
+      const bool seed = lane >= 0 && target(dx, dy, dz);
       return seed ? Number::seeded(v, lane) : Number(v);
     } else return v;
   }
@@ -280,7 +297,7 @@ private:
       r.d[0] = f_.dA ? PetscRealPart(f_.dA[at]) : 0.0;
       return r;
     } else if constexpr (M == Mode::Gather) {
-      const bool seed = CK ? gi == ti_ && j_ == tj_ : dx == SX && SY == 0;
+      const bool seed = CK ? gi == ti_ && j_ == tj_ && k_ == tk_ : dx == SX && SY == 0 && SZ == 0;
       return seed ? Number::seeded(v, C + k) : Number(v);
     } else return v;
   }
@@ -296,36 +313,39 @@ private:
   }
   // A component the state arrays do not hold (G is linear in it, and its derivatives read nothing of
   // it): 0, with its derivative lane in Gather mode.
-  Number unstored(int c, int dx, int dy) const {
+  Number unstored(int c, int dx, int dy, int dz) const {
     if constexpr (M == Mode::Gather) {
       if constexpr (CK) {
-        const PetscInt p = at_ + dx + dy * f_.sy, s = f_.src[p];
+        const PetscInt p = ghosted(dx, dy, dz), s = f_.src[p];
         Number r(0.0);
-        if (s >= 0 && s == at_ + (ti_ - i_) + (tj_ - j_) * f_.sy) r.d[c] = f_.sgn[p];
+        if (s >= 0 && s == target_at()) r.d[c] = f_.sgn[p];
         return r;
-      } else return dx == SX && dy == SY ? Number::seeded(0.0, c) : Number(0.0);
+      } else return target(dx, dy, dz) ? Number::seeded(0.0, c) : Number(0.0);
     }
     return Number(0.0);
   }
-  Number u_checked(int c, int dx, int dy) const {
+  Number u_checked(int c, int dx, int dy, int dz) const {
     if constexpr (M != Mode::Rows) {
-      const PetscInt p = at_ + dx + dy * f_.sy, s = f_.src[p];
+      const PetscInt p = ghosted(dx, dy, dz), s = f_.src[p];
       if (s < 0) return Number(0.0);
       const double sign = f_.sgn[p], v = sign * PetscRealPart(f_.Ug[s * CS + c]);
       if constexpr (M == Mode::Value) return v;
       else {
         Number r(v);
         if constexpr (M == Mode::Tangent) r.d[0] = f_.Xg ? sign * PetscRealPart(f_.Xg[s * CS + c]) : 0.0;
-        else if (s == at_ + (ti_ - i_) + (tj_ - j_) * f_.sy) r.d[c] = sign;
+        else if (s == target_at()) r.d[c] = sign;
         return r;
       }
     }
-    PetscInt gi = i_ + dx, gj = j_ + dy;
+    PetscInt gi = i_ + dx, gj = j_ + dy, gk = k_ + dz;
     double sign = 1;
-    if (!fold(0, gi, sign) || !fold(1, gj, sign)) return Number(0.0);
-    if (f_.held && (on_wall_at(0, gi) || (f_.dim > 1 && on_wall_at(1, gj)))) return Number(0.0);
-    const bool owned = gi >= f_.xs && gi < f_.xs + f_.xm && gj >= f_.ys && gj < f_.ys + f_.ym;
-    const PetscInt k = owned ? ((gj - f_.ys) * f_.syo + gi - f_.xs) * CS + c : (at_ + (gi - i_) + (gj - j_) * f_.sy) * CS + c;
+    if (!fold(0, gi, sign) || !fold(1, gj, sign) || !fold(2, gk, sign)) return Number(0.0);
+    if (f_.held && (on_wall_at(0, gi) || (f_.dim > 1 && on_wall_at(1, gj)) || (f_.dim > 2 && on_wall_at(2, gk))))
+      return Number(0.0);
+    const bool owned = gi >= f_.xs && gi < f_.xs + f_.xm && gj >= f_.ys && gj < f_.ys + f_.ym && gk >= f_.zs &&
+                       gk < f_.zs + f_.zm;
+    const PetscInt k = owned ? ((gk - f_.zs) * f_.szo + (gj - f_.ys) * f_.syo + gi - f_.xs) * CS + c
+                             : ghosted((int)(gi - i_), (int)(gj - j_), (int)(gk - k_)) * CS + c;
     const double v = sign * PetscRealPart((owned ? f_.U : f_.Ug)[k]);
     if constexpr (M == Mode::Value) return v;
     else {
@@ -334,24 +354,15 @@ private:
         const PetscScalar *x = owned ? f_.X : f_.Xg;
         r.d[0] = x ? sign * PetscRealPart(x[k]) : 0.0;
       }
-      else if constexpr (M == Mode::Rows) r.d[Sten::entry((int)(gi - i_), (int)(gj - j_)) * C + c] = sign;
-      else if (gi == ti_ && gj == tj_) r.d[c] = sign;
+      else if constexpr (M == Mode::Rows) r.d[Sten::entry((int)(gi - i_), (int)(gj - j_), (int)(gk - k_)) * C + c] = sign;
+      else if (gi == ti_ && gj == tj_ && gk == tk_) r.d[c] = sign;
       return r;
     }
   }
 
   const Frame &f_;
-  PetscInt at_, own_, i_, j_, ti_, tj_;
+  PetscInt at_, own_, i_, j_, k_, ti_, tj_, tk_;
 };
-
-// x (a state-shaped array read like U: owned block in place, ghosts from xg) at point (i, j), whose
-// ghosted index is `at` and owned index `own`; `checked`: the point may lie outside the owned block.
-inline const PetscScalar &read_split(const Frame &f, const PetscScalar *x, const PetscScalar *xg, PetscInt at,
-                                     PetscInt own, PetscInt i, PetscInt j, PetscInt ncomp, int c, bool checked) {
-  (void)f, (void)i, (void)j;
-  if (checked) return xg[at * ncomp + c]; // a checked point's neighbourhood is in the ghosted array
-  return x[own * ncomp + c];
-}
 
 // The point view of the reverse sweep: Rev numbers whose tape inputs are the parameter vectors'
 // entries (input e: entry e); the state and the per-point parameters are constants.
@@ -362,28 +373,30 @@ class ReversePoint : public Point<C, K, NP, Sten, Mode::Value, 0, 0, CK, CS, CK,
 public:
   using Number = Rev;
   using Base::Base;
-  Number u(int c, int dx, int dy = 0) const { return Base::u(c, dx, dy); }
-  Number param(int k, int dx = 0, int dy = 0) const { return Base::param(k, dx, dy); }
-  Number aux(int k, int dx = 0, int dy = 0) const { return Base::aux(k, dx, dy); }
-  Number coefficient(int k, int dx = 0, int dy = 0) const { return Base::coefficient(k, dx, dy); }
+  Number u(int c, int dx, int dy = 0, int dz = 0) const { return Base::u(c, dx, dy, dz); }
+  Number param(int k, int dx = 0, int dy = 0, int dz = 0) const { return Base::param(k, dx, dy, dz); }
+  Number aux(int k, int dx = 0, int dy = 0, int dz = 0) const { return Base::aux(k, dx, dy, dz); }
+  Number coefficient(int k, int dx = 0, int dy = 0, int dz = 0) const { return Base::coefficient(k, dx, dy, dz); }
   Number theta(int e) const { return Rev::input(Base::theta(e), e); }
 };
 
-// The view of a face: point p's reads shifted by (SX, SY), so that a face flux is stated at its
+// The view of a face: point p's reads shifted by (SX, SY, SZ), so that a face flux is stated at its
 // left point and evaluated at any face of a point's stencil.
-template <class P, int SX, int SY> class Shifted {
+template <class P, int SX, int SY, int SZ = 0> class Shifted {
+  static constexpr int shift(int d) { return d == 0 ? SX : d == 1 ? SY : SZ; }
+
 public:
   using Number = typename P::Number;
   explicit Shifted(const P &p) : p_(p) {}
-  Number u(int c, int dx, int dy = 0) const { return p_.u(c, dx + SX, dy + SY); }
-  Number param(int k, int dx = 0, int dy = 0) const { return p_.param(k, dx + SX, dy + SY); }
-  Number coefficient(int k, int dx = 0, int dy = 0) const { return p_.coefficient(k, dx + SX, dy + SY); }
+  Number u(int c, int dx, int dy = 0, int dz = 0) const { return p_.u(c, dx + SX, dy + SY, dz + SZ); }
+  Number param(int k, int dx = 0, int dy = 0, int dz = 0) const { return p_.param(k, dx + SX, dy + SY, dz + SZ); }
+  Number coefficient(int k, int dx = 0, int dy = 0, int dz = 0) const { return p_.coefficient(k, dx + SX, dy + SY, dz + SZ); }
   Number theta(int e) const { return p_.theta(e); }
   PetscReal t() const { return p_.t(); }
-  PetscInt index(int d = 0) const { return p_.index(d) + (d == 0 ? SX : SY); }
+  PetscInt index(int d = 0) const { return p_.index(d) + shift(d); }
   PetscReal h(int d = 0) const { return p_.h(d); }
   PetscReal inv_h(int d = 0) const { return p_.inv_h(d); }
-  PetscReal x(int d = 0) const { return p_.x(d) + (d == 0 ? SX : SY) * p_.h(d); }
+  PetscReal x(int d = 0) const { return p_.x(d) + shift(d) * p_.h(d); }
   PetscInt points(int d = 0) const { return p_.points(d); }
 
 private:
@@ -399,12 +412,12 @@ public:
   static constexpr int S = C + NL;
   using Number = Dual<double, 2 * RF * S>;
   explicit FaceInputs(const P &p) : p_(p) {}
-  Number u(int c, int dx, int dy = 0) const { return Number::seeded(p_.u(c, dx, dy), (dx + RF - 1) * S + c); }
-  Number param(int k, int dx = 0, int dy = 0) const {
-    const double v = p_.param(k, dx, dy);
+  Number u(int c, int dx, int dy = 0, int dz = 0) const { return Number::seeded(p_.u(c, dx, dy, dz), (dx + RF - 1) * S + c); }
+  Number param(int k, int dx = 0, int dy = 0, int dz = 0) const {
+    const double v = p_.param(k, dx, dy, dz);
     return k < NL ? Number::seeded(v, (dx + RF - 1) * S + C + k) : Number(v);
   }
-  Number coefficient(int k, int dx = 0, int dy = 0) const { return Number(p_.coefficient(k, dx, dy)); }
+  Number coefficient(int k, int dx = 0, int dy = 0, int dz = 0) const { return Number(p_.coefficient(k, dx, dy, dz)); }
   Number theta(int e) const { return Number(p_.theta(e)); }
   PetscReal t() const { return p_.t(); }
   PetscInt index(int d = 0) const { return p_.index(d); }
@@ -471,7 +484,7 @@ template <class Eq, class = void> struct OutputsOf : std::integral_constant<int,
 template <class Eq> struct OutputsOf<Eq, std::void_t<decltype(Eq::outputs)>> : std::integral_constant<int, Eq::outputs> {};
 // Optional model statements for the initial condition and the forcing: the integrator's step
 // (set_time_step(dt)), a check before U0 is made (check_initial(comm)), and the points a point source
-// forces (forced(i, j), global indices; by default every point).
+// forces (forced(i, j, k), global indices; by default every point).
 template <class Eq, class = void> struct HasTimeStep : std::false_type {};
 template <class Eq>
 struct HasTimeStep<Eq, std::void_t<decltype(std::declval<Eq &>().set_time_step(PetscReal()))>> : std::true_type {};
@@ -486,7 +499,7 @@ template <class Eq>
 struct HasParameterMap<Eq, std::void_t<decltype(std::declval<const Eq &>().map_parameter(0, Vec()))>> : std::true_type {};
 template <class Eq, class = void> struct HasForcedPoints : std::false_type {};
 template <class Eq>
-struct HasForcedPoints<Eq, std::void_t<decltype(std::declval<const Eq &>().forced(PetscInt(), PetscInt()))>> : std::true_type {};
+struct HasForcedPoints<Eq, std::void_t<decltype(std::declval<const Eq &>().forced(PetscInt(), PetscInt(), PetscInt()))>> : std::true_type {};
 // Optional named functionals of the state (Model::functional): `functional_names()` and
 // `functional(name, U, value, dFdU)`, forwarded as the model states them.
 template <class Eq, class = void> struct HasFunctionals : std::false_type {};
@@ -553,8 +566,8 @@ class PointwiseModel final : public Model {
                 "flux form: no auxiliary fields, outputs or second-order pairs");
   static_assert(NFACE % 2 == 0 && (!Flux || NFACE == 0 || RF >= 1), "flux form: faces symmetric about the point, within the radius");
   using Mode = pointwise::Mode;
-  template <Mode M, int SX = 0, int SY = 0, bool CK = false, int CS = C, bool WL = CK, bool SC = false>
-  using Pt = pointwise::Point<C, K, NG, Sten, M, SX, SY, CK, CS, WL, KL, SC>;
+  template <Mode M, int SX = 0, int SY = 0, bool CK = false, int CS = C, bool WL = CK, bool SC = false, int SZ = 0>
+  using Pt = pointwise::Point<C, K, NG, Sten, M, SX, SY, CK, CS, WL, KL, SC, SZ>;
   template <bool CK> using PtInitial = pointwise::Point<C, 0, NP, Sten, Mode::Gather, 0, 0, CK>;
   template <bool CK> using Check = std::integral_constant<bool, CK>;
   // How a point of a sweep reads (for_points<true>): in place from the owned block (0, Check<false>),
@@ -565,7 +578,7 @@ class PointwiseModel final : public Model {
   // ... an Edge point within R of a wall: (gather) its neighbours beyond the wall have no equation, and
   // those on it their wall's.
   using EdgeNearWall = std::integral_constant<int, 3>;
-  static_assert(D == 1 || D == 2, "the grid is 1D or 2D");
+  static_assert(D >= 1 && D <= 3, "the grid is 1D, 2D or 3D");
   static_assert(Local || pointwise::PairsOf<Eq>::value == 0, "the leapfrog kick handles local models only");
   // A state as the sweeps read it: ghosted, with its auxiliary fields (K per point, ghosted) if any.
   struct LocalState {
@@ -659,26 +672,30 @@ public:
     scalar_acc_.assign((size_t)NP, std::vector<PetscReal>());
     for (int k = 0; k < NP; ++k)
       if (accumulated(k)) scalar_acc_[k].assign(grid.local_points(), 0.0);
-    frame_.sy = D == 2 ? ghost_xm() : 0;
-    frame_.h[0] = grid.h(), frame_.h[1] = grid.hy();
-    frame_.ih[0] = 1 / grid.h(), frame_.ih[1] = 1 / grid.hy();
-    frame_.x0[0] = grid.x0(), frame_.x0[1] = grid.y0();
-    frame_.n[0] = grid.n(), frame_.n[1] = grid.ny();
-    frame_.periodic[0] = grid.periodic(), frame_.periodic[1] = grid.periodic_y();
-    if constexpr (pointwise::HasOddWalls<Eq>::value) frame_.odd[0] = frame_.odd[1] = eq_.odd_walls();
+    {
+      PetscInt gxs, gys, gzs, gxm, gym, gzm;
+      ghost_corners(gxs, gys, gzs, gxm, gym, gzm);
+      frame_.sy = D >= 2 ? gxm : 0, frame_.sz = D == 3 ? gxm * gym : 0;
+    }
+    for (int d = 0; d < 3; ++d) {
+      frame_.h[d] = grid.h(d), frame_.ih[d] = 1 / grid.h(d), frame_.x0[d] = grid.lower(d);
+      frame_.n[d] = grid.n(d), frame_.periodic[d] = grid.periodic(d);
+      if constexpr (pointwise::HasOddWalls<Eq>::value) frame_.odd[d] = eq_.odd_walls();
+    }
     if constexpr (pointwise::HasHeldWalls<Eq>::value) frame_.held = eq_.held_walls();
     strip_ = 4 * R + 2;
     make_fold_table();
     frame_.np = NP + NF, frame_.coef0 = NP;
     frame_.na = K;
     frame_.line_pad = line_pad;
-    frame_.syo = grid.xm();
-    frame_.xs = grid.xs(), frame_.ys = grid.ys(), frame_.xm = grid.xm(), frame_.ym = grid.ym();
+    frame_.syo = grid.xm(), frame_.szo = D == 3 ? grid.xm() * grid.ym() : 0;
+    frame_.xs = grid.xs(), frame_.ys = grid.ys(), frame_.zs = grid.zs();
+    frame_.xm = grid.xm(), frame_.ym = grid.ym(), frame_.zm = grid.zm();
     if constexpr (NF > 0) {
       coefficients_.assign((size_t)grid.local_points() * NF, 0.0);
-      for_points(0, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
-        for (int k = 0; k < NF; ++k)
-          coefficients_[own * NF + k] = eq_.coefficient(k, Pt<Mode::Value, 0, 0, decltype(ck)::value>(frame_, at, own, i, j));
+      for_points(0, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, PetscInt k, auto ck) {
+        for (int q = 0; q < NF; ++q)
+          coefficients_[own * NF + q] = eq_.coefficient(q, Pt<Mode::Value, 0, 0, decltype(ck)::value>(frame_, at, own, i, j, k));
       });
     }
     PetscCall(ghosts_.create(dm_));
@@ -760,11 +777,11 @@ public:
       if constexpr (H > 0) PetscCall(VecGetArray(Hg_, &hout));
       if (!coupled_only) with_constants([&](auto sc) {
         with_model([&](const auto &eq) {
-          const auto point = [=](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+          const auto point = [=](PetscInt at, PetscInt own, PetscInt i, PetscInt j, PetscInt k, auto ck) {
             constexpr int where = decltype(ck)::value;
             double gv[C + H];
             rhs_of(eq, Pt<Mode::Value, 0, 0, where == 1, C, where == 1, decltype(sc)::value>(where >= 2 ? fe : f, at,
-                                                                                             where >= 2 ? at : own, i, j),
+                                                                                             where >= 2 ? at : own, i, j, k),
                    gv);
             for (int c = 0; c < C; ++c) out[own * C + c] = gv[c];
             for (int m = 0; m < H; ++m) hout[own * H + m] = gv[C + m];
@@ -820,10 +837,10 @@ public:
       if constexpr (H > 0) PetscCall(VecGetArray(Hg_, &hout));
       if (uniform_ && !local_part_) std::fill(out, out + grid_->local_points() * C, 0.0);
       else with_model([&](const auto &eq) {
-        for_points<true>(R, [=](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+        for_points<true>(R, [=](PetscInt at, PetscInt own, PetscInt i, PetscInt j, PetscInt k, auto ck) {
           constexpr int where = decltype(ck)::value;
           typename Pt<Mode::Tangent>::Number gv[C + H];
-          rhs_of(eq, Pt<Mode::Tangent, 0, 0, where == 1>(where >= 2 ? fe : f, at, where >= 2 ? at : own, i, j), gv);
+          rhs_of(eq, Pt<Mode::Tangent, 0, 0, where == 1>(where >= 2 ? fe : f, at, where >= 2 ? at : own, i, j, k), gv);
           for (int c = 0; c < C; ++c) out[own * C + c] = gv[c].d[0];
           for (int m = 0; m < H; ++m) hout[own * H + m] = gv[C + m].d[0];
         });
@@ -865,8 +882,6 @@ public:
       f.X = xo, f.Xg = xl;
       uncoupled(f);
       const pointwise::Frame fe = edge_frame(f);
-      const PetscInt nx = grid_->n(), ny = grid_->ny();
-      const bool px = grid_->periodic(), py = grid_->periodic_y();
       using Offsets = std::make_integer_sequence<int, Sten::size>;
       with_model([&](const auto &eq) {
       // the point's results into y, z and the gradient
@@ -883,13 +898,13 @@ public:
         if constexpr (WG)
           for (int k = 0; k < NG; ++k) gk[k][own] += w * gv[k];
       };
-      const auto point = [=](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+      const auto point = [=](PetscInt at, PetscInt own, PetscInt i, PetscInt j, PetscInt k, auto ck) {
         constexpr int where = decltype(ck)::value;
         double yv[C] = {};
         double zv[K > 0 ? K : 1] = {};
         double gv[NG > 0 ? NG : 1] = {};
-        gather_offsets<CLO, CHI, where, CS, SC>(eq, where >= 2 ? fe : f, xh, at, where >= 2 ? at : own, i, j, nx, ny, px, py,
-                                            yv, zv, gv, Offsets());
+        gather_offsets<CLO, CHI, where, CS, SC>(eq, where >= 2 ? fe : f, xh, at, where >= 2 ? at : own, i, j, k, yv, zv, gv,
+                                                Offsets());
         store(own, i, yv, zv, gv);
       };
       // Face blocks when each face is read by 4 points or more, or has 2 lanes per point read at most:
@@ -899,7 +914,7 @@ public:
       constexpr bool face_blocks = Flux && CS == C && (RF >= 2 || C + (SC ? 0 : NG) <= 2);
       if constexpr (face_blocks) {
         const RunPlan &plan = runs(2 * R, true, true);
-        gather_face_runs<CLO, CHI, SC>(plan.kind[0], eq, f, xh, nx, ny, px, py, store);
+        gather_face_runs<CLO, CHI, SC>(plan.kind[0], eq, f, xh, store);
         run_kind(plan.kind[1], point, Check<true>());
         run_kind(plan.kind[2], point, Edge());
         run_kind(plan.kind[3], point, EdgeNearWall());
@@ -909,7 +924,7 @@ public:
       if constexpr (WY)
         for (const auto &v : images_) {
           double yv[C] = {}, zv[K > 0 ? K : 1] = {}, gv[NG > 0 ? NG : 1] = {};
-          gather_offsets<CLO, CHI, 3, CS, SC>(eq, fe, xh, v.at, v.at, v.i, v.j, nx, ny, px, py, yv, zv, gv, Offsets());
+          gather_offsets<CLO, CHI, 3, CS, SC>(eq, fe, xh, v.at, v.at, v.i, v.j, v.k, yv, zv, gv, Offsets());
           for (int c = YLO; c < YHI; ++c) y[v.own * C + c] += (ADDY ? w : 1.0) * v.sign * yv[c];
         }
       });
@@ -1176,27 +1191,32 @@ public:
     }
     PetscFunctionReturn(0);
   }
-  // A whole leapfrog step in one sweep (Model::second_order_step), 2D: the kick and drift of the points
-  // within strip_ of the owned block's edge, then their ghosts (all that the points near the edge read,
-  // as for G), then row by row: the kick and drift of the inner points of the rows G on row j will
-  // read, G on row j as rhs() evaluates it, the row's forcing, and the second kick. The rows a point
-  // reads are in the cache from the kick and drift a few rows earlier: one pass over the state from
-  // memory instead of three.
-  static constexpr bool FusedStep = pointwise::PairsOf<Eq>::value > 0 && D == 2 && K == 0 && H == 0 && !Flux;
+  // A whole leapfrog step in one sweep (Model::second_order_step), 2D and 3D: the kick and drift of the
+  // points within strip_ of the owned block's edge, then their ghosts (all that the points near the edge
+  // read, as for G), then row by row (the rows (j, k) in memory order): the kick and drift of the inner
+  // points of the rows G on this row will read (R rows ahead in 2D, R planes in 3D), G on the row as
+  // rhs() evaluates it, the row's forcing, and the second kick. The rows a point reads are in the cache
+  // from the kick and drift a little earlier: one pass over the state from memory instead of three.
+  static constexpr bool FusedStep = pointwise::PairsOf<Eq>::value > 0 && D >= 2 && K == 0 && H == 0 && !Flux;
   bool has_second_order_step() const override { return FusedStep && second_order_pairs() > 0; }
   FLEXIPDE_SWEEP PetscErrorCode second_order_step(PetscReal t, Vec U, Vec F, const LeapfrogStepParts &parts) override {
     PetscFunctionBeginUser;
     if constexpr (FusedStep) {
-      const PetscInt xm = grid_->xm(), ym = grid_->ym(), B = strip_;
+      const PetscInt xm = grid_->xm(), ym = grid_->ym(), zm = grid_->zm(), B = strip_, rows = ym * zm;
       const bool inner_cols = xm > 2 * B;
-      const PetscInt lo = std::min(ym, B), hi = std::max(lo, ym - B); // the rows with inner points: [lo, hi)
+      // rows with inner points: B or more rows (and in 3D planes) from the block's edge
+      const auto inner = [&](PetscInt r) {
+        const PetscInt j = r % ym, k = r / ym;
+        return inner_cols && j >= B && j < ym - B && (D < 3 || (k >= B && k < zm - B));
+      };
+      const PetscInt reach = D == 3 ? R * ym : R; // G on row r reads rows up to r + reach
       {
         Array u(U), f(F);
         PetscCall(u.error());
         PetscCall(f.error());
-        for (PetscInt r = 0; r < ym; ++r) {
+        for (PetscInt r = 0; r < rows; ++r) {
           const PetscInt row = r * xm;
-          if (!inner_cols || r < lo || r >= hi) parts.kick_drift(u.data(), f.data(), row, row + xm);
+          if (!inner(r)) parts.kick_drift(u.data(), f.data(), row, row + xm);
           else {
             parts.kick_drift(u.data(), f.data(), row, row + B);
             parts.kick_drift(u.data(), f.data(), row + xm - B, row + xm);
@@ -1226,43 +1246,43 @@ public:
       PetscScalar *out = g.data(), *ud = u.data();
       with_constants([&](auto sc) {
         with_model([&](const auto &eq) {
-          const auto point = [=](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+          const auto point = [=](PetscInt at, PetscInt own, PetscInt i, PetscInt j, PetscInt k, auto ck) {
             constexpr int where = decltype(ck)::value;
             double gv[C];
             rhs_of(eq, Pt<Mode::Value, 0, 0, where == 1, C, where == 1, decltype(sc)::value>(where >= 2 ? fe : f, at,
-                                                                                             where >= 2 ? at : own, i, j),
+                                                                                             where >= 2 ? at : own, i, j, k),
                    gv);
             for (int c = 0; c < C; ++c) out[own * C + c] = gv[c];
           };
           const RunPlan &plan = runs(R, true, false);
           size_t next_run[3] = {0, 0, 0}, next_force = 0;
-          const auto row_runs = [&](int kind, PetscInt j) { // the runs of one kind in row j
+          const auto row_runs = [&](int kind, PetscInt j, PetscInt k) { // the runs of one kind in row (j, k)
             const std::vector<Run> &v = plan.kind[kind];
             const size_t a = next_run[kind];
-            while (next_run[kind] < v.size() && v[next_run[kind]].j == j) ++next_run[kind];
+            while (next_run[kind] < v.size() && v[next_run[kind]].j == j && v[next_run[kind]].k == k) ++next_run[kind];
             return std::make_pair(v.data() + a, v.data() + next_run[kind]);
           };
-          // Inner rows [lo, drifted) have had their kick and drift, rows [0, kicked) their second kick.
-          // The kick and drift run two rows ahead of G's reach and the second kick one row behind G,
-          // so that G never loads entries whose stores are still on their way to the cache.
-          PetscInt drifted = lo, kicked = 0;
-          for (PetscInt r = 0; r < ym; ++r) {
-            const PetscInt j = grid_->ys() + r;
-            for (; inner_cols && drifted < hi && drifted <= r + R + 2; ++drifted)
-              parts.kick_drift(ud, out, drifted * xm + B, drifted * xm + xm - B);
-            const auto k0 = row_runs(0, j), k1 = row_runs(1, j), k2 = row_runs(2, j);
+          // The inner rows before `drifted` have had their kick and drift, rows [0, kicked) their second
+          // kick. The kick and drift run two rows ahead of G's reach and the second kick one row behind
+          // G, so that G never loads entries whose stores are still on their way to the cache.
+          PetscInt drifted = 0, kicked = 0;
+          for (PetscInt r = 0; r < rows; ++r) {
+            const PetscInt j = grid_->ys() + r % ym, k = grid_->zs() + r / ym;
+            for (; drifted < rows && drifted <= r + reach + 2; ++drifted)
+              if (inner(drifted)) parts.kick_drift(ud, out, drifted * xm + B, drifted * xm + xm - B);
+            const auto k0 = row_runs(0, j, k), k1 = row_runs(1, j, k), k2 = row_runs(2, j, k);
             run_kind(k0.first, k0.second, point, Check<false>());
             run_kind(k1.first, k1.second, point, Check<true>());
             run_kind(k2.first, k2.second, point, Edge());
             if constexpr (pointwise::HasForcing<Eq>::value)
               for (; next_force < forcing_order_.size(); ++next_force) {
-                const PetscInt k = forcing_order_[next_force], own = source_->stencil.local[k];
+                const PetscInt e = forcing_order_[next_force], own = source_->stencil.local[e];
                 if (own >= (r + 1) * xm) break;
-                out[own * C + Eq::forced_component] += source_->density(k, t);
+                out[own * C + Eq::forced_component] += source_->density(e, t);
               }
             for (; kicked < r; ++kicked) parts.kick(ud, out, kicked * xm, (kicked + 1) * xm);
           }
-          for (; kicked < ym; ++kicked) parts.kick(ud, out, kicked * xm, (kicked + 1) * xm);
+          for (; kicked < rows; ++kicked) parts.kick(ud, out, kicked * xm, (kicked + 1) * xm);
         });
       });
     }
@@ -1383,9 +1403,9 @@ public:
       pointwise::Frame f = frame_;
       f.P = pa.data();
       PetscScalar *out = u.data();
-      for_points(0, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+      for_points(0, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, PetscInt k, auto ck) {
         double uv[C];
-        eq_.initial(Pt<Mode::Value, 0, 0, decltype(ck)::value>(f, at, own, i, j), uv);
+        eq_.initial(Pt<Mode::Value, 0, 0, decltype(ck)::value>(f, at, own, i, j, k), uv);
         for (int c = 0; c < C; ++c) out[own * C + c] = uv[c];
       });
     }
@@ -1406,14 +1426,14 @@ public:
       pointwise::Frame f = frame_;
       f.P = pa.data();
       const PetscScalar *lam = l.data();
-      for_points(0, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+      for_points(0, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, PetscInt k, auto ck) {
         typename PtInitial<false>::Number uv[C];
-        eq_.initial(PtInitial<decltype(ck)::value>(f, at, own, i, j, i, j), uv);
-        for (int k = 0; k < NP; ++k)
-          if (gk[k]) {
+        eq_.initial(PtInitial<decltype(ck)::value>(f, at, own, i, j, k, i, j, k), uv);
+        for (int q = 0; q < NP; ++q)
+          if (gk[q]) {
             double s = 0;
-            for (int c = 0; c < C; ++c) s += uv[c].d[C + k] * PetscRealPart(lam[own * C + c]);
-            gk[k][own] += s;
+            for (int c = 0; c < C; ++c) s += uv[c].d[C + q] * PetscRealPart(lam[own * C + c]);
+            gk[q][own] += s;
           }
       });
       PetscCall(VecRestoreArray(grad, &g));
@@ -1461,10 +1481,10 @@ private:
     const pointwise::Frame f = frame(t, sv, p.data());
     Tape &tape = active_tape();
     const int ne = (int)theta_.size();
-    for_points(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+    for_points(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, PetscInt k, auto ck) {
       Rev g[C + H];
       tape.begin(ne);
-      rhs_of(eq_, pointwise::ReversePoint<C, K, NG, Sten, decltype(ck)::value, CS, KL>(f, at, own, i, j), g);
+      rhs_of(eq_, pointwise::ReversePoint<C, K, NG, Sten, decltype(ck)::value, CS, KL>(f, at, own, i, j, k), g);
       tape.begin_seeding();
       for (int c = CLO; c < CHI; ++c) tape.seed(g[c].i, w * PetscRealPart(xo[own * C + c]));
       tape.backward();
@@ -1483,10 +1503,10 @@ private:
       f.P = pa.data();
       Tape &tape = active_tape();
       const int ne = (int)theta_.size();
-      for_points(0, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+      for_points(0, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, PetscInt k, auto ck) {
         Rev uv[C];
         tape.begin(ne);
-        eq_.initial(pointwise::ReversePoint<C, K, NG, Sten, decltype(ck)::value>(f, at, own, i, j), uv);
+        eq_.initial(pointwise::ReversePoint<C, K, NG, Sten, decltype(ck)::value>(f, at, own, i, j, k), uv);
         tape.begin_seeding();
         for (int c = 0; c < C; ++c) tape.seed(uv[c].i, PetscRealPart(l[own * C + c]));
         tape.backward();
@@ -1498,15 +1518,11 @@ private:
   }
   // Whether the point source forces owned point `own` (its index in the owned block).
   bool forced_point(PetscInt own) const {
-    if constexpr (pointwise::HasForcedPoints<Eq>::value)
-      return eq_.forced(grid_->xs() + own % grid_->xm(), grid_->ys() + own / grid_->xm());
+    if constexpr (pointwise::HasForcedPoints<Eq>::value) {
+      const PetscInt xm = grid_->xm(), ym = grid_->ym();
+      return eq_.forced(grid_->xs() + own % xm, grid_->ys() + (own / xm) % ym, grid_->zs() + own / (xm * ym));
+    }
     return true;
-  }
-
-  PetscInt ghost_xm() const {
-    PetscInt gxm;
-    DMDAGetGhostCorners(dm_, nullptr, nullptr, nullptr, &gxm, nullptr, nullptr);
-    return gxm;
   }
   // A frame of the uniform coupling's sweeps: they read the auxiliary fields as 0 (g(U) alone).
   void uncoupled(pointwise::Frame &f) const {
@@ -1599,10 +1615,10 @@ private:
       PetscInt local_part = 0; // g(U) is not 0: found by the evaluations at a = 0 below
       auto sweep = [&](std::vector<double> &v, bool at_zero = false) {
         const pointwise::Frame fe = edge_frame(f);
-        for_points<true>(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+        for_points<true>(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, PetscInt k, auto ck) {
           constexpr int where = decltype(ck)::value;
           typename Pt<Mode::Tangent>::Number gv[C];
-          rhs_of(eq_, Pt<Mode::Tangent, 0, 0, where == 1>(where >= 2 ? fe : f, at, where >= 2 ? at : own, i, j), gv);
+          rhs_of(eq_, Pt<Mode::Tangent, 0, 0, where == 1>(where >= 2 ? fe : f, at, where >= 2 ? at : own, i, j, k), gv);
           v[own] = gv[0].d[0];
           if (at_zero) local_part = local_part || gv[0].v != 0.0 || gv[0].d[0] != 0.0;
         });
@@ -1688,7 +1704,8 @@ private:
         for (int c = 0; c < C; ++c) g[c] = G(0.0);
       if constexpr (NFACE > 0) {
         add_faces<0>(eq, pt, g, std::make_integer_sequence<int, NFACE>());
-        if constexpr (D == 2) add_faces<1>(eq, pt, g, std::make_integer_sequence<int, NFACE>());
+        if constexpr (D >= 2) add_faces<1>(eq, pt, g, std::make_integer_sequence<int, NFACE>());
+        if constexpr (D == 3) add_faces<2>(eq, pt, g, std::make_integer_sequence<int, NFACE>());
       }
     } else eq.rhs(pt, g);
   }
@@ -1700,7 +1717,7 @@ private:
   }
   template <int d, int s, class E, class P, class G> static void add_face(const E &eq, const P &pt, G *g, double wk) {
     G F[C];
-    eq.flux(pointwise::Shifted<P, d == 0 ? s : 0, d == 1 ? s : 0>(pt), Direction<d>(), F);
+    eq.flux(pointwise::Shifted<P, d == 0 ? s : 0, d == 1 ? s : 0, d == 2 ? s : 0>(pt), Direction<d>(), F);
     for (int c = 0; c < C; ++c) g[c] += wk * F[c];
   }
 
@@ -1712,7 +1729,7 @@ private:
   // The frame of the Edge points: the state and its direction read from their ghosted arrays.
   static pointwise::Frame edge_frame(const pointwise::Frame &f) {
     pointwise::Frame e = f;
-    e.U = f.Ug, e.X = f.Xg, e.syo = f.sy;
+    e.U = f.Ug, e.X = f.Xg, e.syo = f.sy, e.szo = f.sz;
     return e;
   }
   // Every owned point: its index in the ghosted arrays, in the owned block, its grid indices, and
@@ -1730,9 +1747,9 @@ private:
     if constexpr (Edges) run_kind(plan.kind[2], body, Edge());
     if constexpr (NearWall) run_kind(plan.kind[3], body, EdgeNearWall());
   }
-  // Points i0 .. i0 + n - 1 of row j, the first at ghosted index `at` and owned index `own`.
+  // Points i0 .. i0 + n - 1 of row (j, k), the first at ghosted index `at` and owned index `own`.
   struct Run {
-    PetscInt at, own, i0, n, j;
+    PetscInt at, own, i0, n, j, k;
   };
   struct RunPlan {
     std::vector<Run> kind[4]; // Check<false>, Check<true>, Edge, EdgeNearWall
@@ -1750,9 +1767,9 @@ private:
     const auto point = body;
     for (const Run *it = first; it != last; ++it) {
       const Run &r = *it;
-      const PetscInt at = r.at, own = r.own, i0 = r.i0, j = r.j;
+      const PetscInt at = r.at, own = r.own, i0 = r.i0, j = r.j, k = r.k;
 #pragma GCC ivdep
-      for (PetscInt k = 0; k < r.n; ++k) point(at + k, own + k, i0 + k, j, ck);
+      for (PetscInt q = 0; q < r.n; ++q) point(at + q, own + q, i0 + q, j, k, ck);
     }
   }
   // G in flux form on runs of unchecked points, with each face along x formed once: a block's faces
@@ -1773,21 +1790,22 @@ private:
     double F[(B + NFACE - 1) * C];
     for (const Run &r : runs)
       for (PetscInt b0 = 0; b0 < r.n; b0 += B) {
-        const PetscInt m = std::min<PetscInt>(B, r.n - b0), at = r.at + b0, own = r.own + b0, i0 = r.i0 + b0, j = r.j;
+        const PetscInt m = std::min<PetscInt>(B, r.n - b0), at = r.at + b0, own = r.own + b0, i0 = r.i0 + b0, j = r.j, k = r.k;
         // (a face's reads lie within R of the run's points, in the owned block: its left point reads unchecked)
 #pragma GCC ivdep
         for (PetscInt q = 0; q < m + NFACE - 1; ++q)
-          eq.flux(P(f, at + q - L, own + q - L, i0 + q - L, j), Direction<0>(), F + q * C);
+          eq.flux(P(f, at + q - L, own + q - L, i0 + q - L, j, k), Direction<0>(), F + q * C);
 #pragma GCC ivdep
         for (PetscInt q = 0; q < m; ++q) {
-          const P pt(f, at + q, own + q, i0 + q, j);
+          const P pt(f, at + q, own + q, i0 + q, j, k);
           double g[C];
           if constexpr (pointwise::HasSource<Eq>::value) eq.source(pt, g);
           else
             for (int c = 0; c < C; ++c) g[c] = 0.0;
-          for (int k = 0; k < NFACE; ++k)
-            for (int c = 0; c < C; ++c) g[c] += wk[k] * F[(q + k) * C + c];
-          if constexpr (D == 2) add_faces<1>(eq, pt, g, std::make_integer_sequence<int, NFACE>());
+          for (int e = 0; e < NFACE; ++e)
+            for (int c = 0; c < C; ++c) g[c] += wk[e] * F[(q + e) * C + c];
+          if constexpr (D >= 2) add_faces<1>(eq, pt, g, std::make_integer_sequence<int, NFACE>());
+          if constexpr (D == 3) add_faces<2>(eq, pt, g, std::make_integer_sequence<int, NFACE>());
           for (int c = 0; c < C; ++c) out[(own + q) * C + c] = g[c];
         }
       }
@@ -1796,11 +1814,11 @@ private:
   // The gather on runs of unchecked points in flux form, with each face along x differentiated once:
   // for a block of points, every face that reads one of them, with respect to all its inputs at once
   // (FaceInputs), times its weights' combination of x, added to the points it reads; then each point's
-  // source and faces along y as gather_offsets, and `store`. (The gather point by point differentiates
+  // source and faces along y and z as gather_offsets, and `store`. (The gather point by point differentiates
   // a face at every one of the 2 RF points it reads.)
   template <int CLO, int CHI, bool SC, class E, class Store>
   FLEXIPDE_RUN void gather_face_runs(const std::vector<Run> &runs, const E &model, const pointwise::Frame &frame_in,
-                                     const PetscScalar *xh, PetscInt nx, PetscInt ny, bool px, bool py, const Store &put) const {
+                                     const PetscScalar *xh, const Store &put) const {
     if (runs.empty()) return;
     const E eq = model;
     const pointwise::Frame f = frame_in;
@@ -1816,18 +1834,18 @@ private:
     double T[NB * 2 * RF * S];
     for (const Run &r : runs)
       for (PetscInt b0 = 0; b0 < r.n; b0 += B) {
-        const PetscInt m = std::min<PetscInt>(B, r.n - b0), at = r.at + b0, own = r.own + b0, i0 = r.i0 + b0, j = r.j;
+        const PetscInt m = std::min<PetscInt>(B, r.n - b0), at = r.at + b0, own = r.own + b0, i0 = r.i0 + b0, j = r.j, k = r.k;
 #pragma GCC ivdep
         for (PetscInt q = 0; q < m + PAD; ++q) {
           const PetscInt l = q - RF;
           double xw[C] = {};
           for (int c = CLO; c < CHI; ++c) {
             double s = 0;
-            for (int k = 0; k < NFACE; ++k) s += w[k] * PetscRealPart(f.X[(own + l + L - k) * C + c]);
+            for (int e = 0; e < NFACE; ++e) s += w[e] * PetscRealPart(f.X[(own + l + L - e) * C + c]);
             xw[c] = s * -f.ih[0];
           }
           typename FP::Number F[C];
-          eq.flux(FP(P(f, at + l, own + l, i0 + l, j)), Direction<0>(), F);
+          eq.flux(FP(P(f, at + l, own + l, i0 + l, j, k)), Direction<0>(), F);
           for (int e = 0; e < 2 * RF * S; ++e) {
             double s = 0;
             for (int c = CLO; c < CHI; ++c) s += F[c].d[e] * xw[c];
@@ -1840,9 +1858,9 @@ private:
           for (int e = 0; e < 2 * RF; ++e) {
             const double *t = T + e * S * NB + q + PAD - e;
             for (int c = 0; c < C; ++c) yv[c] += t[c * NB];
-            for (int k = 0; k < NL; ++k) gv[k] += t[(C + k) * NB];
+            for (int p = 0; p < NL; ++p) gv[p] += t[(C + p) * NB];
           }
-          gather_offsets<CLO, CHI, 0, C, SC, false>(eq, f, xh, at + q, own + q, i0 + q, j, nx, ny, px, py, yv, zv, gv,
+          gather_offsets<CLO, CHI, 0, C, SC, false>(eq, f, xh, at + q, own + q, i0 + q, j, k, yv, zv, gv,
                                                    std::make_integer_sequence<int, Sten::size>());
           store(own + q, i0 + q, yv, zv, gv);
         }
@@ -1855,54 +1873,67 @@ private:
       if (p.first == key) return p.second;
     plans_.emplace_back(key, RunPlan());
     RunPlan &plan = plans_.back().second;
-    PetscInt gxs, gys, gxm, gym;
-    DMDAGetGhostCorners(dm_, &gxs, &gys, nullptr, &gxm, &gym, nullptr);
-    const PetscInt xs = grid_->xs(), xm = grid_->xm(), ys = grid_->ys(), ym = grid_->ym(), xe = xs + xm;
-    if (D == 1) gys = 0;
+    PetscInt gxs, gys, gzs, gxm, gym, gzm;
+    ghost_corners(gxs, gys, gzs, gxm, gym, gzm);
+    const PetscInt xs = grid_->xs(), xm = grid_->xm(), ys = grid_->ys(), ym = grid_->ym(), zs = grid_->zs(), zm = grid_->zm();
+    const PetscInt xe = xs + xm;
     margin = std::max<PetscInt>(margin, 1); // wall points are never Inside: their G may test wall()
     // with held walls an unchecked point's stencil stops short of them: one more checked point there
     const bool held = frame_.held;
-    const PetscInt wx0 = held && !grid_->periodic() && xs == 0, wx1 = held && !grid_->periodic() && xe == grid_->n();
-    const PetscInt wy0 = held && D > 1 && !grid_->periodic_y() && ys == 0,
-                   wy1 = held && D > 1 && !grid_->periodic_y() && ys + ym == grid_->ny();
-    const PetscInt lo = std::min(xs + margin + wx0, xe), hi = std::max(lo, xe - margin - wx1);
-    const PetscInt nx = grid_->n(), ny = grid_->ny();
-    const bool wx = !grid_->periodic(), wy = D > 1 && !grid_->periodic_y();
-    enum { Inside, Checked, EdgeKind, NearKind };
-    auto run = [&](PetscInt j, PetscInt i0, PetscInt i1, int kind) {
-      if (i1 > i0) plan.kind[kind].push_back({(j - gys) * gxm - gxs + i0, (j - ys) * xm - xs + i0, i0, i1 - i0, j});
+    const auto wall_lo = [&](int d) -> PetscInt { return held && d < D && !grid_->periodic(d) && grid_->start(d) == 0; };
+    const auto wall_hi = [&](int d) -> PetscInt {
+      return held && d < D && !grid_->periodic(d) && grid_->start(d) + grid_->owned(d) == grid_->n(d);
     };
-    // The points of row j in [i0, i1) outside the unchecked interior: checked on a wall, else Edge, or
-    // EdgeNearWall within R of a wall (the gather's neighbours there may lie beyond it or on it).
+    const PetscInt lo = std::min(xs + margin + wall_lo(0), xe), hi = std::max(lo, xe - margin - wall_hi(0));
+    const PetscInt nx = grid_->n(), ny = grid_->ny(), nz = grid_->nz();
+    const bool wx = !grid_->periodic(), wy = D > 1 && !grid_->periodic_y(), wz = D > 2 && !grid_->periodic_z();
+    enum { Inside, Checked, EdgeKind, NearKind };
+    auto run = [&](PetscInt j, PetscInt k, PetscInt i0, PetscInt i1, int kind) {
+      if (i1 > i0)
+        plan.kind[kind].push_back(
+            {((k - gzs) * gym + (j - gys)) * gxm - gxs + i0, ((k - zs) * ym + (j - ys)) * xm - xs + i0, i0, i1 - i0, j, k});
+    };
+    // The points of row (j, k) in [i0, i1) outside the unchecked interior: checked on a wall, else Edge,
+    // or EdgeNearWall within R of a wall (the gather's neighbours there may lie beyond it or on it).
     // With walls beyond which the state is 0 (neither odd nor held) the gather takes a wall point as
     // EdgeNearWall too: the ghosted arrays hold those zeros, and no point has an image to find.
-    const bool zero_walls = near_wall && !frame_.odd[0] && !frame_.odd[1] && !held;
+    const bool zero_walls = near_wall && !frame_.odd[0] && !frame_.odd[1] && !frame_.odd[2] && !held;
     const int wall_kind = zero_walls ? NearKind : Checked, cw = zero_walls ? 0 : 1;
-    auto edges = [&](PetscInt j, PetscInt i0, PetscInt i1) {
-      if (!with_edges) return run(j, i0, i1, Checked);
-      const bool wall_row = wy && (j == 0 || j == ny - 1), near_row = wy && (j <= R || j >= ny - 1 - R);
-      if (wall_row) return run(j, i0, i1, wall_kind);
+    auto edges = [&](PetscInt j, PetscInt k, PetscInt i0, PetscInt i1) {
+      if (!with_edges) return run(j, k, i0, i1, Checked);
+      const bool wall_row = (wy && (j == 0 || j == ny - 1)) || (wz && (k == 0 || k == nz - 1));
+      const bool near_row = (wy && (j <= R || j >= ny - 1 - R)) || (wz && (k <= R || k >= nz - 1 - R));
+      if (wall_row) return run(j, k, i0, i1, wall_kind);
       // columns: [0] the wall, [1, R] near it, then the free run, [nx - 1 - R, nx - 2] near, [nx - 1] the wall
       const PetscInt a0 = wx ? std::clamp<PetscInt>(cw, i0, i1) : i0, a1 = wx ? std::clamp<PetscInt>(R + 1, i0, i1) : i0;
       const PetscInt b1 = wx ? std::clamp<PetscInt>(nx - cw, a1, i1) : i1, b0 = wx ? std::clamp<PetscInt>(nx - 1 - R, a1, b1) : i1;
       const int near = near_wall ? NearKind : EdgeKind;
-      run(j, i0, a0, Checked);
-      run(j, a0, a1, near);
-      run(j, a1, b0, near_row ? near : EdgeKind);
-      run(j, b0, b1, near);
-      run(j, b1, i1, Checked);
+      run(j, k, i0, a0, Checked);
+      run(j, k, a0, a1, near);
+      run(j, k, a1, b0, near_row ? near : EdgeKind);
+      run(j, k, b0, b1, near);
+      run(j, k, b1, i1, Checked);
     };
-    for (PetscInt j = ys; j < ys + ym; ++j) {
-      const bool inside = D == 1 || (j >= ys + margin + wy0 && j < ys + ym - margin - wy1);
-      if (!inside) {
-        edges(j, xs, xe);
-        continue;
+    for (PetscInt k = zs; k < zs + zm; ++k) {
+      const bool inside_z = D < 3 || (k >= zs + margin + wall_lo(2) && k < zs + zm - margin - wall_hi(2));
+      for (PetscInt j = ys; j < ys + ym; ++j) {
+        const bool inside = D == 1 || (inside_z && j >= ys + margin + wall_lo(1) && j < ys + ym - margin - wall_hi(1));
+        if (!inside) {
+          edges(j, k, xs, xe);
+          continue;
+        }
+        edges(j, k, xs, lo);
+        run(j, k, lo, hi, Inside);
+        edges(j, k, hi, xe);
       }
-      edges(j, xs, lo);
-      run(j, lo, hi, Inside);
-      edges(j, hi, xe);
     }
     return plan;
+  }
+  // The state DM's ghosted box (its y and z extents 1 in the dimensions the grid lacks).
+  void ghost_corners(PetscInt &gxs, PetscInt &gys, PetscInt &gzs, PetscInt &gxm, PetscInt &gym, PetscInt &gzm) const {
+    DMDAGetGhostCorners(dm_, &gxs, &gys, &gzs, &gxm, &gym, &gzm);
+    if (D < 2) gys = 0, gym = 1;
+    if (D < 3) gzs = 0, gzm = 1;
   }
 
   PetscErrorCode to_local(Vec g, Vec l) const {
@@ -1934,16 +1965,20 @@ private:
       Array g(local);
       PetscCall(o.error());
       PetscCall(g.error());
-      PetscInt gxs, gys, gxm;
-      DMDAGetGhostCorners(dm_, &gxs, &gys, nullptr, &gxm, nullptr, nullptr);
-      if (D == 1) gys = 0;
-      const PetscInt xs = grid_->xs(), xm = grid_->xm(), ys = grid_->ys(), ym = grid_->ym(), w = strip_;
-      auto copy = [&](PetscInt j, PetscInt i0, PetscInt i1) {
-        copy_entries(o.data() + ((j - ys) * xm + i0 - xs) * ncomp, (i1 - i0) * ncomp, g.data() + ((j - gys) * gxm + i0 - gxs) * ncomp);
+      PetscInt gxs, gys, gzs, gxm, gym, gzm;
+      ghost_corners(gxs, gys, gzs, gxm, gym, gzm);
+      const PetscInt xs = grid_->xs(), xm = grid_->xm(), ys = grid_->ys(), ym = grid_->ym(), zs = grid_->zs(), zm = grid_->zm();
+      const PetscInt w = strip_;
+      auto copy = [&](PetscInt j, PetscInt k, PetscInt i0, PetscInt i1) {
+        copy_entries(o.data() + (((k - zs) * ym + j - ys) * xm + i0 - xs) * ncomp, (i1 - i0) * ncomp,
+                     g.data() + (((k - gzs) * gym + j - gys) * gxm + i0 - gxs) * ncomp);
       };
-      for (PetscInt j = ys; j < ys + ym; ++j) {
-        if ((D > 1 && (j < ys + w || j >= ys + ym - w)) || xm <= 2 * w) copy(j, xs, xs + xm);
-        else copy(j, xs, xs + w), copy(j, xs + xm - w, xs + xm);
+      for (PetscInt k = zs; k < zs + zm; ++k) {
+        const bool edge_plane = D > 2 && (k < zs + w || k >= zs + zm - w);
+        for (PetscInt j = ys; j < ys + ym; ++j) {
+          if (edge_plane || (D > 1 && (j < ys + w || j >= ys + ym - w)) || xm <= 2 * w) copy(j, k, xs, xs + xm);
+          else copy(j, k, xs, xs + w), copy(j, k, xs + xm - w, xs + xm);
+        }
       }
       ex.copy_own(o.data(), g.data());
     }
@@ -1962,46 +1997,51 @@ private:
   }
   // The ghosted box's sources and signs (Frame::src, Frame::sgn).
   void make_fold_table() {
-    PetscInt gxs, gys, gxm, gym;
-    DMDAGetGhostCorners(dm_, &gxs, &gys, nullptr, &gxm, &gym, nullptr);
-    if (D == 1) gys = 0, gym = 1;
-    src_.assign(gxm * gym, -1), sgn_.assign(gxm * gym, 1.0);
+    PetscInt gxs, gys, gzs, gxm, gym, gzm;
+    ghost_corners(gxs, gys, gzs, gxm, gym, gzm);
+    src_.assign(gxm * gym * gzm, -1), sgn_.assign(gxm * gym * gzm, 1.0);
     const bool odd = frame_.odd[0], held = frame_.held;
     auto fold = [&](int d, PetscInt &g, double &sign) {
-      const PetscInt n = d == 0 ? grid_->n() : grid_->ny();
-      const bool periodic = d == 0 ? grid_->periodic() : grid_->periodic_y();
+      const PetscInt n = grid_->n(d);
+      const bool periodic = grid_->periodic(d);
       if (periodic || (g >= 0 && g < n)) return !(held && !periodic && (g == 0 || g == n - 1));
       if (!odd) return false;
       g = g < 0 ? -g : 2 * (n - 1) - g, sign = -sign;
       return !(held && (g == 0 || g == n - 1));
     };
-    for (PetscInt b = 0; b < gym; ++b)
-      for (PetscInt a = 0; a < gxm; ++a) {
-        PetscInt gi = gxs + a, gj = gys + b;
-        double sign = 1;
-        if (!fold(0, gi, sign) || (D > 1 && !fold(1, gj, sign))) continue;
-        src_[b * gxm + a] = (gj - gys) * gxm + (gi - gxs), sgn_[b * gxm + a] = sign;
-      }
+    for (PetscInt c = 0; c < gzm; ++c)
+      for (PetscInt b = 0; b < gym; ++b)
+        for (PetscInt a = 0; a < gxm; ++a) {
+          PetscInt gi = gxs + a, gj = gys + b, gk = gzs + c;
+          double sign = 1;
+          if (!fold(0, gi, sign) || (D > 1 && !fold(1, gj, sign)) || (D > 2 && !fold(2, gk, sign))) continue;
+          const PetscInt p = (c * gym + b) * gxm + a;
+          src_[p] = ((gk - gzs) * gym + (gj - gys)) * gxm + (gi - gxs), sgn_[p] = sign;
+        }
     frame_.src = src_.data(), frame_.sgn = sgn_.data();
     // The positions that hold another point's image or 0, and the images of owned points that a real
     // point's stencil reaches (within R beyond the walls) whose point is not on a wall itself (a wall
     // point is checked: its gather finds its images through the table).
     folded_.clear(), images_.clear();
-    const PetscInt xs = grid_->xs(), xm = grid_->xm(), ys = grid_->ys(), ym = grid_->ym(), nx = grid_->n(), ny = grid_->ny();
-    const bool wx = !grid_->periodic(), wy = D > 1 && !grid_->periodic_y();
-    for (PetscInt b = 0; b < gym; ++b)
-      for (PetscInt a = 0; a < gxm; ++a) {
-        const PetscInt p = b * gxm + a, gi = gxs + a, gj = gys + b, s = src_[p];
-        if (s == p) continue;
-        folded_.push_back({p, s, sgn_[p]});
-        if (s < 0) continue;
-        const PetscInt si = gxs + s % gxm, sj = gys + s / gxm;
-        const bool reach = (gi >= -R && gi < nx + R) && (D == 1 || (gj >= -R && gj < ny + R));
-        const bool owned = si >= xs && si < xs + xm && sj >= ys && sj < ys + ym;
-        const bool on_wall = (wx && (si == 0 || si == nx - 1)) || (wy && (sj == 0 || sj == ny - 1));
-        const bool beyond = (wx && (gi < 0 || gi >= nx)) || (wy && (gj < 0 || gj >= ny));
-        if (beyond && reach && owned && !on_wall) images_.push_back({p, (sj - ys) * xm + (si - xs), gi, gj, sgn_[p]});
-      }
+    const PetscInt xs = grid_->xs(), xm = grid_->xm(), ys = grid_->ys(), ym = grid_->ym(), zs = grid_->zs(), zm = grid_->zm();
+    const PetscInt nx = grid_->n(), ny = grid_->ny(), nz = grid_->nz();
+    const bool wx = !grid_->periodic(), wy = D > 1 && !grid_->periodic_y(), wz = D > 2 && !grid_->periodic_z();
+    for (PetscInt c = 0; c < gzm; ++c)
+      for (PetscInt b = 0; b < gym; ++b)
+        for (PetscInt a = 0; a < gxm; ++a) {
+          const PetscInt p = (c * gym + b) * gxm + a, gi = gxs + a, gj = gys + b, gk = gzs + c, s = src_[p];
+          if (s == p) continue;
+          folded_.push_back({p, s, sgn_[p]});
+          if (s < 0) continue;
+          const PetscInt si = gxs + s % gxm, sj = gys + (s / gxm) % gym, sk = gzs + s / (gxm * gym);
+          const bool reach = (gi >= -R && gi < nx + R) && (D == 1 || (gj >= -R && gj < ny + R)) && (D < 3 || (gk >= -R && gk < nz + R));
+          const bool owned = si >= xs && si < xs + xm && sj >= ys && sj < ys + ym && sk >= zs && sk < zs + zm;
+          const bool on_wall =
+              (wx && (si == 0 || si == nx - 1)) || (wy && (sj == 0 || sj == ny - 1)) || (wz && (sk == 0 || sk == nz - 1));
+          const bool beyond = (wx && (gi < 0 || gi >= nx)) || (wy && (gj < 0 || gj >= ny)) || (wz && (gk < 0 || gk >= nz));
+          if (beyond && reach && owned && !on_wall)
+            images_.push_back({p, ((sk - zs) * ym + (sj - ys)) * xm + (si - xs), gi, gj, gk, sgn_[p]});
+        }
   }
   // The state U for the sweeps: read in place (the caller keeps U unchanged while s is used) or, if
   // `keep`, from a copy (for products applied later); its ghosts and auxiliary fields.
@@ -2213,83 +2253,84 @@ private:
     return (s[0] + s[1]) + (s[2] + s[3]);
   }
 
-  // The gather at owned point (i, j): for each stencil offset o, G at the point j - o (when it exists)
-  // differentiated with respect to the inputs at j, contracted with x there.
+  // The gather at owned point (i, j, k): for each stencil offset o, G at the point - o (when it exists)
+  // differentiated with respect to the inputs at the point, contracted with x there.
   // In flux form, away from walls: the source's gather so, and each face that reads the point once.
   // XF: with the faces along x (else the caller has them: gather_face_runs).
   template <int CLO, int CHI, int W, int CS, bool SC, bool XF = true, class M, int... E>
-  static void gather_offsets(const M &eq, const pointwise::Frame &f, const PetscScalar *xh, PetscInt at, PetscInt own, PetscInt i, PetscInt j,
-                      PetscInt nx, PetscInt ny, bool px, bool py, double *yv, double *zv, double *gv,
-                      std::integer_sequence<int, E...>) {
+  static void gather_offsets(const M &eq, const pointwise::Frame &f, const PetscScalar *xh, PetscInt at, PetscInt own, PetscInt i,
+                             PetscInt j, PetscInt k, double *yv, double *zv, double *gv, std::integer_sequence<int, E...>) {
     if constexpr (Flux && (W == 0 || W == 2)) {
       if constexpr (pointwise::HasSource<Eq>::value)
-        (gather_one<Sten::offset(E)[0], Sten::offset(E)[1], CLO, CHI, W, CS, SC, 1>(eq, f, xh, at, own, i, j, nx, ny, px, py, yv,
-                                                                                  zv, gv), ...);
+        (gather_one<Sten::offset(E)[0], Sten::offset(E)[1], Sten::offset(E)[2], CLO, CHI, W, CS, SC, 1>(eq, f, xh, at, own, i, j, k,
+                                                                                                      yv, zv, gv), ...);
       // constant parameters: dG(j)/dp x(j) from G at the point, as the points that take the gather of G
       // count them (per face, the faces between the two kinds of point would be missed or counted twice)
-      if constexpr (SC && NG > 0) gather_one<0, 0, CLO, CHI, W, CS, SC, 2>(eq, f, xh, at, own, i, j, nx, ny, px, py, yv, zv, gv);
+      if constexpr (SC && NG > 0) gather_one<0, 0, 0, CLO, CHI, W, CS, SC, 2>(eq, f, xh, at, own, i, j, k, yv, zv, gv);
       if constexpr (NFACE > 0) {
-        if constexpr (XF) gather_faces<0, CLO, CHI, SC>(eq, f, at, own, i, j, yv, gv, std::make_integer_sequence<int, 2 * RF>());
-        if constexpr (D == 2) gather_faces<1, CLO, CHI, SC>(eq, f, at, own, i, j, yv, gv, std::make_integer_sequence<int, 2 * RF>());
+        using Faces = std::make_integer_sequence<int, 2 * RF>;
+        if constexpr (XF) gather_faces<0, CLO, CHI, SC>(eq, f, at, own, i, j, k, yv, gv, Faces());
+        if constexpr (D >= 2) gather_faces<1, CLO, CHI, SC>(eq, f, at, own, i, j, k, yv, gv, Faces());
+        if constexpr (D == 3) gather_faces<2, CLO, CHI, SC>(eq, f, at, own, i, j, k, yv, gv, Faces());
       }
     } else
-      (gather_one<Sten::offset(E)[0], Sten::offset(E)[1], CLO, CHI, W, CS, SC>(eq, f, xh, at, own, i, j, nx, ny, px, py, yv, zv, gv),
+      (gather_one<Sten::offset(E)[0], Sten::offset(E)[1], Sten::offset(E)[2], CLO, CHI, W, CS, SC>(eq, f, xh, at, own, i, j, k, yv,
+                                                                                                 zv, gv),
        ...);
   }
   template <int d, int CLO, int CHI, bool SC, class M, int... q>
-  static void gather_faces(const M &eq, const pointwise::Frame &f, PetscInt at, PetscInt own, PetscInt i, PetscInt j, double *yv,
-                           double *gv, std::integer_sequence<int, q...>) {
-    (gather_face<d, q + 1 - RF, CLO, CHI, SC>(eq, f, at, own, i, j, yv, gv), ...);
+  static void gather_faces(const M &eq, const pointwise::Frame &f, PetscInt at, PetscInt own, PetscInt i, PetscInt j, PetscInt k,
+                           double *yv, double *gv, std::integer_sequence<int, q...>) {
+    (gather_face<d, q + 1 - RF, CLO, CHI, SC>(eq, f, at, own, i, j, k, yv, gv), ...);
   }
   // The face whose left point lies at -o along d from the target reads it at offset o: its flux,
   // differentiated there, times -ih sum_k w_k x at the points it enters (G(L + NFACE/2 - k), L the left point).
   template <int d, int o, int CLO, int CHI, bool SC, class M>
-  static void gather_face(const M &eq, const pointwise::Frame &f, PetscInt at, PetscInt own, PetscInt i, PetscInt j, double *yv,
-                          double *gv) {
-    constexpr int OX = d == 0 ? o : 0, OY = d == 1 ? o : 0;
-    const PetscInt sat = at - OX - OY * f.sy, sown = own - OX - OY * f.syo;
-    using P = Pt<Mode::Gather, OX, OY, false, C, false, SC>;
+  static void gather_face(const M &eq, const pointwise::Frame &f, PetscInt at, PetscInt own, PetscInt i, PetscInt j, PetscInt k,
+                          double *yv, double *gv) {
+    constexpr int OX = d == 0 ? o : 0, OY = d == 1 ? o : 0, OZ = d == 2 ? o : 0;
+    const PetscInt sat = at - OX - OY * f.sy - OZ * f.sz, sown = own - OX - OY * f.syo - OZ * f.szo;
+    using P = Pt<Mode::Gather, OX, OY, false, C, false, SC, OZ>;
     typename P::Number F[C];
-    eq.flux(P(f, sat, sown, i - OX, j - OY, i, j), Direction<d>(), F);
+    eq.flux(P(f, sat, sown, i - OX, j - OY, k - OZ, i, j, k), Direction<d>(), F);
     constexpr auto w = divergence_of();
-    const PetscInt so = d == 0 ? 1 : f.syo;
+    const PetscInt so = d == 0 ? 1 : d == 1 ? f.syo : f.szo;
     for (int c = CLO; c < CHI; ++c) {
       double xw = 0;
-      for (int k = 0; k < NFACE; ++k) xw += w[k] * PetscRealPart(f.X[(own + (NFACE / 2 - k - o) * so) * C + c]);
+      for (int q = 0; q < NFACE; ++q) xw += w[q] * PetscRealPart(f.X[(own + (NFACE / 2 - q - o) * so) * C + c]);
       xw *= -f.ih[d];
       for (int cc = 0; cc < C; ++cc) yv[cc] += F[c].d[cc] * xw;
       if constexpr (!SC)
-        for (int k = 0; k < NG; ++k) gv[k] += F[c].d[C + K + k] * xw;
+        for (int q = 0; q < NG; ++q) gv[q] += F[c].d[C + K + q] * xw;
     }
   }
   // W: how the point reads (for_points<true>); G exists at real points alone: near a wall (W = 1, 3) the
   // gather skips the others. (Beyond it the transpose's x reads 0, so that an Edge point's neighbours
   // there would add nothing; but their stencils would reach beyond the ghosted box.)
   // PART: 0 G, 1 the source term S alone (flux form), 2 G for the parameters' lanes alone.
-  template <int OX, int OY, int CLO, int CHI, int W, int CS, bool SC, int PART = 0, class M>
-  static void gather_one(const M &eq, const pointwise::Frame &f, const PetscScalar *xh, PetscInt at, PetscInt own,
-                         PetscInt i, PetscInt j, PetscInt nx, PetscInt ny, bool px, bool py, double *yv, double *zv,
-                         double *gv) {
+  template <int OX, int OY, int OZ, int CLO, int CHI, int W, int CS, bool SC, int PART = 0, class M>
+  static void gather_one(const M &eq, const pointwise::Frame &f, const PetscScalar *xh, PetscInt at, PetscInt own, PetscInt i,
+                         PetscInt j, PetscInt k, double *yv, double *zv, double *gv) {
     constexpr bool CK = W == 1;
-    const PetscInt si = i - OX, sj = j - OY;
+    const PetscInt si = i - OX, sj = j - OY, sk = k - OZ;
     if constexpr (W == 1 || W == 3) {
-      if (!px && (si < 0 || si >= nx)) return;
-      if (D == 2 && !py && (sj < 0 || sj >= ny)) return;
+      if (!f.periodic[0] && (si < 0 || si >= f.n[0])) return;
+      if (D >= 2 && !f.periodic[1] && (sj < 0 || sj >= f.n[1])) return;
+      if (D == 3 && !f.periodic[2] && (sk < 0 || sk >= f.n[2])) return;
     }
-    const PetscInt sat = at - OX - OY * f.sy, sown = own - OX - OY * f.syo;
-    using P = Pt<Mode::Gather, OX, OY, CK, CS, W == 1 || W == 3, SC>; // (an Edge point's neighbours are never on a wall)
+    const PetscInt sat = at - OX - OY * f.sy - OZ * f.sz, sown = own - OX - OY * f.syo - OZ * f.szo;
+    using P = Pt<Mode::Gather, OX, OY, CK, CS, W == 1 || W == 3, SC, OZ>; // (an Edge point's neighbours are never on a wall)
     typename P::Number gd[C + H];
-    if constexpr (PART == 1) eq.source(P(f, sat, sown, si, sj, i, j), gd);
-    else rhs_of(eq, P(f, sat, sown, si, sj, i, j), gd);
+    if constexpr (PART == 1) eq.source(P(f, sat, sown, si, sj, sk, i, j, k), gd);
+    else rhs_of(eq, P(f, sat, sown, si, sj, sk, i, j, k), gd);
     auto contract = [&](const auto &g, double xc) {
       if constexpr (PART != 2)
         for (int cc = 0; cc < C; ++cc) yv[cc] += g.d[cc] * xc;
-      for (int k = 0; k < K; ++k) zv[k] += g.d[C + k] * xc;
+      for (int q = 0; q < K; ++q) zv[q] += g.d[C + q] * xc;
       if constexpr (!(PART == 1 && SC)) // (constant parameters: PART 2)
-        for (int k = 0; k < NG; ++k) gv[k] += g.d[C + K + k] * xc;
+        for (int q = 0; q < NG; ++q) gv[q] += g.d[C + K + q] * xc;
     };
-    for (int c = CLO; c < CHI; ++c)
-      contract(gd[c], PetscRealPart(pointwise::read_split(f, f.X, f.Xg, sat, sown, si, sj, C, c, CK)));
+    for (int c = CLO; c < CHI; ++c) contract(gd[c], PetscRealPart(CK ? f.Xg[sat * C + c] : f.X[sown * C + c]));
     for (int m = 0; m < H; ++m) contract(gd[C + m], PetscRealPart(xh[sat * H + m]));
   }
 
@@ -2327,9 +2368,9 @@ private:
       ConstArray p(Pr);
       pointwise::Frame f = frame(0.5, u, p.data());
       f.theta = theta_r.data();
-      for_points(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+      for_points(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, PetscInt k, auto ck) {
         typename Pt<Mode::Rows>::Number gd[C];
-        rhs_of(eq_, Pt<Mode::Rows, 0, 0, decltype(ck)::value>(f, at, own, i, j), gd);
+        rhs_of(eq_, Pt<Mode::Rows, 0, 0, decltype(ck)::value>(f, at, own, i, j, k), gd);
         for (int c = 0; c < C; ++c)
           for (int l = 0; l < Sten::size * C; ++l)
             if (gd[c].d[l] != 0) local[(l / C) * C * C + c * C + l % C] = 1;
@@ -2362,27 +2403,32 @@ private:
     if (vals) vals->resize(n);
     if (used) used->resize(n);
     if (rows) rows->resize(n), cols->resize(n);
-    PetscInt gxs = 0, gys = 0, gxm = 0;
-    if (rows) PetscCall(DMDAGetGhostCorners(matrix_dm_, &gxs, &gys, nullptr, &gxm, nullptr, nullptr));
-    const auto local_index = [&](PetscInt i, PetscInt j, int c) { return ((j - gys) * gxm + (i - gxs)) * C + c; };
-    size_t k = 0;
-    for_points(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, auto ck) {
+    PetscInt gxs = 0, gys = 0, gzs = 0, gxm = 0, gym = 0, gzm = 0;
+    if (rows) PetscCall(DMDAGetGhostCorners(matrix_dm_, &gxs, &gys, &gzs, &gxm, &gym, &gzm));
+    if (D < 2) gys = 0, gym = 1;
+    if (D < 3) gzs = 0;
+    const auto local_index = [&](PetscInt i, PetscInt j, PetscInt k, int c) {
+      return (((k - gzs) * gym + (j - gys)) * gxm + (i - gxs)) * C + c;
+    };
+    size_t n_set = 0; // entries set so far
+    for_points(R, [&](PetscInt at, PetscInt own, PetscInt i, PetscInt j, PetscInt k, auto ck) {
       typename Pt<Mode::Rows>::Number gd[C];
-      rhs_of(eq_, Pt<Mode::Rows, 0, 0, decltype(ck)::value>(f, at, own, i, j), gd);
+      rhs_of(eq_, Pt<Mode::Rows, 0, 0, decltype(ck)::value>(f, at, own, i, j, k), gd);
       for (int c = 0; c < C; ++c) {
         double diag = 0, off = 0;
         for (int e = 0; e < Sten::size; ++e) {
           const auto o = Sten::offset(e);
-          const PetscInt ci = i + o[0], cj = j + o[1];
-          const bool outside = (!f.periodic[0] && (ci < 0 || ci >= f.n[0])) || (D == 2 && !f.periodic[1] && (cj < 0 || cj >= f.n[1]));
+          const PetscInt ci = i + o[0], cj = j + o[1], cz = k + o[2];
+          const bool outside = (!f.periodic[0] && (ci < 0 || ci >= f.n[0])) || (D >= 2 && !f.periodic[1] && (cj < 0 || cj >= f.n[1])) ||
+                               (D == 3 && !f.periodic[2] && (cz < 0 || cz >= f.n[2]));
           for (int cc = 0; cc < C; ++cc) {
             const bool on_diagonal = e == 0 && cc == c;
             if (!pattern_[e * C * C + c * C + cc] && !on_diagonal) continue;
             const double v = outside ? 0.0 : gd[c].d[e * C + cc];
-            if (vals) (*vals)[k] = v;
-            if (used) (*used)[k] = !outside && (!pointwise::LinearOf<Eq>::value || v != 0.0 || on_diagonal);
-            if (rows) (*rows)[k] = local_index(i, j, c), (*cols)[k] = local_index(ci, cj, cc);
-            ++k;
+            if (vals) (*vals)[n_set] = v;
+            if (used) (*used)[n_set] = !outside && (!pointwise::LinearOf<Eq>::value || v != 0.0 || on_diagonal);
+            if (rows) (*rows)[n_set] = local_index(i, j, k, c), (*cols)[n_set] = local_index(ci, cj, cz, cc);
+            ++n_set;
             if (on_diagonal) diag += v;
             else off += std::fabs(v);
           }
@@ -2472,7 +2518,7 @@ private:
   };
   std::vector<Folded> folded_;
   struct Image {
-    PetscInt at, own, i, j; // a mirror image beyond a wall (ghosted index, grid indices) of owned point `own`
+    PetscInt at, own, i, j, k; // a mirror image beyond a wall (ghosted index, grid indices) of owned point `own`
     double sign;
   };
   std::vector<Image> images_;

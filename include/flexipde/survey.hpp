@@ -7,8 +7,8 @@
 //   w(t) = A (1 - 2 pi^2 f0^2 (t - t0)^2) exp(-pi^2 f0^2 (t - t0)^2),  t0 = delay (default 1.2/f0),
 // added to the equation of the model's forced component (the wave: v_t = c^2 u_xx + w(t) delta_h(x - x_s)).
 // The discrete delta spreads w over the grid points around x_s with the interpolation weights (linear,
-// bilinear, or Kaiser-windowed sinc: -survey_interpolation), divided by the cell volume, so that it
-// integrates to w.
+// bilinear, trilinear, or Kaiser-windowed sinc: -survey_interpolation), divided by the cell volume, so
+// that it integrates to w.
 //
 // Receivers. u(x_r, t) = (R U)_r, R the same interpolation weights on component u (a sparse
 // matrix with one row per receiver, owned by rank 0). The misfit is an Objective integrand
@@ -25,13 +25,16 @@
 // in docs/fwi_receivers.md).
 //
 // Options (prefix -survey_):
-//   -survey_sources_x x1,x2,...      one shot per source (2D: -survey_sources_y, one value or one per source)
+//   -survey_sources_x x1,x2,...      one shot per source (2D and 3D: -survey_sources_y, in 3D also
+//                                    -survey_sources_z, each one value or one per source)
 //   -survey_ricker_f0 F, -survey_ricker_delay T0, -survey_ricker_amplitude A
 //   -survey_wavelet_file F           the wavelet from a text file instead: one "t w" pair per line
 //   -survey_interpolation linear|sinc   how sources and receivers off the grid points are tied to it
-//   -survey_receivers_x x1,...       receivers (2D: -survey_receivers_y, one value or one per receiver), or
-//   -survey_receivers_spread a,b,n   n receivers evenly spaced from a to b (2D: at depth -survey_receivers_y), or
-//   -survey_receivers_file F         text file, one receiver per line: "x" (1D) or "x y" (2D)
+//   -survey_receivers_x x1,...       receivers (2D and 3D: -survey_receivers_y, in 3D also -survey_receivers_z,
+//                                    each one value or one per receiver), or
+//   -survey_receivers_spread a,b,n   n receivers evenly spaced in x from a to b (2D: at depth
+//                                    -survey_receivers_y; 3D: at -survey_receivers_y and -survey_receivers_z), or
+//   -survey_receivers_file F         text file, one receiver per line: "x" (1D), "x y" (2D) or "x y z" (3D)
 //   -survey_data_file F.h5           read the observed traces from F (written by -survey_data_write)
 //   -survey_data_write F.h5          write the synthetic traces made from the true model to F
 //
@@ -43,8 +46,8 @@
 // window (a zero-phase filter would mix in the data's truncation at T).
 //
 // Data file (HDF5, PETSc viewer): /survey/traces (nshots * nrec * nt, shot-major, then receiver,
-// then sample), /survey/receivers_x, /survey/sources_x (and _y in 2D), attributes on /survey/traces:
-// nshots, nrec, nt (integers), sample_dt, dim.
+// then sample), /survey/receivers_x, /survey/sources_x (and _y in 2D and 3D, _z in 3D), attributes on
+// /survey/traces: nshots, nrec, nt (integers), sample_dt, dim.
 #pragma once
 #include "flexipde/model.hpp"
 #include "flexipde/objective.hpp"
@@ -60,25 +63,26 @@ struct Ricker {
 };
 
 // How a point off the grid is tied to it (-survey_interpolation):
-//   linear  the 2 (1D) or 4 (2D) nearest points, linear or bilinear weights;
+//   linear  the 2 (1D), 4 (2D) or 8 (3D) nearest points, linear, bilinear or trilinear weights;
 //   sinc    2r = 8 points per direction, w(d) = sinc(d) I0(b sqrt(1 - (d/r)^2)) / I0(b), d the distance
 //           to the point in cells, r = 4, b = 6.31 (Kaiser-windowed sinc, Hicks 2002, with his b for
 //           waves of 4 points per wavelength and more): exact on a grid point (w = 1 there, 0 at the
-//           others), within about 1e-3 between points at 4 points per wavelength and more; in 2D the
-//           product of the two directions' weights.
+//           others), within about 1e-3 between points at 4 points per wavelength and more; in 2D and
+//           3D the product of the directions' weights (8^3 = 512 points in 3D).
 //           Points beyond a wall are left out (within 4 cells of a wall the weights no longer sum to 1).
 // Sources and receivers use the same weights, so injection and sampling are each other's transposes.
 enum class Interpolation { Linear, Sinc };
 // The owned (point index, weight) pairs of a point's interpolation; weights summing to 1 over all ranks
 // (sinc: up to the window's error, and away from walls). Points are local indices into the owned block
-// ((j - ys) * xm + (i - xs)).
+// (((k - zs) * ym + (j - ys)) * xm + (i - xs)). 8 KB: held once per source and filled in place, never
+// copied in a loop over time steps. y is ignored in 1D, z below 3D.
 struct PointStencil {
-  static constexpr int max_points = 64;
+  static constexpr int max_points = 512; // the 3D sinc: 8 points per direction
   PetscInt n = 0;
   PetscInt local[max_points];
   PetscReal weight[max_points];
 };
-PetscErrorCode point_stencil(const Grid &grid, PetscReal x, PetscReal y, PointStencil *st,
+PetscErrorCode point_stencil(const Grid &grid, PetscReal x, PetscReal y, PetscReal z, PointStencil *st,
                              Interpolation how = Interpolation::Linear);
 
 // A source's time function: the Ricker wavelet, or samples w_k at times t_k (increasing) read from a
@@ -161,7 +165,7 @@ private:
   PetscMPIInt rank_ = 0;
   PetscInt component_ = 0, dof_ = 1, nshots_ = 1, shot_ = 0, nt_ = 0;
   PetscInt first_ = 0, end_ = -1; // the shots fired (end -1: all)
-  std::vector<PetscReal> src_x_, src_y_, rec_x_, rec_y_;
+  std::vector<PetscReal> src_x_, src_y_, src_z_, rec_x_, rec_y_, rec_z_; // y, z: 0 where the grid lacks them
   std::vector<PointSource> sources_;
   Interpolation interpolation_ = Interpolation::Linear;
   Wavelet wavelet_;

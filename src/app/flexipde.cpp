@@ -299,7 +299,12 @@ static PetscErrorCode run(MPI_Comm comm) {
     if (task == 3) PetscCall(inv.setup(scene, p_true));
     PetscFunctionReturn(0);
   }
-  if (scene.grid.dim() == 2)
+  if (scene.grid.dim() == 3)
+    PetscCall(PetscPrintf(comm,
+                          "flexipde: model %s, %" PetscInt_FMT " x %" PetscInt_FMT " x %" PetscInt_FMT " points, %" PetscInt_FMT
+                          " parameters\n",
+                          scene.model->name(), scene.grid.n(), scene.grid.ny(), scene.grid.nz(), scene.params.global_size()));
+  else if (scene.grid.dim() == 2)
     PetscCall(PetscPrintf(comm, "flexipde: model %s, %" PetscInt_FMT " x %" PetscInt_FMT " points, %" PetscInt_FMT " parameters\n",
                           scene.model->name(), scene.grid.n(), scene.grid.ny(), scene.params.global_size()));
   else

@@ -1,5 +1,6 @@
 #include "flexipde/scene.hpp"
 #include "flexipde/survey.hpp"
+#include <array>
 #include <cstring>
 #include <map>
 
@@ -82,24 +83,27 @@ PetscErrorCode Scene::setup_groups(const SceneDefaults &d) {
   PetscCall(VecDuplicate(group_p_, group_g_.out()));
 
   // Where each of the group's parameter entries lives in this scene's layout: the scalars and vectors
-  // at the same offsets on rank 0, a field's value at point (i, j) on the rank that owns (i, j), at
-  // that field's offset there plus the point's index in its box.
+  // at the same offsets on rank 0, a field's value at point (i, j, k) on the rank that owns (i, j, k),
+  // at that field's offset there plus the point's index in its box.
   struct Box {
-    PetscInt xs, ys, xm, ym, first_field; // owned box, and the local offset of the first field
+    PetscInt xs, ys, zs, xm, ym, zm, first_field; // owned box, and the local offset of the first field
   };
+  constexpr int box_ints = sizeof(Box) / sizeof(PetscInt);
   PetscInt first_field = params.local_size();
   for (PetscInt k = 0; k < params.count(); ++k)
     if (params.info(k).kind == ParamKind::Field) first_field = std::min(first_field, params.info(k).local_offset);
-  Box mine = {grid.xs(), grid.ys(), grid.xm(), grid.ym(), first_field};
+  Box mine = {grid.xs(), grid.ys(), grid.zs(), grid.xm(), grid.ym(), grid.zm(), first_field};
   std::vector<Box> boxes(size);
-  PetscCallMPI(MPI_Allgather(&mine, 5, MPIU_INT, boxes.data(), 5, MPIU_INT, comm_));
-  std::vector<PetscInt> column(grid.n()), row(grid.ny()); // a box's first index for each column and row
-  std::map<std::pair<PetscInt, PetscInt>, PetscMPIInt> owner;
+  PetscCallMPI(MPI_Allgather(&mine, box_ints, MPIU_INT, boxes.data(), box_ints, MPIU_INT, comm_));
+  // a box's first index for each column, row and layer
+  std::vector<PetscInt> column(grid.n()), row(grid.ny()), layer(grid.nz());
+  std::map<std::array<PetscInt, 3>, PetscMPIInt> owner;
   for (PetscMPIInt r = 0; r < size; ++r) {
     const Box &b = boxes[r];
     for (PetscInt i = b.xs; i < b.xs + b.xm; ++i) column[i] = b.xs;
     for (PetscInt j = b.ys; j < b.ys + b.ym; ++j) row[j] = b.ys;
-    owner[{b.xs, b.ys}] = r;
+    for (PetscInt k = b.zs; k < b.zs + b.zm; ++k) layer[k] = b.zs;
+    owner[{b.xs, b.ys, b.zs}] = r;
   }
   const Grid &gg = group_->grid;
   const Parameters &gp = group_->params;
@@ -112,10 +116,12 @@ PetscErrorCode Scene::setup_groups(const SceneDefaults &d) {
       continue;
     }
     for (PetscInt q = 0; q < info.local_size; ++q) {
-      const PetscInt i = gg.xs() + q % gg.xm(), j = gg.ys() + q / gg.xm();
-      const PetscMPIInt r = owner[{column[i], row[j]}];
+      const PetscInt i = gg.xs() + q % gg.xm(), j = gg.ys() + (q / gg.xm()) % gg.ym();
+      const PetscInt k = gg.zs() + q / (gg.xm() * gg.ym());
+      const PetscMPIInt r = owner[{column[i], row[j], layer[k]}];
       const Box &b = boxes[r];
-      remote[info.local_offset + q] = {r, b.first_field + field_ordinal * b.xm * b.ym + (j - b.ys) * b.xm + (i - b.xs)};
+      remote[info.local_offset + q] = {r, b.first_field + field_ordinal * b.xm * b.ym * b.zm +
+                                              ((k - b.zs) * b.ym + (j - b.ys)) * b.xm + (i - b.xs)};
     }
     ++field_ordinal;
   }

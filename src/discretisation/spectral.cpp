@@ -192,6 +192,9 @@ PetscErrorCode SpectralDifferentiator::setup(const Grid &grid, bool x_only, Pets
   PetscMPIInt size;
   PetscFunctionBeginUser;
   PetscCallMPI(MPI_Comm_size(comm, &size));
+  // the transforms below are 1D or 2D FFTW-MPI plans over the grid's x (and y) lines
+  PetscCheck(grid.dim() <= 2, comm, PETSC_ERR_SUP,
+             "Spectral differentiation is offered on 1D and 2D grids only, the grid is %" PetscInt_FMT "D", grid.dim());
   if (!fftw_mpi_ready) {
     fftw_mpi_init();
     fftw_mpi_ready = true;

@@ -63,24 +63,35 @@ PetscErrorCode H5Writer::write_attribute(const char *dataset, const char *name, 
 }
 
 PetscErrorCode H5Writer::write_coordinates(const Grid &grid) {
-  OwnedVec x, y;
+  OwnedVec x, y, z;
   PetscFunctionBeginUser;
   grid_ = &grid;
+  // owned point q is ((k - zs) ym + (j - ys)) xm + (i - xs)
+  const PetscInt xm = grid.xm(), ym = grid.ym();
   PetscCall(DMCreateGlobalVector(grid.dm(), x.out()));
   {
     Array a(x);
     PetscCall(a.error());
-    for (PetscInt i = 0; i < grid.local_points(); ++i) a[i] = grid.x(grid.xs() + i % grid.xm());
+    for (PetscInt i = 0; i < grid.local_points(); ++i) a[i] = grid.x(grid.xs() + i % xm);
   }
   PetscCall(write_vec("/grid", "x", x));
-  if (grid.dim() == 2) {
+  if (grid.dim() >= 2) {
     PetscCall(DMCreateGlobalVector(grid.dm(), y.out()));
     {
       Array a(y);
       PetscCall(a.error());
-      for (PetscInt i = 0; i < grid.local_points(); ++i) a[i] = grid.y(grid.ys() + i / grid.xm());
+      for (PetscInt i = 0; i < grid.local_points(); ++i) a[i] = grid.y(grid.ys() + (i / xm) % ym);
     }
     PetscCall(write_vec("/grid", "y", y));
+  }
+  if (grid.dim() == 3) {
+    PetscCall(DMCreateGlobalVector(grid.dm(), z.out()));
+    {
+      Array a(z);
+      PetscCall(a.error());
+      for (PetscInt i = 0; i < grid.local_points(); ++i) a[i] = grid.z(grid.zs() + i / (xm * ym));
+    }
+    PetscCall(write_vec("/grid", "z", z));
   }
   PetscFunctionReturn(0);
 }
@@ -101,11 +112,20 @@ PetscErrorCode H5Writer::write_xdmf() {
   xmf = (dot != std::string::npos && (slash == std::string::npos || dot > slash) ? xmf.substr(0, dot) : xmf) + ".xmf";
   std::ostringstream o;
   o.precision(17);
-  const bool two = g.dim() == 2;
-  const std::string dims = two ? std::to_string(g.ny()) + " " + std::to_string(g.n()) : std::to_string(g.n());
+  // The datasets' shape, slowest direction first: (n), (ny, n) or (nz, ny, n), as PETSc writes a DMDA Vec.
+  const PetscInt dim = g.dim();
+  std::string dims = std::to_string(g.n());
+  for (PetscInt d = 1; d < dim; ++d) dims = std::to_string(g.n((int)d)) + " " + dims;
   o << "<?xml version=\"1.0\" ?>\n<!DOCTYPE Xdmf SYSTEM \"Xdmf.dtd\" []>\n<Xdmf Version=\"3.0\">\n <Domain>\n"
     << "  <Grid Name=\"flexipde\" GridType=\"Uniform\">\n";
-  if (two)
+  if (dim == 3)
+    o << "   <Topology TopologyType=\"3DCoRectMesh\" Dimensions=\"" << dims << "\"/>\n"
+      << "   <Geometry GeometryType=\"ORIGIN_DXDYDZ\">\n"
+      << "    <DataItem Dimensions=\"3\" NumberType=\"Float\" Precision=\"8\" Format=\"XML\">" << g.z0() << " " << g.y0()
+      << " " << g.x0() << "</DataItem>\n"
+      << "    <DataItem Dimensions=\"3\" NumberType=\"Float\" Precision=\"8\" Format=\"XML\">" << g.hz() << " " << g.hy()
+      << " " << g.h() << "</DataItem>\n   </Geometry>\n";
+  else if (dim == 2)
     o << "   <Topology TopologyType=\"2DCoRectMesh\" Dimensions=\"" << dims << "\"/>\n"
       << "   <Geometry GeometryType=\"ORIGIN_DXDY\">\n"
       << "    <DataItem Dimensions=\"2\" NumberType=\"Float\" Precision=\"8\" Format=\"XML\">" << g.y0() << " " << g.x0()
@@ -130,14 +150,17 @@ PetscErrorCode H5Writer::write_xdmf() {
         << d.path << "</DataItem>\n   </Attribute>\n";
       continue;
     }
+    // hyperslab of component c: start (0, ..., 0, c), stride (1, ..., 1), count (dims, 1)
+    std::string zeros, ones;
+    for (PetscInt a = 0; a < dim; ++a) zeros += "0 ", ones += "1 ";
     for (PetscInt c = 0; c < d.dof; ++c) {
       const std::string comp = c < (PetscInt)component_names_.size() && d.dof == (PetscInt)component_names_.size()
                                    ? component_names_[c]
                                    : std::to_string(c);
       o << "   <Attribute Name=\"" << name << "_" << comp << "\" AttributeType=\"Scalar\" Center=\"Node\">\n"
         << "    <DataItem ItemType=\"HyperSlab\" Dimensions=\"" << dims << " 1\" Type=\"HyperSlab\">\n"
-        << "     <DataItem Dimensions=\"3 " << (two ? 3 : 2) << "\" Format=\"XML\">" << (two ? "0 0 " : "0 ") << c
-        << (two ? " 1 1 1 " : " 1 1 ") << dims << " 1</DataItem>\n"
+        << "     <DataItem Dimensions=\"3 " << dim + 1 << "\" Format=\"XML\">" << zeros << c << " " << ones << "1 "
+        << dims << " 1</DataItem>\n"
         << "     <DataItem Dimensions=\"" << dims << " " << d.dof << "\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">"
         << h5 << ":" << d.path << "</DataItem>\n    </DataItem>\n   </Attribute>\n";
     }

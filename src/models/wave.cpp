@@ -1,5 +1,5 @@
 // Acoustic wave equation with a spatially varying speed, in D dimensions from one source file, as a
-// first-order system (registered as "wave" for D = 1 and "wave2d" for D = 2):
+// first-order system (registered as "wave", "wave2d" and "wave3d" for D = 1, 2 and 3):
 //
 //   u_t = v,    v_t = c(x)^2 Lap_h u - sigma(x) v + w(t) delta_h(x - x_s),
 //
@@ -26,10 +26,10 @@
 //     where the equation is the plain wave's. The default sigma_max = 1.5 ln(1000) / W is the strength
 //     whose continuous reflection is 1e-3 for c = 1 (scale it with c).
 // The parameter c is one scalar (-<m>_c_field 0) or a field (-<m>_c_field 1), never below -<m>_c_min.
-// <m> is "wave" in 1D and "wave2d" in 2D.
+// <m> is "wave" in 1D, "wave2d" in 2D and "wave3d" in 3D.
 //
 // Initial condition (-<m>_ic), from the pulse P(x) = exp(-|x - x_c|^2 / w^2) (-<m>_ic_width w; centre
-// -wave_ic_center in 1D, -wave2d_ic_x and -wave2d_ic_y in 2D):
+// -wave_ic_center in 1D, -<m>_ic_x, -<m>_ic_y (and -wave3d_ic_z) in 2D and 3D):
 //   "pulse" or "rest"  u0 = P, v0 = 0;
 //   "travelling"       u0 = P, v0 = -c dP/dx, a pulse moving in +x (the 1D default);
 //   "zero"             u0 = v0 = 0, for waves made by point sources only (the 2D default);
@@ -56,6 +56,10 @@
 //   mpiexec -n 2 ./flexipde -model wave2d -task gradient -wave2d_pml_width 0.15 -wave2d_c_field 1
 //           -true_wave2d_c 1.1 -objective_type receivers -survey_sources_x 0.5 -survey_sources_y 0.5
 //           -survey_receivers_spread 0.2,0.8,7 -survey_receivers_y 0.7 -ts_max_time 0.6 -ts_dt 2e-3
+//   mpiexec -n 2 ./flexipde -model wave3d -task taylor -ts_type leapfrog -da_grid_x 21 -da_grid_y 21 -da_grid_z 21
+//           -wave3d_c_field 1 -true_wave3d_c 1.1 -objective_type receivers -survey_sources_x 0.5 -survey_sources_y 0.5
+//           -survey_sources_z 0.3 -survey_receivers_spread 0.2,0.8,5 -survey_receivers_y 0.5 -survey_receivers_z 0.7
+//           -ts_max_time 0.4 -ts_dt 5e-3
 //   (each one command line)
 #include "flexipde/differentiator.hpp"
 #include "flexipde/pointwise.hpp"
@@ -77,13 +81,14 @@ public:
   static constexpr bool linear = true;
   enum Parameter { c = 0 };
 
-  const char *name() const { return D == 1 ? "wave" : "wave2d"; }
+  const char *name() const { return D == 1 ? "wave" : D == 2 ? "wave2d" : "wave3d"; }
   const char *component_name(int k) const {
     static const char *names[] = {"u", "v", "phi_x", "phi_y", "phi_z", "chi_x", "chi_y", "chi_z"};
     return k < 2 ? names[k] : k < 2 + D ? names[k] : names[5 + (k - 2 - D)];
   }
   void grid_defaults(GridOptions &o) const {
     if (D == 2) o.n = o.ny = 101;
+    if (D == 3) o.n = o.ny = o.nz = 41;
   }
   bool second_order_active() const { return !Pml; } // (the PML's memory variables have no such form)
   bool odd_walls() const { return boundary_ == Walls; }
@@ -146,10 +151,10 @@ public:
     bool any_wall = false;
     spectral_radius_ = 0;
     for (int d = 0; d < D; ++d) {
-      spectral_radius_ += d2.spectral_radius(d == 0 ? grid.h() : grid.hy());
-      lo_[d] = d == 0 ? grid.x0() : grid.y0(), hi_[d] = d == 0 ? grid.x1() : grid.y1();
-      periodic_[d] = d == 0 ? grid.periodic() : grid.periodic_y();
-      n_[d] = d == 0 ? grid.n() : grid.ny();
+      spectral_radius_ += d2.spectral_radius(grid.h(d));
+      lo_[d] = grid.lower(d), hi_[d] = grid.upper(d);
+      periodic_[d] = grid.periodic(d);
+      n_[d] = grid.n(d);
       any_wall = any_wall || !periodic_[d];
       PetscCheck(periodic_[d] || 2 * pml_width_ < hi_[d] - lo_[d], grid.comm(), PETSC_ERR_ARG_OUTOFRANGE,
                  "-%spml_width %g: the layers of two opposite walls would overlap (the domain is %g wide)", prefix.c_str(),
@@ -218,7 +223,9 @@ public:
   }
 
   // Point sources force v everywhere but on the walls, which stay at u = v = 0.
-  bool forced(PetscInt i, PetscInt j) const { return boundary_ != Walls || !(on_wall(0, i) || (D > 1 && on_wall(1, j))); }
+  bool forced(PetscInt i, PetscInt j, PetscInt k) const {
+    return boundary_ != Walls || !(on_wall(0, i) || (D > 1 && on_wall(1, j)) || (D > 2 && on_wall(2, k)));
+  }
 
   // Eigenvalues of dG/dU: +-i c sqrt(eig(-Lap_h)) in the interior, damped by at most sigma_max.
   PetscErrorCode spectrum(const ParameterBounds &b, Spectrum *s) const {
@@ -244,7 +251,9 @@ private:
   static constexpr double weight(int k) { return SecondDerivative::weight(2 * R, k); }
   static constexpr double first_weight(int k) { return FirstDerivative::weight(2 * R, k); }
   // Component q at k points from the point along direction d.
-  template <class P> static auto along(const P &pt, int q, int d, int k) { return d == 0 ? pt.u(q, k) : pt.u(q, 0, k); }
+  template <class P> static auto along(const P &pt, int q, int d, int k) {
+    return d == 0 ? pt.u(q, k) : d == 1 ? pt.u(q, 0, k) : pt.u(q, 0, 0, k);
+  }
   // How far into the PML along direction d, from 0 at its inner edge to 1 on the wall (0 outside it).
   template <class P> PetscReal layer_fraction(const P &pt, int d) const {
     if (periodic_[d]) return 0;
@@ -307,20 +316,49 @@ public:
 };
 
 // The stencil radius and the absorbing layer are compile-time constants of the sweeps (no branch in
-// their loops): -fd_order, -<m>_sponge_width and -<m>_pml_width pick the instance. The PML's instances
-// are compiled in wave_pml.cpp, apart from the others.
-template <int D, int R> std::unique_ptr<Model> make_wave_pml();
-#ifndef FLEXIPDE_WAVE_PML_UNIT
+// their loops): -fd_order, -<m>_sponge_width and -<m>_pml_width pick the instance. The instances are
+// compiled in four units, so that they build in parallel: this file (1D and 2D, no layer or the
+// sponge), wave_pml.cpp (1D and 2D, the PML), wave3d.cpp and wave3d_pml.cpp (3D).
+template <int D, int R> std::unique_ptr<Model> make_wave_plain(bool sponge) {
+  if (sponge) return std::make_unique<PointwiseModel<AcousticWave<D, R, Absorber::Sponge>>>();
+  return std::make_unique<PointwiseModel<AcousticWave<D, R, Absorber::None>>>();
+}
+template <int D, int R> std::unique_ptr<Model> make_wave_pml() {
+  return std::make_unique<PointwiseModel<AcousticWave<D, R, Absorber::Pml>>>();
+}
+#define FLEXIPDE_WAVE_INSTANCES(D, kind, ...)                                                                        \
+  template std::unique_ptr<Model> make_wave_##kind<D, 1>(__VA_ARGS__);                                              \
+  template std::unique_ptr<Model> make_wave_##kind<D, 2>(__VA_ARGS__);                                              \
+  template std::unique_ptr<Model> make_wave_##kind<D, 4>(__VA_ARGS__);
+#if defined(FLEXIPDE_WAVE_PML_UNIT)
+FLEXIPDE_WAVE_INSTANCES(1, pml)
+FLEXIPDE_WAVE_INSTANCES(2, pml)
+#elif defined(FLEXIPDE_WAVE_3D_UNIT)
+FLEXIPDE_WAVE_INSTANCES(3, plain, bool)
+#elif defined(FLEXIPDE_WAVE_3D_PML_UNIT)
+FLEXIPDE_WAVE_INSTANCES(3, pml)
+#else
+extern template std::unique_ptr<Model> make_wave_plain<3, 1>(bool);
+extern template std::unique_ptr<Model> make_wave_plain<3, 2>(bool);
+extern template std::unique_ptr<Model> make_wave_plain<3, 4>(bool);
+extern template std::unique_ptr<Model> make_wave_pml<1, 1>();
+extern template std::unique_ptr<Model> make_wave_pml<1, 2>();
+extern template std::unique_ptr<Model> make_wave_pml<1, 4>();
+extern template std::unique_ptr<Model> make_wave_pml<2, 1>();
+extern template std::unique_ptr<Model> make_wave_pml<2, 2>();
+extern template std::unique_ptr<Model> make_wave_pml<2, 4>();
+extern template std::unique_ptr<Model> make_wave_pml<3, 1>();
+extern template std::unique_ptr<Model> make_wave_pml<3, 2>();
+extern template std::unique_ptr<Model> make_wave_pml<3, 4>();
 template <int D, int R> std::unique_ptr<Model> make_wave_absorbing(PetscReal sponge, PetscReal pml) {
   if (pml > 0) return make_wave_pml<D, R>();
-  if (sponge > 0) return std::make_unique<PointwiseModel<AcousticWave<D, R, Absorber::Sponge>>>();
-  return std::make_unique<PointwiseModel<AcousticWave<D, R, Absorber::None>>>(); // (negative widths are refused at setup)
+  return make_wave_plain<D, R>(sponge > 0); // (negative widths are refused at setup)
 }
 template <int D> std::unique_ptr<Model> make_wave() {
   PetscInt order = 2;
   PetscReal sponge = D == 1 ? 0.0 : 0.15, pml = 0;
   PetscBool sponge_set = PETSC_FALSE;
-  const std::string m = D == 1 ? "-wave_" : "-wave2d_";
+  const std::string m = std::string("-") + (D == 1 ? "wave" : D == 2 ? "wave2d" : "wave3d") + "_";
   (void)PetscOptionsGetInt(nullptr, nullptr, "-fd_order", &order, nullptr);
   (void)PetscOptionsGetReal(nullptr, nullptr, (m + "sponge_width").c_str(), &sponge, &sponge_set);
   (void)PetscOptionsGetReal(nullptr, nullptr, (m + "pml_width").c_str(), &pml, nullptr);
@@ -330,17 +368,7 @@ template <int D> std::unique_ptr<Model> make_wave() {
   return make_wave_absorbing<D, 1>(sponge, pml); // other orders are refused at setup
 }
 
-static const ModelRegistration wave_1d("wave", make_wave<1>), wave_2d("wave2d", make_wave<2>);
-#else
-template <int D, int R> std::unique_ptr<Model> make_wave_pml() {
-  return std::make_unique<PointwiseModel<AcousticWave<D, R, Absorber::Pml>>>();
-}
-template std::unique_ptr<Model> make_wave_pml<1, 1>();
-template std::unique_ptr<Model> make_wave_pml<1, 2>();
-template std::unique_ptr<Model> make_wave_pml<1, 4>();
-template std::unique_ptr<Model> make_wave_pml<2, 1>();
-template std::unique_ptr<Model> make_wave_pml<2, 2>();
-template std::unique_ptr<Model> make_wave_pml<2, 4>();
+static const ModelRegistration wave_1d("wave", make_wave<1>), wave_2d("wave2d", make_wave<2>), wave_3d("wave3d", make_wave<3>);
 #endif
 
 } // namespace flexipde

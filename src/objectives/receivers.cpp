@@ -84,21 +84,29 @@ int line_weights(PetscReal pos, PetscReal origin, PetscReal h, PetscInt n, bool 
 
 } // namespace
 
-PetscErrorCode point_stencil(const Grid &grid, PetscReal x, PetscReal y, PointStencil *st, Interpolation how) {
-  PetscInt ix[8], iy[8] = {0};
-  PetscReal wx[8], wy[8] = {1.0};
+PetscErrorCode point_stencil(const Grid &grid, PetscReal x, PetscReal y, PetscReal z, PointStencil *st,
+                             Interpolation how) {
+  // A direction the grid lacks has the one index 0 with weight 1, so that the product below is the
+  // 1D or 2D weight unchanged.
+  PetscInt idx[3][8] = {{0}, {0}, {0}};
+  PetscReal w[3][8] = {{1.0}, {1.0}, {1.0}};
+  int m[3] = {1, 1, 1};
+  const PetscReal pos[3] = {x, y, z};
   PetscFunctionBeginUser;
   st->n = 0;
-  const int mx = line_weights(x, grid.x0(), grid.h(), grid.n(), grid.periodic(), how, ix, wx);
-  const int my = grid.dim() == 2 ? line_weights(y, grid.y0(), grid.hy(), grid.ny(), grid.periodic_y(), how, iy, wy) : 1;
-  for (int b = 0; b < my; ++b)
-    for (int a = 0; a < mx; ++a) {
-      const PetscInt ii = ix[a], jj = iy[b];
-      if (ii < grid.xs() || ii >= grid.xs() + grid.xm() || jj < grid.ys() || jj >= grid.ys() + grid.ym()) continue;
-      st->local[st->n] = (jj - grid.ys()) * grid.xm() + (ii - grid.xs());
-      st->weight[st->n] = wx[a] * wy[b];
-      ++st->n;
-    }
+  for (int d = 0; d < grid.dim(); ++d)
+    m[d] = line_weights(pos[d], grid.lower(d), grid.h(d), grid.n(d), grid.periodic(d), how, idx[d], w[d]);
+  static_assert(PointStencil::max_points >= 8 * 8 * 8, "PointStencil holds the 3D sinc stencil");
+  const PetscInt xs = grid.xs(), ys = grid.ys(), zs = grid.zs(), xm = grid.xm(), ym = grid.ym(), zm = grid.zm();
+  for (int c = 0; c < m[2]; ++c)
+    for (int b = 0; b < m[1]; ++b)
+      for (int a = 0; a < m[0]; ++a) {
+        const PetscInt ii = idx[0][a], jj = idx[1][b], kk = idx[2][c];
+        if (ii < xs || ii >= xs + xm || jj < ys || jj >= ys + ym || kk < zs || kk >= zs + zm) continue;
+        st->local[st->n] = ((kk - zs) * ym + (jj - ys)) * xm + (ii - xs);
+        st->weight[st->n] = w[0][a] * w[1][b] * w[2][c];
+        ++st->n;
+      }
   PetscFunctionReturn(0);
 }
 
@@ -153,11 +161,12 @@ PetscErrorCode Survey::read_wavelet(const char *file) {
   PetscFunctionReturn(0);
 }
 
-// Values for the second coordinate: one per point, or one for all.
-// In 2D a depth is required: a silent default on the edge would put the points on the Dirichlet wall.
-static PetscErrorCode expand(MPI_Comm comm, const char *what, std::vector<PetscReal> &y, size_t n) {
+// Values for the second or third coordinate: one per point, or one for all.
+// In 2D and 3D they are required: a silent default on the edge would put the points on the Dirichlet wall.
+static PetscErrorCode expand(MPI_Comm comm, PetscInt dim, const char *what, std::vector<PetscReal> &y, size_t n) {
   PetscFunctionBeginUser;
-  PetscCheck(n == 0 || !y.empty(), comm, PETSC_ERR_ARG_WRONG, "2D survey: give %s (one value, or one per point)", what);
+  PetscCheck(n == 0 || !y.empty(), comm, PETSC_ERR_ARG_WRONG,
+             "%" PetscInt_FMT "D survey: give %s (one value, or one per point)", dim, what);
   if (y.size() == 1) y.assign(n, y[0]);
   PetscCheck(y.size() == n, comm, PETSC_ERR_ARG_SIZ, "%s: give one value or one per point (%zu), got %zu", what, n,
              y.size());
@@ -165,9 +174,9 @@ static PetscErrorCode expand(MPI_Comm comm, const char *what, std::vector<PetscR
 }
 
 PetscErrorCode Survey::read_positions() {
-  const bool two_d = grid_->dim() == 2;
-  PetscBool set_sx = PETSC_FALSE, set_sy = PETSC_FALSE, set_rx = PETSC_FALSE, set_ry = PETSC_FALSE, set_spread = PETSC_FALSE,
-            set_file = PETSC_FALSE, set_delay = PETSC_FALSE;
+  const PetscInt dim = grid_->dim();
+  PetscBool set_sx = PETSC_FALSE, set_sy = PETSC_FALSE, set_sz = PETSC_FALSE, set_rx = PETSC_FALSE, set_ry = PETSC_FALSE,
+            set_rz = PETSC_FALSE, set_spread = PETSC_FALSE, set_file = PETSC_FALSE, set_delay = PETSC_FALSE;
   char rec_file[PETSC_MAX_PATH_LEN] = "", wavelet_file[PETSC_MAX_PATH_LEN] = "";
   PetscBool set_wavelet = PETSC_FALSE;
   PetscReal spread[3] = {0, 0, 0};
@@ -186,8 +195,10 @@ PetscErrorCode Survey::read_positions() {
   };
   PetscCall(read_list(comm_, "-survey_sources_x", "Source positions x, one shot each (none: one shot without source)",
                       src_x_, &set_sx));
-  if (two_d)
+  if (dim >= 2)
     PetscCall(read_list(comm_, "-survey_sources_y", "Source positions y (one value, or one per source)", src_y_, &set_sy));
+  if (dim == 3)
+    PetscCall(read_list(comm_, "-survey_sources_z", "Source positions z (one value, or one per source)", src_z_, &set_sz));
   PetscCall(PetscOptionsReal("-survey_ricker_f0", "Peak frequency of the Ricker wavelet", "Survey", wavelet_.ricker.f0,
                              &wavelet_.ricker.f0, nullptr));
   PetscCall(PetscOptionsReal("-survey_ricker_delay", "Delay t0 of the Ricker wavelet (default 1.2/f0)", "Survey",
@@ -198,7 +209,7 @@ PetscErrorCode Survey::read_positions() {
     const char *kinds[] = {"linear", "sinc"};
     PetscInt kind = (PetscInt)interpolation_;
     PetscCall(PetscOptionsEList("-survey_interpolation",
-                                "Sources and receivers between grid points: linear (2 or 4 nearest points) or sinc "
+                                "Sources and receivers between grid points: linear (2, 4 or 8 nearest points) or sinc "
                                 "(Kaiser-windowed, 8 points per direction)",
                                 "Survey", kinds, 2, kinds[kind], &kind, nullptr));
     interpolation_ = (Interpolation)kind;
@@ -209,10 +220,13 @@ PetscErrorCode Survey::read_positions() {
   PetscCall(read_list(comm_, "-survey_receivers_x", "Receiver positions x", rec_x_, &set_rx));
   PetscCall(PetscOptionsRealArray("-survey_receivers_spread", "a,b,n: n receivers evenly spaced in x from a to b",
                                   "Survey", spread, &nspread, &set_spread));
-  if (two_d)
+  if (dim >= 2)
     PetscCall(read_list(comm_, "-survey_receivers_y", "Receiver positions y (one value, or one per receiver)", rec_y_,
                         &set_ry));
-  PetscCall(PetscOptionsString("-survey_receivers_file", "Text file of receivers, one per line: x (1D) or x y (2D)",
+  if (dim == 3)
+    PetscCall(read_list(comm_, "-survey_receivers_z", "Receiver positions z (one value, or one per receiver)", rec_z_,
+                        &set_rz));
+  PetscCall(PetscOptionsString("-survey_receivers_file", "Text file of receivers, one per line: x (1D), x y (2D) or x y z (3D)",
                                "Survey", rec_file, rec_file, sizeof(rec_file), &set_file));
   PetscCall(PetscOptionsString("-survey_data_file", "Observed traces (HDF5, as written by -survey_data_write)",
                                "Survey", data_file_, data_file_, sizeof(data_file_), nullptr));
@@ -234,49 +248,65 @@ PetscErrorCode Survey::read_positions() {
   }
   if (set_file) {
     std::vector<PetscReal> vals;
-    const int cols = two_d ? 2 : 1;
+    const int cols = (int)dim;
     PetscInt status;
     PetscCall(read_rows(comm_, rec_file, cols, vals, &status));
     PetscCheck(status != 1, comm_, PETSC_ERR_FILE_OPEN, "-survey_receivers_file %s cannot be read", rec_file);
     PetscCheck(status != 2, comm_, PETSC_ERR_FILE_UNEXPECTED,
-               "-survey_receivers_file %s: every line must hold %s", rec_file, two_d ? "x y" : "x");
+               "-survey_receivers_file %s: every line must hold %s", rec_file, dim == 3 ? "x y z" : dim == 2 ? "x y" : "x");
     const size_t count = vals.size() / cols;
     rec_x_.resize(count);
-    rec_y_.resize(two_d ? count : 0);
+    rec_y_.resize(dim >= 2 ? count : 0);
+    rec_z_.resize(dim == 3 ? count : 0);
     for (size_t k = 0; k < count; ++k) {
       rec_x_[k] = vals[cols * k];
-      if (two_d) rec_y_[k] = vals[2 * k + 1];
+      if (dim >= 2) rec_y_[k] = vals[cols * k + 1];
+      if (dim == 3) rec_z_[k] = vals[cols * k + 2];
     }
   }
   if (set_wavelet) PetscCall(read_wavelet(wavelet_file));
   PetscCheck(!rec_x_.empty(), comm_, PETSC_ERR_ARG_WRONG, "The survey has no receivers");
-  if (two_d) {
-    PetscCall(expand(comm_, "-survey_receivers_y", rec_y_, rec_x_.size()));
-    PetscCall(expand(comm_, "-survey_sources_y", src_y_, src_x_.size()));
+  if (dim >= 2) {
+    PetscCall(expand(comm_, dim, "-survey_receivers_y", rec_y_, rec_x_.size()));
+    PetscCall(expand(comm_, dim, "-survey_sources_y", src_y_, src_x_.size()));
   } else {
     rec_y_.assign(rec_x_.size(), 0.0);
     src_y_.assign(src_x_.size(), 0.0);
   }
+  if (dim == 3) {
+    PetscCall(expand(comm_, dim, "-survey_receivers_z", rec_z_, rec_x_.size()));
+    PetscCall(expand(comm_, dim, "-survey_sources_z", src_z_, src_x_.size()));
+  } else {
+    rec_z_.assign(rec_x_.size(), 0.0);
+    src_z_.assign(src_x_.size(), 0.0);
+  }
   const PetscReal tol = 1e-12 * (grid_->x1() - grid_->x0());
-  auto inside = [&](PetscReal x, PetscReal y) {
+  auto inside = [&](PetscReal x, PetscReal y, PetscReal z) {
     return x >= grid_->x0() - tol && x <= grid_->x1() + tol &&
-           (!two_d || (y >= grid_->y0() - tol && y <= grid_->y1() + tol));
+           (dim < 2 || (y >= grid_->y0() - tol && y <= grid_->y1() + tol)) &&
+           (dim < 3 || (z >= grid_->z0() - tol && z <= grid_->z1() + tol));
   };
-  auto check = [&](const char *what, const std::vector<PetscReal> &x, const std::vector<PetscReal> &y) -> PetscErrorCode {
+  auto check = [&](const char *what, const std::vector<PetscReal> &x, const std::vector<PetscReal> &y,
+                   const std::vector<PetscReal> &z) -> PetscErrorCode {
     PetscFunctionBeginUser;
     for (size_t k = 0; k < x.size(); ++k) {
-      if (two_d)
-        PetscCheck(inside(x[k], y[k]), comm_, PETSC_ERR_ARG_OUTOFRANGE,
+      if (dim == 3)
+        PetscCheck(inside(x[k], y[k], z[k]), comm_, PETSC_ERR_ARG_OUTOFRANGE,
+                   "%s %zu at (x, y, z) = (%g, %g, %g) is outside the domain [%g, %g] x [%g, %g] x [%g, %g]", what, k,
+                   (double)x[k], (double)y[k], (double)z[k], (double)grid_->x0(), (double)grid_->x1(), (double)grid_->y0(),
+                   (double)grid_->y1(), (double)grid_->z0(), (double)grid_->z1());
+      else if (dim == 2)
+        PetscCheck(inside(x[k], y[k], 0), comm_, PETSC_ERR_ARG_OUTOFRANGE,
                    "%s %zu at (x, y) = (%g, %g) is outside the domain [%g, %g] x [%g, %g]", what, k, (double)x[k],
                    (double)y[k], (double)grid_->x0(), (double)grid_->x1(), (double)grid_->y0(), (double)grid_->y1());
       else
-        PetscCheck(inside(x[k], 0), comm_, PETSC_ERR_ARG_OUTOFRANGE, "%s %zu at x = %g is outside the domain [%g, %g]",
+        PetscCheck(inside(x[k], 0, 0), comm_, PETSC_ERR_ARG_OUTOFRANGE, "%s %zu at x = %g is outside the domain [%g, %g]",
                    what, k, (double)x[k], (double)grid_->x0(), (double)grid_->x1());
     }
     PetscFunctionReturn(0);
   };
-  PetscCall(check("Receiver", rec_x_, rec_y_));
-  PetscCall(check("Source", src_x_, src_y_));
+  PetscCall(check("Receiver", rec_x_, rec_y_, rec_z_));
+  PetscCall(check("Source", src_x_, src_y_, src_z_));
   PetscFunctionReturn(0);
 }
 
@@ -289,13 +319,14 @@ PetscErrorCode Survey::assemble_sampling(PetscInt per_point, Vec like, Mat *R) c
   PetscCall(MatCreate(comm_, R));
   PetscCall(MatSetSizes(*R, rank_ == 0 ? nrec : 0, nloc, nrec, PETSC_DETERMINE));
   PetscCall(MatSetType(*R, MATAIJ));
-  const PetscInt per_row = interpolation_ == Interpolation::Sinc ? PointStencil::max_points : 4;
+  PetscInt per_row = 1; // the stencil's points: 2 (linear) or 8 (sinc) per direction
+  for (PetscInt d = 0; d < grid_->dim(); ++d) per_row *= interpolation_ == Interpolation::Sinc ? 8 : 2;
   PetscCall(MatSeqAIJSetPreallocation(*R, per_row, nullptr));
   PetscCall(MatMPIAIJSetPreallocation(*R, per_row, nullptr, per_row, nullptr));
   PetscCall(MatSetOption(*R, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_FALSE));
   for (PetscInt r = 0; r < nrec; ++r) {
     PointStencil st;
-    PetscCall(point_stencil(*grid_, rec_x_[r], rec_y_[r], &st, interpolation_));
+    PetscCall(point_stencil(*grid_, rec_x_[r], rec_y_[r], rec_z_[r], &st, interpolation_));
     for (PetscInt k = 0; k < st.n; ++k)
       PetscCall(MatSetValue(*R, r, rstart + st.local[k] * per_point + component_, st.weight[k], ADD_VALUES));
   }
@@ -328,7 +359,7 @@ PetscErrorCode Survey::setup(const Grid &grid, Model &model, DM state_dm, PetscI
   nshots_ = std::max<PetscInt>(1, (PetscInt)src_x_.size());
   sources_.resize(src_x_.size());
   for (size_t s = 0; s < src_x_.size(); ++s) {
-    PetscCall(point_stencil(grid, src_x_[s], src_y_[s], &sources_[s].stencil, interpolation_));
+    PetscCall(point_stencil(grid, src_x_[s], src_y_[s], src_z_[s], &sources_[s].stencil, interpolation_));
     sources_[s].wavelet = wavelet_;
     sources_[s].cell_volume = grid.cell_volume();
   }
@@ -470,9 +501,13 @@ PetscErrorCode Survey::write_data(const char *file) const {
   PetscCall(series("traces", traces_, n));
   PetscCall(series("receivers_x", rec_x_, nrec));
   if (!src_x_.empty()) PetscCall(series("sources_x", src_x_, (PetscInt)src_x_.size()));
-  if (dim == 2) {
+  if (dim >= 2) {
     PetscCall(series("receivers_y", rec_y_, nrec));
     if (!src_y_.empty()) PetscCall(series("sources_y", src_y_, (PetscInt)src_y_.size()));
+  }
+  if (dim == 3) {
+    PetscCall(series("receivers_z", rec_z_, nrec));
+    if (!src_z_.empty()) PetscCall(series("sources_z", src_z_, (PetscInt)src_z_.size()));
   }
   PetscCall(PetscViewerHDF5WriteAttribute(v, "traces", "nshots", PETSC_INT, &nshots_));
   PetscCall(PetscViewerHDF5WriteAttribute(v, "traces", "nrec", PETSC_INT, &nrec));
@@ -490,7 +525,7 @@ struct DataFileContents {
   PetscInt status = 0; // 0 ok, 1 missing/unreadable, 2 not HDF5, 3 no /survey/traces, 4 a dataset or attribute missing
   PetscInt nshots = 0, nrec = 0, nt = 0, dim = 0;
   PetscReal dt = 0;
-  std::vector<PetscReal> rec_x, rec_y, src_x, src_y, traces;
+  std::vector<PetscReal> rec_x, rec_y, rec_z, src_x, src_y, src_z, traces;
 };
 
 bool read_dataset(hid_t file, const char *path, std::vector<PetscReal> &out) {
@@ -514,7 +549,9 @@ template <class T> bool read_attribute(hid_t obj, const char *name, hid_t type, 
   return e >= 0;
 }
 
-void read_on_rank0(const char *f, bool two_d, bool with_sources, DataFileContents &c) {
+// dim: the scene's; the y and z datasets are read when the file's dim is the same (else the caller
+// reports the mismatch of dimensions, not a missing dataset).
+void read_on_rank0(const char *f, PetscInt dim, bool with_sources, DataFileContents &c) {
   if (access(f, R_OK) != 0) {
     c.status = 1;
     return;
@@ -538,9 +575,13 @@ void read_on_rank0(const char *f, bool two_d, bool with_sources, DataFileContent
     c.nshots = (PetscInt)ns, c.nrec = (PetscInt)nr, c.nt = (PetscInt)nt, c.dim = (PetscInt)dim;
     ok = ok && read_dataset(file, "/survey/traces", c.traces) && read_dataset(file, "/survey/receivers_x", c.rec_x);
     if (ok && with_sources) ok = read_dataset(file, "/survey/sources_x", c.src_x);
-    if (ok && two_d && c.dim == 2) {
+    if (ok && dim >= 2 && c.dim == dim) {
       ok = read_dataset(file, "/survey/receivers_y", c.rec_y);
       if (ok && with_sources) ok = read_dataset(file, "/survey/sources_y", c.src_y);
+    }
+    if (ok && dim == 3 && c.dim == dim) {
+      ok = read_dataset(file, "/survey/receivers_z", c.rec_z);
+      if (ok && with_sources) ok = read_dataset(file, "/survey/sources_z", c.src_z);
     }
     if (!ok) c.status = 4;
   }
@@ -564,7 +605,7 @@ PetscErrorCode Survey::read_data(PetscReal final_time, PetscBool *read) {
   PetscFunctionBeginUser;
   *read = PETSC_FALSE;
   if (!f[0]) PetscFunctionReturn(0);
-  if (rank_ == 0) read_on_rank0(f, grid_->dim() == 2, !src_x_.empty(), c);
+  if (rank_ == 0) read_on_rank0(f, grid_->dim(), !src_x_.empty(), c);
   PetscInt head[5] = {c.status, c.nshots, c.nrec, c.nt, c.dim};
   PetscCallMPI(MPI_Bcast(head, 5, MPIU_INT, 0, comm_));
   PetscCallMPI(MPI_Bcast(&c.dt, 1, MPIU_REAL, 0, comm_));
@@ -575,7 +616,7 @@ PetscErrorCode Survey::read_data(PetscReal final_time, PetscBool *read) {
   PetscCheck(c.status != 3, comm_, PETSC_ERR_FILE_UNEXPECTED, "-survey_data_file %s holds no /survey/traces dataset", f);
   PetscCheck(c.status != 4, comm_, PETSC_ERR_FILE_UNEXPECTED,
              "-survey_data_file %s lacks a survey dataset or attribute (nshots, nrec, nt, dim, sample_dt, receivers_x, "
-             "sources_x; receivers_y, sources_y in 2D)",
+             "sources_x; receivers_y, sources_y in 2D and 3D; receivers_z, sources_z in 3D)",
              f);
   PetscCheck(c.dim == grid_->dim(), comm_, PETSC_ERR_FILE_UNEXPECTED,
              "-survey_data_file %s holds %" PetscInt_FMT "D data, the scene is %" PetscInt_FMT "D", f, c.dim, grid_->dim());
@@ -588,8 +629,13 @@ PetscErrorCode Survey::read_data(PetscReal final_time, PetscBool *read) {
   PetscCheck((c.nt - 1) * c.dt >= final_time * (1 - 1e-10), comm_, PETSC_ERR_FILE_UNEXPECTED,
              "-survey_data_file %s covers t <= %g only, the run goes to T = %g", f, (double)((c.nt - 1) * c.dt),
              (double)final_time);
+  const PetscInt dim = grid_->dim();
+  // a coordinate the scene lacks was not read: its datasets are empty
+  auto sized = [&](const std::vector<PetscReal> &v, PetscInt d, size_t n) { return dim < d || v.size() == n; };
   PetscInt sizes_ok = rank_ == 0 ? (PetscInt)(c.traces.size() == (size_t)(c.nshots * c.nrec * c.nt) &&
-                                              c.rec_x.size() == (size_t)c.nrec && c.src_x.size() == src_x_.size())
+                                              c.rec_x.size() == (size_t)c.nrec && c.src_x.size() == src_x_.size() &&
+                                              sized(c.rec_y, 2, c.nrec) && sized(c.src_y, 2, src_x_.size()) &&
+                                              sized(c.rec_z, 3, c.nrec) && sized(c.src_z, 3, src_x_.size()))
                                  : 1;
   PetscCallMPI(MPI_Bcast(&sizes_ok, 1, MPIU_INT, 0, comm_));
   PetscCheck(sizes_ok, comm_, PETSC_ERR_FILE_UNEXPECTED,
@@ -600,17 +646,24 @@ PetscErrorCode Survey::read_data(PetscReal final_time, PetscBool *read) {
   PetscCall(bcast(comm_, c.rec_y));
   PetscCall(bcast(comm_, c.src_x));
   PetscCall(bcast(comm_, c.src_y));
-  const bool two_d = grid_->dim() == 2;
+  PetscCall(bcast(comm_, c.rec_z));
+  PetscCall(bcast(comm_, c.src_z));
   const PetscReal tol = 1e-9 * (grid_->x1() - grid_->x0());
+  const char *other = dim == 3 ? " (or y or z differs)" : dim == 2 ? " (or y differs)" : "";
+  using Coords = std::vector<PetscReal>;
+  auto same = [&](const Coords &fx, const Coords &fy, const Coords &fz, const Coords &x, const Coords &y, const Coords &z,
+                  size_t k) {
+    return std::fabs(fx[k] - x[k]) <= tol && (dim < 2 || std::fabs(fy[k] - y[k]) <= tol) &&
+           (dim < 3 || std::fabs(fz[k] - z[k]) <= tol);
+  };
   for (PetscInt r = 0; r < c.nrec; ++r)
-    PetscCheck(std::fabs(c.rec_x[r] - rec_x_[r]) <= tol && (!two_d || std::fabs(c.rec_y[r] - rec_y_[r]) <= tol), comm_,
-               PETSC_ERR_FILE_UNEXPECTED,
+    PetscCheck(same(c.rec_x, c.rec_y, c.rec_z, rec_x_, rec_y_, rec_z_, (size_t)r), comm_, PETSC_ERR_FILE_UNEXPECTED,
                "-survey_data_file %s: receiver %" PetscInt_FMT " was recorded at x = %g, the survey puts it at x = %g%s", f,
-               r, (double)c.rec_x[r], (double)rec_x_[r], two_d ? " (or y differs)" : "");
+               r, (double)c.rec_x[r], (double)rec_x_[r], other);
   for (size_t k = 0; k < src_x_.size(); ++k)
-    PetscCheck(std::fabs(c.src_x[k] - src_x_[k]) <= tol && (!two_d || std::fabs(c.src_y[k] - src_y_[k]) <= tol), comm_,
-               PETSC_ERR_FILE_UNEXPECTED, "-survey_data_file %s: shot %zu was fired at x = %g, the survey has x = %g%s", f,
-               k, (double)c.src_x[k], (double)src_x_[k], two_d ? " (or y differs)" : "");
+    PetscCheck(same(c.src_x, c.src_y, c.src_z, src_x_, src_y_, src_z_, k), comm_, PETSC_ERR_FILE_UNEXPECTED,
+               "-survey_data_file %s: shot %zu was fired at x = %g, the survey has x = %g%s", f, k, (double)c.src_x[k],
+               (double)src_x_[k], other);
   PetscInt bad = -1; // the traces stay on rank 0
   if (rank_ == 0)
     for (size_t i = 0; i < c.traces.size() && bad < 0; ++i)

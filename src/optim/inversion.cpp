@@ -122,9 +122,10 @@ PetscErrorCode Inversion::rmse(Vec p, PetscReal *value) const {
 }
 
 // Tikhonov and smoothed total variation of every field, with forward differences on the grid
-// (1D or 2D; a periodic direction wraps, a Dirichlet one has no difference past its last point):
+// (1D, 2D or 3D; a periodic direction wraps, a Dirichlet one has no difference past its last point):
 //   R = sum_points [ 0.5 alpha |D p|^2 + beta sqrt(|D p|^2 + eps^2) ] * cell volume,
-//   |D p|^2 = ((p_{i+1,j} - p_{ij}) / hx)^2 + ((p_{i,j+1} - p_{ij}) / hy)^2 (no y term in 1D).
+//   |D p|^2 = ((p_{i+1,j,k} - p_{ijk}) / hx)^2 + ((p_{i,j+1,k} - p_{ijk}) / hy)^2 + ((p_{i,j,k+1} - p_{ijk}) / hz)^2
+//   (no y term in 1D, no z term below 3D).
 // In 1D the Tikhonov part is the seed's 0.5 alpha sum (p_{i+1} - p_i)^2 / h.
 PetscErrorCode Inversion::tikhonov(Vec p, PetscReal *R, Vec g) {
   const Grid &grid = scene_->grid;
@@ -133,47 +134,57 @@ PetscErrorCode Inversion::tikhonov(Vec p, PetscReal *R, Vec g) {
   PetscFunctionBeginUser;
   *R = 0;
   if (alpha_ == 0 && tv_ == 0) PetscFunctionReturn(0);
-  const bool two_d = grid.dim() == 2;
-  const PetscReal hx = grid.h(), hy = grid.hy(), vol = grid.cell_volume();
+  const bool has_dy = grid.dim() >= 2, has_dz = grid.dim() == 3;
+  const PetscReal hx = grid.h(), hy = grid.hy(), hz = grid.hz(), vol = grid.cell_volume();
   for (PetscInt k = 0; k < params.count(); ++k) {
     if (params.info(k).kind != ParamKind::Field) continue;
     PetscCall(params.get_field(p, k, field_));
     PetscCall(DMGlobalToLocal(grid.dm(), field_, INSERT_VALUES, field_local_));
     PetscCall(VecSet(gfield_local_, 0.0));
-    // local (ghosted) arrays indexed by (i, j) in the DMDA's ghost box
-    PetscInt gxs, gys, gxm, gym;
-    PetscCall(DMDAGetGhostCorners(grid.dm(), &gxs, &gys, nullptr, &gxm, &gym, nullptr));
+    // local (ghosted) arrays indexed by (i, j, k) in the DMDA's ghost box (gzs = 0, gzm = 1 below 3D,
+    // gys = 0, gym = 1 in 1D)
+    PetscInt gxs, gys, gzs, gxm, gym, gzm;
+    PetscCall(DMDAGetGhostCorners(grid.dm(), &gxs, &gys, &gzs, &gxm, &gym, &gzm));
     {
       ConstArray f(field_local_);
       Array gf(gfield_local_);
       PetscCall(f.error());
       PetscCall(gf.error());
-      auto at = [&](PetscInt i, PetscInt j) { return (j - gys) * gxm + (i - gxs); };
-      for (PetscInt j = grid.ys(); j < grid.ys() + grid.ym(); ++j)
-        for (PetscInt i = grid.xs(); i < grid.xs() + grid.xm(); ++i) {
-          const bool has_x = grid.periodic() || i < grid.n() - 1;
-          const bool has_y = two_d && (grid.periodic_y() || j < grid.ny() - 1);
-          if (!has_x && !has_y) continue; // the last corner: no difference at all
-          const PetscInt c = at(i, j), cx = at(i + 1, j), cy = two_d ? at(i, j + 1) : 0;
-          const PetscReal dx = has_x ? PetscRealPart(f[cx] - f[c]) / hx : 0.0;
-          const PetscReal dy = has_y ? PetscRealPart(f[cy] - f[c]) / hy : 0.0;
-          const PetscReal s2 = dx * dx + dy * dy;
-          PetscReal w = alpha_; // dR/d(dx) = w dx vol, the same for dy
-          local += 0.5 * alpha_ * s2 * vol;
-          if (tv_ > 0) {
-            const PetscReal root = std::sqrt(s2 + tv_eps_ * tv_eps_);
-            local += tv_ * root * vol;
-            w += tv_ / root;
+      auto at = [&](PetscInt i, PetscInt j, PetscInt k) { return ((k - gzs) * gym + (j - gys)) * gxm + (i - gxs); };
+      for (PetscInt k = grid.zs(); k < grid.zs() + grid.zm(); ++k)
+        for (PetscInt j = grid.ys(); j < grid.ys() + grid.ym(); ++j)
+          for (PetscInt i = grid.xs(); i < grid.xs() + grid.xm(); ++i) {
+            const bool has_x = grid.periodic() || i < grid.n() - 1;
+            const bool has_y = has_dy && (grid.periodic_y() || j < grid.ny() - 1);
+            const bool has_z = has_dz && (grid.periodic_z() || k < grid.nz() - 1);
+            if (!has_x && !has_y && !has_z) continue; // the last corner: no difference at all
+            const PetscInt c = at(i, j, k), cx = at(i + 1, j, k), cy = has_dy ? at(i, j + 1, k) : 0,
+                           cz = has_dz ? at(i, j, k + 1) : 0;
+            const PetscReal dx = has_x ? PetscRealPart(f[cx] - f[c]) / hx : 0.0;
+            const PetscReal dy = has_y ? PetscRealPart(f[cy] - f[c]) / hy : 0.0;
+            const PetscReal dz = has_z ? PetscRealPart(f[cz] - f[c]) / hz : 0.0;
+            // below 3D no z term at all, so that the sum is the 1D and 2D one to the bit
+            const PetscReal s2 = has_dz ? dx * dx + dy * dy + dz * dz : dx * dx + dy * dy;
+            PetscReal w = alpha_; // dR/d(dx) = w dx vol, the same for dy and dz
+            local += 0.5 * alpha_ * s2 * vol;
+            if (tv_ > 0) {
+              const PetscReal root = std::sqrt(s2 + tv_eps_ * tv_eps_);
+              local += tv_ * root * vol;
+              w += tv_ / root;
+            }
+            if (has_x) {
+              gf[c] -= w * dx * vol / hx;
+              gf[cx] += w * dx * vol / hx;
+            }
+            if (has_y) {
+              gf[c] -= w * dy * vol / hy;
+              gf[cy] += w * dy * vol / hy;
+            }
+            if (has_z) {
+              gf[c] -= w * dz * vol / hz;
+              gf[cz] += w * dz * vol / hz;
+            }
           }
-          if (has_x) {
-            gf[c] -= w * dx * vol / hx;
-            gf[cx] += w * dx * vol / hx;
-          }
-          if (has_y) {
-            gf[c] -= w * dy * vol / hy;
-            gf[cy] += w * dy * vol / hy;
-          }
-        }
     }
     PetscCall(VecSet(gfield_, 0.0));
     PetscCall(DMLocalToGlobal(grid.dm(), gfield_local_, ADD_VALUES, gfield_));
