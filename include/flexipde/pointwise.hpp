@@ -683,7 +683,7 @@ public:
       if constexpr (pointwise::HasOddWalls<Eq>::value) frame_.odd[d] = eq_.odd_walls();
     }
     if constexpr (pointwise::HasHeldWalls<Eq>::value) frame_.held = eq_.held_walls();
-    strip_ = 4 * R + 2;
+    strip_ = 4 * R + 2, forward_strip_ = 2 * R + 2;
     make_fold_table();
     frame_.np = NP + NF, frame_.coef0 = NP;
     frame_.na = K;
@@ -761,7 +761,7 @@ public:
     if (coupled_only) {
       PetscCall(apply_coupling(coupling_, U, G, 1.0, false, false));
       st_.ref = U; // (no ghosts or fields of U are read)
-    } else PetscCall(load(U, st_));
+    } else PetscCall(load(U, st_, false, forward_strip_));
     {
       StateView sv(st_);
       ConstArray p(P_);
@@ -1192,7 +1192,7 @@ public:
     PetscFunctionReturn(0);
   }
   // A whole leapfrog step in one sweep (Model::second_order_step), 2D and 3D: the kick and drift of the
-  // points within strip_ of the owned block's edge, then their ghosts (all that the points near the edge
+  // points within forward_strip_ of the owned block's edge, then their ghosts (all that the points near the edge
   // read, as for G), then row by row (the rows (j, k) in memory order): the kick and drift of the inner
   // points of the rows G on this row will read (R rows ahead in 2D, R planes in 3D), G on the row as
   // rhs() evaluates it, the row's forcing, and the second kick. The rows a point reads are in the cache
@@ -1202,7 +1202,7 @@ public:
   FLEXIPDE_SWEEP PetscErrorCode second_order_step(PetscReal t, Vec U, Vec F, const LeapfrogStepParts &parts) override {
     PetscFunctionBeginUser;
     if constexpr (FusedStep) {
-      const PetscInt xm = grid_->xm(), ym = grid_->ym(), zm = grid_->zm(), B = strip_, rows = ym * zm;
+      const PetscInt xm = grid_->xm(), ym = grid_->ym(), zm = grid_->zm(), B = forward_strip_, rows = ym * zm;
       const bool inner_cols = xm > 2 * B;
       // rows with inner points: B or more rows (and in 3D planes) from the block's edge
       const auto inner = [&](PetscInt r) {
@@ -1223,7 +1223,7 @@ public:
           }
         }
       }
-      PetscCall(load(U, st_));
+      PetscCall(load(U, st_, false, forward_strip_));
       // the forcing's points in row order (stable: a point's terms add in rhs()'s order)
       forcing_order_.clear();
       if constexpr (pointwise::HasForcing<Eq>::value)
@@ -1951,13 +1951,13 @@ private:
     PetscFunctionReturn(0);
   }
   // The ghosted `local` from the global x, ncomp per point: its ghosts and the owned points within
-  // `strip_` of the block's edge (all a checked or Edge point reads), then the positions the fold table
+  // `strip` (strip_ unless given) of the block's edge (all a checked or Edge point reads), then the positions the fold table
   // maps elsewhere: mirror images beyond odd walls (their sign times the point's value) and 0 on held
   // walls and beyond other walls, or, for a cotangent (the x of a transpose, whose entries are per
   // equation), 0 at all of them: beyond a wall and on a held wall there is no equation.
   // begun: the caller has begun the scatter (to have two arrays' ghosts on their way at once).
   PetscErrorCode fill_ghosts(Vec x, Vec local, const GhostExchange &ex, PetscInt ncomp = C, bool cotangent = false,
-                             bool begun = false) const {
+                             bool begun = false, PetscInt strip = 0) const {
     PetscFunctionBeginUser;
     if (!begun) PetscCall(ex.begin(x, local));
     {
@@ -1968,7 +1968,7 @@ private:
       PetscInt gxs, gys, gzs, gxm, gym, gzm;
       ghost_corners(gxs, gys, gzs, gxm, gym, gzm);
       const PetscInt xs = grid_->xs(), xm = grid_->xm(), ys = grid_->ys(), ym = grid_->ym(), zs = grid_->zs(), zm = grid_->zm();
-      const PetscInt w = strip_;
+      const PetscInt w = strip > 0 ? strip : strip_;
       auto copy = [&](PetscInt j, PetscInt k, PetscInt i0, PetscInt i1) {
         copy_entries(o.data() + (((k - zs) * ym + j - ys) * xm + i0 - xs) * ncomp, (i1 - i0) * ncomp,
                      g.data() + (((k - gzs) * gym + j - gys) * gxm + i0 - gxs) * ncomp);
@@ -2045,11 +2045,12 @@ private:
   }
   // The state U for the sweeps: read in place (the caller keeps U unchanged while s is used) or, if
   // `keep`, from a copy (for products applied later); its ghosts and auxiliary fields.
-  PetscErrorCode load(Vec U, LocalState &s, bool keep = false) {
+  // strip: the owned edge strips to copy (fill_ghosts; 0: the gather's).
+  PetscErrorCode load(Vec U, LocalState &s, bool keep = false, PetscInt strip = 0) {
     PetscFunctionBeginUser;
     if (keep) PetscCall(VecCopy(U, s.copy));
     s.ref = keep ? s.copy.get() : U;
-    PetscCall(fill_ghosts(s.ref, s.g));
+    PetscCall(fill_ghosts(s.ref, s.g, ghosts_, C, false, false, strip));
     if constexpr (KL) PetscCall(auxiliary_lines(s.ref, s.line));
     else if constexpr (K > 0)
       if (!uniform_) PetscCall(auxiliaries(s.ref, s.a)); // (uniform coupling: the sweeps read a = 0)
@@ -2525,7 +2526,8 @@ private:
   std::vector<PetscInt> forcing_order_; // second_order_step's forced points in row order
   mutable std::deque<std::pair<PetscInt, RunPlan>> plans_; // for_points' runs, per margin and flags
   std::vector<double> sgn_;
-  PetscInt strip_ = 1;         // the owned edge strips fill_ghosts copies into a ghosted array
+  PetscInt strip_ = 1;         // the owned edge strips fill_ghosts copies into a ghosted array (the gather's),
+  PetscInt forward_strip_ = 1; // ... and those G's sweeps read (their Edge points lie within R + 1 of the edge)
   OwnedDM pos_dm_;             // second-order models: the positions alone,
   LocalState pos_;             // as the leapfrog's trajectory stores them
   GhostExchange pos_ghosts_;
