@@ -1,6 +1,7 @@
-// What the 2D inversion examples share (fwi_2d.cpp, fwi_marmousi.cpp): their scenes given as option
-// defaults that the command line overrides, speed fields made by code, and the results file (the
-// true, initial and recovered speeds and the inversion's history) that run/plot_fwi_*.py read.
+// What the 2D and 3D inversion examples share (fwi_2d.cpp, fwi_marmousi.cpp, fwi_3d.cpp): their scenes
+// given as option defaults that the command line overrides, speed fields made by code, and the results
+// file (the true, initial and recovered speeds and the inversion's history) that run/plot_fwi_*.py read.
+// The speed field is the model's "<model>_c" (wave2d_c, wave3d_c).
 #pragma once
 #include "flexipde/inversion.hpp"
 #include "flexipde/io.hpp"
@@ -24,18 +25,32 @@ inline PetscErrorCode default_options(const std::vector<std::pair<const char *, 
   PetscFunctionReturn(0);
 }
 
-// The speed field wave2d_c of p from c(x, y).
-inline PetscErrorCode fill_speed(const Scene &s, Vec p, const std::function<PetscReal(PetscReal, PetscReal)> &c) {
+using Speed2D = std::function<PetscReal(PetscReal, PetscReal)>;            // c(x, y)
+using Speed3D = std::function<PetscReal(PetscReal, PetscReal, PetscReal)>; // c(x, y, z)
+
+// The name of the scene's speed field: wave2d_c, wave3d_c.
+inline std::string speed_name(const Scene &s) { return std::string(s.model->name()) + "_c"; }
+
+// The speed field of p from c(x, y, z) (z = 0 on a 2D grid).
+inline PetscErrorCode fill_speed(const Scene &s, Vec p, const Speed3D &c) {
   OwnedVec f;
+  const Grid &g = s.grid;
   PetscFunctionBeginUser;
-  PetscCall(DMCreateGlobalVector(s.grid.dm(), f.out()));
+  PetscCall(DMCreateGlobalVector(g.dm(), f.out()));
   {
     Array a(f);
     PetscCall(a.error());
-    for (PetscInt k = 0; k < s.grid.local_points(); ++k)
-      a[k] = c(s.grid.x(s.grid.xs() + k % s.grid.xm()), s.grid.y(s.grid.ys() + k / s.grid.xm()));
+    // owned point q is ((k - zs) ym + (j - ys)) xm + (i - xs)
+    for (PetscInt q = 0; q < g.local_points(); ++q)
+      a[q] = c(g.x(g.xs() + q % g.xm()), g.y(g.ys() + (q / g.xm()) % g.ym()),
+               g.dim() == 3 ? g.z(g.zs() + q / (g.xm() * g.ym())) : 0);
   }
-  PetscCall(s.params.set_field(p, s.params.find("wave2d_c"), f));
+  PetscCall(s.params.set_field(p, s.params.find(speed_name(s)), f));
+  PetscFunctionReturn(0);
+}
+inline PetscErrorCode fill_speed(const Scene &s, Vec p, const Speed2D &c) {
+  PetscFunctionBeginUser;
+  PetscCall(fill_speed(s, p, Speed3D([&](PetscReal x, PetscReal y, PetscReal) { return c(x, y); })));
   PetscFunctionReturn(0);
 }
 
@@ -48,8 +63,13 @@ struct Inverted {
   OwnedVec p, p_true, p0; // recovered, true and initial parameters
   Inversion inv;
   PetscReal rmse_initial = 0, rmse_recovered = 0;
-  PetscErrorCode run(MPI_Comm comm, const std::function<PetscReal(PetscReal, PetscReal)> &truth,
-                     const std::function<PetscReal(PetscReal, PetscReal)> &initial) {
+  PetscErrorCode run(MPI_Comm comm, const Speed2D &truth, const Speed2D &initial) {
+    PetscFunctionBeginUser;
+    PetscCall(run(comm, Speed3D([&](PetscReal x, PetscReal y, PetscReal) { return truth(x, y); }),
+                  Speed3D([&](PetscReal x, PetscReal y, PetscReal) { return initial(x, y); })));
+    PetscFunctionReturn(0);
+  }
+  PetscErrorCode run(MPI_Comm comm, const Speed3D &truth, const Speed3D &initial) {
     PetscFunctionBeginUser;
     PetscCall(scene.setup(comm));
     PetscCall(scene.params.create_vec(p.out()));
@@ -67,7 +87,7 @@ struct Inverted {
   }
 };
 
-// /grid, /fields/wave2d_c_{true,initial,recovered} and /history (iteration, objective, misfit, rmse)
+// /grid, /fields/<model>_c_{true,initial,recovered} and /history (iteration, objective, misfit, rmse)
 // into `file`; `extra` adds datasets of its own to the open file.
 inline PetscErrorCode write_results(const char *file, const Scene &s, Vec p_true, Vec p0, Vec p, const Inversion &inv,
                                     const std::function<PetscErrorCode(H5Writer &)> &extra = nullptr) {
@@ -82,12 +102,13 @@ inline PetscErrorCode write_results(const char *file, const Scene &s, Vec p_true
   }
   PetscCall(w.open(s.comm(), file));
   PetscCall(w.write_coordinates(s.grid));
-  const std::pair<Vec, const char *> fields[] = {{p_true, "wave2d_c_true"}, {p0, "wave2d_c_initial"}, {p, "wave2d_c_recovered"}};
+  const std::string name = speed_name(s);
+  const std::pair<Vec, std::string> fields[] = {{p_true, name + "_true"}, {p0, name + "_initial"}, {p, name + "_recovered"}};
   for (auto &fv : fields) {
     OwnedVec c;
     PetscCall(DMCreateGlobalVector(s.grid.dm(), c.out()));
-    PetscCall(s.params.get_field(fv.first, s.params.find("wave2d_c"), c));
-    PetscCall(w.write_vec("/fields", fv.second, c));
+    PetscCall(s.params.get_field(fv.first, s.params.find(name), c));
+    PetscCall(w.write_vec("/fields", fv.second.c_str(), c));
   }
   PetscCall(w.write_series("/history", "iteration", it));
   PetscCall(w.write_series("/history", "objective", f));
@@ -96,6 +117,16 @@ inline PetscErrorCode write_results(const char *file, const Scene &s, Vec p_true
   if (extra) PetscCall(extra(w));
   PetscCall(w.close());
   PetscFunctionReturn(0);
+}
+
+// An example's main(): PETSc around run(); an error on any rank ends every rank at once with a non-zero
+// exit (MPI_Abort), so that none is left waiting in a collective call.
+inline int main_of(int argc, char **argv, PetscErrorCode (*run)()) {
+  PetscCall(PetscInitialize(&argc, &argv, nullptr, nullptr));
+  PetscErrorCode ierr = run();
+  if (ierr) MPI_Abort(MPI_COMM_WORLD, (int)ierr);
+  PetscCall(PetscFinalize());
+  return 0;
 }
 
 } // namespace fwi2d

@@ -129,10 +129,4 @@ static PetscErrorCode run() {
   PetscFunctionReturn(0);
 }
 
-int main(int argc, char **argv) {
-  PetscCall(PetscInitialize(&argc, &argv, nullptr, nullptr));
-  PetscErrorCode ierr = run();
-  if (ierr) MPI_Abort(MPI_COMM_WORLD, (int)ierr);
-  PetscCall(PetscFinalize());
-  return 0;
-}
+int main(int argc, char **argv) { return fwi2d::main_of(argc, argv, run); }

@@ -2,8 +2,8 @@
 # The main job: install what is missing, build, then on 2 MPI ranks first the seed notebook's own
 # problem exactly as the notebook ran it (examples/scenes/notebook_fwi_*.opts: loss, gradient, Adam,
 # L-BFGS), with a table of the notebook's figures beside flexipde's, then what flexipde does beyond
-# it: the seed full-waveform inversions with bounds and regularisation, a receiver-based 1D inversion
-# and the 2D demo. HDF5 results (+ XDMF for ParaView), PNG plots and results/summary.md in results/.
+# it: the seed full-waveform inversions with bounds and regularisation, a receiver-based 1D inversion,
+# the 2D scenes and the 3D one. HDF5 results (+ XDMF for ParaView), PNG plots and results/summary.md in results/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash run/setup.sh
@@ -90,6 +90,9 @@ $MPI build/fwi_2d -tao_max_it ${FWI2D_IT:-40} -output results/fwi_2d.h5 | tee re
 log "Case 5: Marmousi-like section (layers, fault, high-velocity body), 12 shots in $NP groups, 3 frequency bands (examples/fwi_marmousi)"
 $MPI build/fwi_marmousi -shot_groups "$NP" -output results/fwi_marmousi.h5 | tee results/fwi_marmousi.log | grep -v " TAO, "
 "$PYTHON" run/plot_fwi_marmousi.py results/fwi_marmousi.h5 results/fwi_marmousi
+log "Case 6: 3D layers and a high-velocity body, 4 shots in $NP groups, 289 receivers, BLMVM + TV (examples/fwi_3d)"
+$MPI build/fwi_3d -shot_groups "$NP" -output results/fwi_3d.h5 | tee results/fwi_3d.log | grep -v " TAO, "
+"$PYTHON" run/plot_fwi_3d.py results/fwi_3d.h5 results/fwi_3d
 
 log "Learned discretisation: one Burgers stencil trained on 32 cells, checked on held-out starts (docs/learned_discretisation.md)"
 $MPI build/learned_burgers_train -output results/learned_stencil.h5 | tee results/learned_stencil.log

@@ -13,6 +13,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+from fwi_history import plot_history
 
 
 def main(path, prefix):
@@ -39,15 +40,7 @@ def main(path, prefix):
     axes[-1].set_xlabel("x (km)")
     fig.colorbar(im, ax=axes, shrink=0.6, label="c (km/s)")
     fig.savefig(prefix + "_models.png", dpi=100)
-    it = np.asarray(f["history/iteration"])
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 3.6), constrained_layout=True)
-    a1.semilogy(it, np.asarray(f["history/misfit"]), "o-", ms=3)
-    a1.set_xlabel("iteration (bands one after another)")
-    a1.set_ylabel("misfit J of the band's data")
-    a2.plot(it, np.asarray(f["history/rmse"]), "o-", ms=3)
-    a2.set_xlabel("iteration (bands one after another)")
-    a2.set_ylabel("velocity RMSE (km/s)")
-    fig.savefig(prefix + "_history.png", dpi=100)
+    plot_history(f, prefix + "_history.png", "BLMVM iteration (bands one after another)")
 
 
 if __name__ == "__main__":
