@@ -41,6 +41,18 @@ PetscErrorCode shift_aij_in_place(Mat Y, PetscScalar a) {
   if (mpi) PetscCall(PetscObjectStateIncrease((PetscObject)Y));
   PetscFunctionReturn(0);
 }
+
+// The model's dG/dU as the Simulation holds it (J null: made now): the assembled matrix, or the
+// applied one of a model with non-local maps.
+PetscErrorCode make_jacobian(Model &model, OwnedMat &J) {
+  PetscBool aij;
+  PetscFunctionBeginUser;
+  if (J) PetscFunctionReturn(0);
+  PetscCall(model.create_jacobian(J.out()));
+  PetscCall(PetscObjectTypeCompareAny((PetscObject)(Mat)J, &aij, MATSEQAIJ, MATMPIAIJ, ""));
+  if (aij) PetscCall(MatSetOperation(J, MATOP_SHIFT, (void (*)(void))shift_aij_in_place));
+  PetscFunctionReturn(0);
+}
 } // namespace
 
 PetscErrorCode Simulation::setup(Model &model, const Grid &grid, DM state_dm, const Parameters &params) {
@@ -49,11 +61,11 @@ PetscErrorCode Simulation::setup(Model &model, const Grid &grid, DM state_dm, co
   grid_ = &grid;
   params_ = &params;
   dm_ = state_dm;
-  PetscCall(model.create_jacobian(J_.out()));
-  PetscBool aij;
-  PetscCall(PetscObjectTypeCompareAny((PetscObject)(Mat)J_, &aij, MATSEQAIJ, MATMPIAIJ, ""));
-  if (aij) PetscCall(MatSetOperation(J_, MATOP_SHIFT, (void (*)(void))shift_aij_in_place));
+  // A model with a matrix-free dG/dU (linear, local) gets its assembled one only from the first TS
+  // that needs it (implicit steps, the Jacobian-based leapfrog adjoint): explicit runs never make it,
+  // neither its memory (stencil entries x components per row) nor the sweep that finds its pattern.
   PetscCall(model.create_jacobian_matrix_free(Jmf_.out()));
+  if (!Jmf_) PetscCall(make_jacobian(model, J_));
   if (params.global_size() > 0) {
     PetscCall(model.create_jacobian_p(Jp_.out()));
     PetscCall(params.create_vec(mu_.out()));
@@ -483,7 +495,7 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
   PetscCall(TSSetDM(ts, dm_));
   PetscCall(TSSetProblemType(ts, model_->linear() ? TS_LINEAR : TS_NONLINEAR));
   PetscCall(TSSetRHSFunction(ts, nullptr, rhs_cb, this));
-  PetscCall(TSSetRHSJacobian(ts, J_, J_, rhs_jacobian_cb, this));
+  PetscCall(TSSetRHSJacobian(ts, J_, J_, rhs_jacobian_cb, this)); // (J_ null: set below once the type asks for it)
   PetscCall(TSSetType(ts, TSRK));
   PetscCall(TSRKSetType(ts, TSRK4));
   PetscCall(TSSetTimeStep(ts, dt_));
@@ -502,7 +514,7 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
     PetscCall(SNESGetKSP(snes, &ksp));
     PetscBool shell;
     PetscCall(KSPGetPC(ksp, &pc));
-    PetscCall(PetscObjectTypeCompare((PetscObject)(Mat)J_, MATSHELL, &shell));
+    PetscCall(PetscObjectTypeCompare((PetscObject)(Mat)J_, MATSHELL, &shell)); // (J_ null: an assembled one to come)
     if (shell) { // a matrix-free dG/dU (spectral) cannot be factored: unpreconditioned GMRES, tight
       PetscCall(KSPSetType(ksp, KSPGMRES));
       PetscCall(PCSetType(pc, PCNONE));
@@ -513,7 +525,7 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
       // A distributed factorisation of a small operator is all communication (and MUMPS refactors
       // every step here, below), while the redundant LU reuses its factors.
       PetscInt nglobal, redundant_max = 200000;
-      PetscCall(MatGetSize(J_, &nglobal, nullptr));
+      PetscCall(VecGetSize(lambda_, &nglobal));
       PetscOptionsBegin(comm, nullptr, "Simulation: implicit solves", "Simulation");
       PetscCall(PetscOptionsInt("-sim_redundant_lu_max", "On several ranks, factor dG/dU-shifted systems of up to this many "
                                 "unknowns whole on every rank (PCREDUNDANT LU); larger ones with MUMPS",
@@ -563,6 +575,14 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
                            !std::strcmp(type, TSBEULER) || leapfrog;
   PetscCheck(!with_adjoint || has_adjoint, comm, PETSC_ERR_SUP,
              "-ts_type %s has no adjoint in flexipde: choose rk, theta, cn, beuler or leapfrog", type);
+  // The leapfrog's adjoint through the model's fused kick when it has one (else through its Jacobians).
+  leapfrog_fused_ = leapfrog && with_adjoint && model_->has_second_order_adjoint() && !petsc_step_;
+  // Explicit RK applies Jmf_ (below), the leapfrog steps and its fused adjoint never form dG/dU: any
+  // other TS gets the assembled one.
+  if (!J_ && !(!std::strcmp(type, TSRK) || (leapfrog && (!with_adjoint || leapfrog_fused_)))) {
+    PetscCall(make_jacobian(*model_, J_));
+    PetscCall(TSSetRHSJacobian(ts, J_, J_, rhs_jacobian_cb, this));
+  }
   {
     PetscBool shell;
     PetscCall(PetscObjectTypeCompare((PetscObject)(Mat)J_, MATSHELL, &shell));
@@ -583,8 +603,6 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
     if (theta && !petsc_step_ && (size == 1 || redundant) && model_->linear() && model_->jacobian_constant() && !shell)
       PetscCall(use_shifted_operator(ts));
   }
-  // The leapfrog's adjoint through the model's fused kick when it has one (else through its Jacobians).
-  leapfrog_fused_ = leapfrog && with_adjoint && model_->has_second_order_adjoint() && !petsc_step_;
   if (leapfrog) {
     PetscCheck(model_->second_order_pairs() > 0, comm, PETSC_ERR_ARG_WRONG,
                "-ts_type leapfrog needs a model in second-order form (q_t = p, p_t = a(t, q) - sigma p); model %s is "
