@@ -27,12 +27,6 @@
 
 using namespace flexipde;
 
-static std::string join(const std::vector<double> &v) {
-  std::string s;
-  for (double x : v) s += (s.empty() ? "" : ",") + std::to_string(x);
-  return s;
-}
-
 // c(x, y) of the true model (layers and a disc) or of the initial one (a smooth gradient).
 struct Model2D {
   PetscReal ax = 0.5, ay = 0.5, ar = 0.08, ac = 0.95;
@@ -81,8 +75,8 @@ static PetscErrorCode run() {
       {"-survey_sources_x", "0.2,0.4,0.6,0.8"},
       {"-survey_sources_y", "0.2"},
       {"-survey_ricker_f0", "5"},
-      {"-survey_receivers_x", join(rx)},
-      {"-survey_receivers_y", join(ry)},
+      {"-survey_receivers_x", fwi2d::join(rx)},
+      {"-survey_receivers_y", fwi2d::join(ry)},
       {"-inv_lower", "0.8"},
       {"-inv_upper", "1.6"},
       {"-inv_tv", "2e-5"},

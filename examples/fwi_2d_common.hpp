@@ -25,6 +25,13 @@ inline PetscErrorCode default_options(const std::vector<std::pair<const char *, 
   PetscFunctionReturn(0);
 }
 
+// "a,b,c": a list option's value.
+inline std::string join(const std::vector<PetscReal> &v) {
+  std::string s;
+  for (PetscReal x : v) s += (s.empty() ? "" : ",") + std::to_string(x);
+  return s;
+}
+
 using Speed2D = std::function<PetscReal(PetscReal, PetscReal)>;            // c(x, y)
 using Speed3D = std::function<PetscReal(PetscReal, PetscReal, PetscReal)>; // c(x, y, z)
 

@@ -36,12 +36,6 @@
 
 using namespace flexipde;
 
-static std::string join(const std::vector<PetscReal> &v) {
-  std::string s;
-  for (PetscReal x : v) s += (s.empty() ? "" : ",") + std::to_string(x);
-  return s;
-}
-
 // c(x, y, z) of the layered earth with its body (true) and of the depth trend the inversion starts from.
 struct Earth {
   PetscReal dip = 8.0 * M_PI / 180, azimuth = 30.0 * M_PI / 180, centre = 0.6; // the planes turn about x = y = 0.6
@@ -106,8 +100,8 @@ static PetscErrorCode run() {
         rx.push_back(array_from + (array_to - array_from) * i / (array_n - 1));
         ry.push_back(array_from + (array_to - array_from) * j / (array_n - 1));
       }
-    PetscCall(fwi2d::default_options({{"-survey_receivers_x", join(rx)},
-                                      {"-survey_receivers_y", join(ry)},
+    PetscCall(fwi2d::default_options({{"-survey_receivers_x", fwi2d::join(rx)},
+                                      {"-survey_receivers_y", fwi2d::join(ry)},
                                       {"-survey_receivers_z", std::to_string(array_depth)}}));
   }
   PetscCall(fwi2d::default_options({
