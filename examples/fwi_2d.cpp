@@ -89,6 +89,7 @@ static PetscErrorCode run() {
   fwi2d::Inverted r;
   PetscCall(r.run(comm, [&](PetscReal x, PetscReal y) { return m.truth(x, y); },
                   [&](PetscReal x, PetscReal y) { return m.initial(x, y); }));
+  if (r.help) PetscFunctionReturn(0);
   const Scene &scene = r.scene;
   const Inversion &inv = r.inv;
   PetscCall(PetscPrintf(comm,

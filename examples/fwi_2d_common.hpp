@@ -70,6 +70,7 @@ struct Inverted {
   OwnedVec p, p_true, p0; // recovered, true and initial parameters
   Inversion inv;
   PetscReal rmse_initial = 0, rmse_recovered = 0;
+  bool help = false; // -help: the scene's and the inversion's options were listed, nothing was run
   PetscErrorCode run(MPI_Comm comm, const Speed2D &truth, const Speed2D &initial) {
     PetscFunctionBeginUser;
     PetscCall(run(comm, Speed3D([&](PetscReal x, PetscReal y, PetscReal) { return truth(x, y); }),
@@ -85,6 +86,15 @@ struct Inverted {
     PetscCall(fill_speed(scene, p_true, truth));
     PetscCall(fill_speed(scene, p, initial));
     PetscCall(VecCopy(p, p0));
+    PetscBool listing;
+    PetscCall(PetscOptionsHasHelp(nullptr, &listing));
+    if (listing) { // list every option of the scene, its integrator and the inversion, and stop before any work
+      help = true;
+      PetscCall(scene.model->set_parameters(p));
+      PetscCall(scene.sim.check_options());
+      PetscCall(inv.setup(scene, p_true));
+      PetscFunctionReturn(0);
+    }
     PetscCall(scene.make_synthetic_data(p_true));
     PetscCall(inv.setup(scene, p_true));
     PetscCall(inv.rmse(p, &rmse_initial));

@@ -140,6 +140,7 @@ static PetscErrorCode run() {
   const double t0 = MPI_Wtime();
   PetscCall(r.run(comm, [&](PetscReal x, PetscReal y, PetscReal z) { return m.truth(x, y, z); },
                   [&](PetscReal x, PetscReal y, PetscReal z) { return m.initial(x, y, z); }));
+  if (r.help) PetscFunctionReturn(0);
   const double seconds = MPI_Wtime() - t0;
   Scene &scene = r.scene;
   const Inversion &inv = r.inv;

@@ -111,6 +111,7 @@ static PetscErrorCode run() {
   double t0 = MPI_Wtime();
   PetscCall(r.run(comm, [&](PetscReal x, PetscReal y) { return m.truth(x, y); },
                   [&](PetscReal x, PetscReal y) { return m.initial(x, y); }));
+  if (r.help) PetscFunctionReturn(0);
   const Scene &scene = r.scene;
   const Inversion &inv = r.inv;
   PetscCall(PetscPrintf(comm,
