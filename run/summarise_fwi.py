@@ -159,11 +159,12 @@ def main():
         mins = [i for i in range(1, len(J) - 1) if J[i] <= J[i - 1] and J[i] <= J[i + 1]]
         print("\nObjective landscape (results/fwi_landscape.png): local minima of J(c) on the scan at c = "
               + ", ".join("%.3f (J = %.2e)" % (c[i], J[i]) for i in mins) + ".")
-    log2d = os.path.join(d, "fwi_2d.log")
-    if os.path.exists(log2d):
-        with open(log2d) as f:
-            lines = [l.strip() for l in f if l.startswith("fwi_2d:") or l.startswith("recovered RMSE")]
-        print("\nCase 4, 2D (results/fwi_2d_*.png): " + " ".join(lines))
+    for name, title in (("fwi_2d", "Case 4, 2D"), ("fwi_marmousi", "Case 5, Marmousi-like section"), ("fwi_3d", "Case 6, 3D")):
+        log = os.path.join(d, name + ".log")
+        if os.path.exists(log):
+            with open(log) as f:
+                lines = [l.strip() for l in f if l.startswith(name + ":") or l.startswith("recovered RMSE")]
+            print("\n%s (results/%s_*.png): " % (title, name) + " ".join(lines))
 
 
 if __name__ == "__main__":
