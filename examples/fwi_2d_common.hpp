@@ -55,11 +55,6 @@ inline PetscErrorCode fill_speed(const Scene &s, Vec p, const Speed3D &c) {
   PetscCall(s.params.set_field(p, s.params.find(speed_name(s)), f));
   PetscFunctionReturn(0);
 }
-inline PetscErrorCode fill_speed(const Scene &s, Vec p, const Speed2D &c) {
-  PetscFunctionBeginUser;
-  PetscCall(fill_speed(s, p, Speed3D([&](PetscReal x, PetscReal y, PetscReal) { return c(x, y); })));
-  PetscFunctionReturn(0);
-}
 
 // The scene of the options, data from the true speed, and the inversion from the initial one: a scene set
 // up from the options (grid, wave2d, survey, integrator, shot groups), the true and initial speed fields
