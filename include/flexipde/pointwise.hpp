@@ -918,7 +918,9 @@ public:
         run_kind(plan.kind[1], point, Check<true>());
         run_kind(plan.kind[2], point, Edge());
         run_kind(plan.kind[3], point, EdgeNearWall());
-      } else for_points<true, true>(2 * R, point);
+      } else if (frame_.held) // G is 0 on held walls, and x is 0 on and beyond them: no neighbour needs a test
+        for_points<true, false>(2 * R, point);
+      else for_points<true, true>(2 * R, point); // (equations on a wall test wall(): EdgeNearWall)
       // An owned point's mirror images beyond odd walls are read by the stencils next to the wall:
       // their gathers (inputs at the image, its sign) belong to the point.
       if constexpr (WY)
