@@ -579,7 +579,8 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
   leapfrog_fused_ = leapfrog && with_adjoint && model_->has_second_order_adjoint() && !petsc_step_;
   // Explicit RK applies Jmf_ (below), the leapfrog steps and its fused adjoint never form dG/dU: any
   // other TS gets the assembled one.
-  if (!J_ && !(!std::strcmp(type, TSRK) || (leapfrog && (!with_adjoint || leapfrog_fused_)))) {
+  const bool matrix_free = !std::strcmp(type, TSRK) || (leapfrog && (!with_adjoint || leapfrog_fused_));
+  if (!J_ && !matrix_free) {
     PetscCall(make_jacobian(*model_, J_));
     PetscCall(TSSetRHSJacobian(ts, J_, J_, rhs_jacobian_cb, this));
   }
