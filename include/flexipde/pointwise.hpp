@@ -918,9 +918,23 @@ public:
         run_kind(plan.kind[1], point, Check<true>());
         run_kind(plan.kind[2], point, Edge());
         run_kind(plan.kind[3], point, EdgeNearWall());
-      } else if (frame_.held) // G is 0 on held walls, and x is 0 on and beyond them: no neighbour needs a test
-        for_points<true, false>(2 * R, point);
-      else for_points<true, true>(2 * R, point); // (equations on a wall test wall(): EdgeNearWall)
+      } else if (frame_.held) {
+        // G is 0 on held walls and x is 0 on and beyond them, so no neighbour needs a test, and the wall
+        // points take the Edge path too. Their y is 0: every stencil reads a held wall as 0 whatever the
+        // state holds (the Edge path would differentiate the reads); what they gather is dG/dp and dG/da.
+        const auto wall_point = [=](PetscInt at, PetscInt own, PetscInt i, PetscInt j, PetscInt k, auto) {
+          double yv[C] = {};
+          double zv[K > 0 ? K : 1] = {};
+          double gv[NG > 0 ? NG : 1] = {};
+          gather_offsets<CLO, CHI, 2, CS, SC>(eq, fe, xh, at, at, i, j, k, yv, zv, gv, Offsets());
+          for (int c = 0; c < C; ++c) yv[c] = 0.0;
+          store(own, i, yv, zv, gv);
+        };
+        const RunPlan &plan = runs(2 * R, true, false);
+        run_kind(plan.kind[0], point, Check<false>());
+        run_kind(plan.kind[1], wall_point, Edge());
+        run_kind(plan.kind[2], point, Edge());
+      } else for_points<true, true>(2 * R, point); // (equations on a wall test wall(): EdgeNearWall)
       // An owned point's mirror images beyond odd walls are read by the stencils next to the wall:
       // their gathers (inputs at the image, its sign) belong to the point.
       if constexpr (WY)
