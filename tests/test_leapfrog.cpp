@@ -187,8 +187,8 @@ namespace {
 
 PetscErrorCode model_rhs(TS, PetscReal t, Vec U, Vec G, void *ctx) { return static_cast<Model *>(ctx)->rhs(t, U, G); }
 
-PetscErrorCode model_step(void *ctx, PetscReal t, Vec U, Vec F, const LeapfrogStepParts &parts) {
-  return static_cast<Model *>(ctx)->second_order_step(t, U, F, parts);
+PetscErrorCode model_step(void *ctx, PetscReal t, Vec U, PetscScalar *accel, const LeapfrogStepParts &parts) {
+  return static_cast<Model *>(ctx)->second_order_step(t, U, accel, parts);
 }
 
 // U(T) by the leapfrog TS, from the Simulation's U0: in three passes per step (kick and drift, G, kick)

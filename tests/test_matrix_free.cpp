@@ -10,7 +10,8 @@
 //     and an RK4 gradient (the stage products) equals PETSc's RK adjoint through it (-adjoint_petsc_step).
 // Cases: 1D fd2/fd4, Dirichlet/periodic/zero outside the grid (-wave_boundary zero_outside, two-level
 // start); 2D Dirichlet/periodic, and with a sponge (the damping is in G_p's p column, which the kick
-// does not transpose).
+// does not transpose); 2D at order 8 and 3D, Dirichlet, on blocks large enough to have rows beyond
+// the edge strips.
 #include "flexipde/scene.hpp"
 #include "test_support.hpp"
 #include <string>
@@ -51,6 +52,17 @@ std::vector<MFCase> cases() {
       {"wave2d_sponge_field",
        {{"-model", "wave2d"}, {"-da_grid_x", "23"}, {"-da_grid_y", "19"}, {"-wave2d_c_field", "1"},
         {"-wave2d_sponge_width", "0.2"}, {"-wave2d_ic", "pulse"}, {"-wave2d_ic_width", "0.2"}}},
+      // blocks with rows beyond the edge strips on 1 and 2 ranks (the kick drifts them row by row ahead
+      // of the gather), in 2D, in 3D and at order 8
+      {"wave2d_tall_dirichlet_field",
+       {{"-model", "wave2d"}, {"-da_grid_x", "23"}, {"-da_grid_y", "31"}, {"-wave2d_c_field", "1"},
+        {"-wave2d_sponge_width", "0"}, {"-wave2d_ic", "pulse"}, {"-wave2d_ic_width", "0.2"}}},
+      {"wave2d_order8_dirichlet_field",
+       {{"-model", "wave2d"}, {"-fd_order", "8"}, {"-da_grid_x", "39"}, {"-da_grid_y", "41"}, {"-wave2d_c_field", "1"},
+        {"-wave2d_sponge_width", "0"}, {"-wave2d_ic", "pulse"}, {"-wave2d_ic_width", "0.2"}}},
+      {"wave3d_dirichlet_field",
+       {{"-model", "wave3d"}, {"-da_grid_x", "17"}, {"-da_grid_y", "15"}, {"-da_grid_z", "29"}, {"-wave3d_c_field", "1"},
+        {"-wave3d_sponge_width", "0"}, {"-wave3d_ic", "pulse"}, {"-wave3d_ic_width", "0.2"}}},
   };
 }
 

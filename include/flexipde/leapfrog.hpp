@@ -25,8 +25,8 @@
 // with weight dt (dt/2 at t_0 and T): an adjoint step costs one product with (dG/dU)^T and one
 // with (dG/dtheta)^T, and needs only the state at the step's start (kept as the step's one
 // "stage", so PETSc's memory trajectory stores it and nothing is recomputed). With the model's fused kick
-// (Model::second_order_adjoint) the undamped drift's transpose is handed to the kick, which may fold it
-// into its own sweep over lambda. Since G_q = p, (dG/dU)^T lambda has A^T lambda_p in its q rows and
+// (Model::second_order_adjoint) the undamped drift's transpose is handed to the kick beyond the caches,
+// which may fold it into its own sweep over lambda. Since G_q = p, (dG/dU)^T lambda has A^T lambda_p in its q rows and
 // (dG/dtheta)^T lambda = (da/dtheta)^T lambda_p (sigma depends on no parameter), so the full Jacobians
 // serve without masking.
 //
@@ -67,8 +67,9 @@ PetscInt leapfrog_pairs(TS ts); // m, or 0 for another TS type
 //   lambda_p += drift lambda_q  (the transpose of the drift that ends at this level; drift = 0: none),
 // then
 //   lambda_q += w (da/dq)^T lambda_p,  mu += w (da/dtheta)^T lambda_p  (mu null: no parameters).
-// When set, the adjoint calls it instead of computing and applying the RHS Jacobians, and hands it
-// each step's drift instead of making a pass of its own (the model may fold it into its sweep).
+// When set, the adjoint calls it instead of computing and applying the RHS Jacobians, and, beyond the
+// caches (leapfrog_one_sweep_pays of lambda and the positions), hands it each step's drift instead of
+// making a pass of its own (the model may fold it into its sweep).
 // `prefetch`: the stored positions the next adjoint step will read (leapfrog_place_positions), for the
 // kick to prefetch while it sweeps (null: none).
 using LeapfrogAdjointKick = PetscErrorCode (*)(void *ctx, PetscReal t, Vec U, Vec lambda, PetscReal w, Vec mu, PetscReal drift,
@@ -92,22 +93,24 @@ inline void leapfrog_drift_transpose(PetscScalar *lambda, PetscInt lo, PetscInt 
 // over the grid, applying the integrator's point-local parts below to ranges of owned points in an
 // order its stencil allows, so that the state passes through the cache once instead of three times.
 // The same operations on every point as the three passes (kick and drift, G, kick): the same numbers.
+// Between fused steps the integrator keeps the accelerations a = G_p alone (m per point), not all of
+// G: its position rows are p, which the step has in U.
 class LeapfrogStepParts {
 public:
-  // u, f: the local arrays of U and F (2m entries per point); points [begin, end).
-  // The first kick and the drift, p += dt/2 g F_p and q += dt p (and q to the trajectory's slot):
+  // u: the local array of U (2m entries per point); a: the accelerations (m per point); points [begin, end).
+  // The first kick and the drift, p += dt/2 g a and q += dt p (and q to the trajectory's slot):
   // before G reads the point's positions anywhere.
-  virtual void kick_drift(PetscScalar *u, const PetscScalar *f, PetscInt begin, PetscInt end) const = 0;
-  // The second kick p += dt/2 F_p: once the point's G is final.
-  virtual void kick(PetscScalar *u, const PetscScalar *f, PetscInt begin, PetscInt end) const = 0;
+  virtual void kick_drift(PetscScalar *u, const PetscScalar *a, PetscInt begin, PetscInt end) const = 0;
+  // The second kick p += dt/2 a: once the point's a is final.
+  virtual void kick(PetscScalar *u, const PetscScalar *a, PetscInt begin, PetscInt end) const = 0;
 
 protected:
   ~LeapfrogStepParts() = default;
 };
-// F = G(t, U) at the state after kick_drift, and U after kick (t: the step's end).
-using LeapfrogStep = PetscErrorCode (*)(void *ctx, PetscReal t, Vec U, Vec F, const LeapfrogStepParts &parts);
+// accel = G_p(t, U) (m per owned point) at the state after kick_drift, and U after kick (t: the step's end).
+using LeapfrogStep = PetscErrorCode (*)(void *ctx, PetscReal t, Vec U, PetscScalar *accel, const LeapfrogStepParts &parts);
 PetscErrorCode leapfrog_set_step(TS ts, LeapfrogStep step, void *ctx);
-// Whether one sweep beats three passes for a rank whose U and F take `bytes`: when they exceed the
+// Whether one sweep beats three passes for a rank whose U and accelerations take `bytes`: when they exceed the
 // last-level cache's share per core. Within the caches the three passes stream faster; beyond them one
 // sweep saves two passes over memory (docs/performance.md).
 bool leapfrog_one_sweep_pays(size_t bytes);

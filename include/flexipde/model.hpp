@@ -90,14 +90,15 @@ public:
     (void)t, (void)U, (void)w, (void)mu, (void)drift, (void)prefetch;
     SETERRQ(PetscObjectComm((PetscObject)lambda), PETSC_ERR_SUP, "Model %s has no fused second-order adjoint", name());
   }
-  // Optional, for second-order models: a whole leapfrog step in one sweep over the grid. F = G(t, U)
-  // at the state after parts.kick_drift, which must reach every owned point before G reads its
-  // positions (on any rank), and parts.kick on every point once its G is final; collective. Without
-  // it the integrator makes three passes (kick and drift, G, kick): the same numbers.
+  // Optional, for second-order models: a whole leapfrog step in one sweep over the grid. accel = G_p(t, U)
+  // (m per owned point, the velocity rows of G) at the state after parts.kick_drift, which must reach
+  // every owned point before G reads its positions (on any rank), and parts.kick on every point once
+  // its G is final; collective. Without it the integrator makes three passes (kick and drift, G,
+  // kick): the same numbers.
   virtual bool has_second_order_step() const { return false; }
-  virtual PetscErrorCode second_order_step(PetscReal t, Vec U, Vec F, const LeapfrogStepParts &parts) {
-    (void)t, (void)U, (void)parts;
-    SETERRQ(PetscObjectComm((PetscObject)F), PETSC_ERR_SUP, "Model %s has no fused leapfrog step", name());
+  virtual PetscErrorCode second_order_step(PetscReal t, Vec U, PetscScalar *accel, const LeapfrogStepParts &parts) {
+    (void)t, (void)accel, (void)parts;
+    SETERRQ(PetscObjectComm((PetscObject)U), PETSC_ERR_SUP, "Model %s has no fused leapfrog step", name());
   }
   // Optional: the products of one explicit-RK adjoint stage fused into one sweep without any matrix:
   // at state U,

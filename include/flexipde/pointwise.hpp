@@ -868,11 +868,16 @@ public:
   // components in [ylo, yhi) are written (added, times w, if add_y): the leapfrog's kick is this with
   // x = lambda_p, y = lambda_q. z (auxiliary fields; null: none) gets the gather of (dG/da)^T x.
   // What is written is known at compile time (WY: y, ADDY: added, WG: gk), so the loop has no branch.
+  // drift (the leapfrog kick, y the array of x, held walls, 2D and 3D; 0: none): x_p += drift x_q on the
+  // owned points beyond strip_ of the block's edge (the caller drifted those within it) row by row just
+  // ahead of the rows that read them, so that lambda passes through the cache once per time level.
   template <int CLO, int CHI, int YLO, int YHI, int CS, bool WY, bool ADDY, bool WG, bool SC>
   FLEXIPDE_SWEEP PetscErrorCode gather(PetscReal t, const LocalState &s, const PetscScalar *xo, const PetscScalar *xl,
                                        const PetscScalar *xh, PetscScalar *y, PetscReal w, PetscReal *const *gk,
-                                       PetscScalar *z) {
+                                       PetscScalar *z, PetscReal drift = 0) {
     PetscFunctionBeginUser;
+    PetscCheck(drift == 0 || (ADDY && D >= 2 && frame_.held), grid_->comm(), PETSC_ERR_PLIB,
+               "gather: a drift rides only on a leapfrog kick's row sweep with held walls in 2D or 3D");
     {
       StateView sv(s);
       ConstArray p(P_);
@@ -931,9 +936,25 @@ public:
           store(own, i, yv, zv, gv);
         };
         const RunPlan &plan = runs(2 * R, true, false);
-        run_kind(plan.kind[0], point, Check<false>());
-        run_kind(plan.kind[1], wall_point, Edge());
-        run_kind(plan.kind[2], point, Edge());
+        if (drift == 0) {
+          run_kind(plan.kind[0], point, Check<false>());
+          run_kind(plan.kind[1], wall_point, Edge());
+          run_kind(plan.kind[2], point, Edge());
+        } else if constexpr (ADDY && D >= 2) {
+          constexpr int m = CS; // the kick's x_p and y = x_q: m components each
+          const PetscInt xm = grid_->xm(), ym = grid_->ym(), rows = ym * grid_->zm(), B = strip_;
+          const PetscInt ahead = (D == 3 ? R * ym : R) + 2; // two rows beyond the reach of the rows' reads
+          RowCursor cursor(plan);
+          for (PetscInt r = 0, drifted = 0; r < rows; ++r) {
+            for (; drifted < rows && drifted <= r + ahead; ++drifted)
+              if (inner_row(B, drifted)) leapfrog_drift_transpose(y, drifted * xm + B, drifted * xm + xm - B, m, drift);
+            const PetscInt j = grid_->ys() + r % ym, k = grid_->zs() + r / ym;
+            const auto k0 = cursor.take(0, j, k), k1 = cursor.take(1, j, k), k2 = cursor.take(2, j, k);
+            run_kind(k0.first, k0.second, point, Check<false>());
+            run_kind(k1.first, k1.second, wall_point, Edge());
+            run_kind(k2.first, k2.second, point, Edge());
+          }
+        }
       } else for_points<true, true>(2 * R, point); // (equations on a wall test wall(): EdgeNearWall)
       // An owned point's mirror images beyond odd walls are read by the stencils next to the wall:
       // their gathers (inputs at the image, its sign) belong to the point.
@@ -956,9 +977,9 @@ public:
   // ADDY: y += w (dG/dU)^T x (the leapfrog kick), else y = (dG/dU)^T x. GRAD: y is formed and so is the
   // gradient, a null mu's into scratch: one compiled sweep where the gradient costs little next to y.
   template <int CLO = 0, int CHI = C, int YLO = 0, int YHI = C, int CS = C, bool ADDY = false, bool GRAD = ADDY>
-  // x_ghosts: Xl_ already holds x ghosted (the caller filled it).
+  // x_ghosts: Xl_ already holds x ghosted (the caller filled it). drift: the gather's (the leapfrog kick).
   PetscErrorCode transpose(PetscReal t, const LocalState &s, Vec x, Vec y, PetscReal w, Vec mu, bool defer,
-                           bool x_ghosts = false) {
+                           bool x_ghosts = false, PetscReal drift = 0) {
     PetscFunctionBeginUser;
     if (!x_ghosts) PetscCall(fill_ghosts(x, Xl_, true));
     if constexpr (Coupling)
@@ -991,7 +1012,7 @@ public:
         PetscErrorCode ierr = 0;
         with_constants([&](auto sc) {
           ierr = gather<CLO, CHI, YLO, YHI, CS, decltype(wy)::value, ADDY, decltype(wg)::value, decltype(sc)::value>(
-              t, s, xo, xg.data(), xha.data(), ya, w, gk, za);
+              t, s, xo, xg.data(), xha.data(), ya, w, gk, za, drift);
         });
         return ierr;
       };
@@ -1195,49 +1216,41 @@ public:
       }
       // the ghosts of the positions and of lambda (after the drift) travel at once
       PetscCall(pos_ghosts_.begin(pos_.ref, pos_.g));
+      // The drift's transpose: with held walls in 2D and 3D on the block's edge strips now (their ghosts
+      // and copies are read from the start) and on the rest within the gather, rows just ahead of the
+      // rows that read them (one pass over lambda); else in a pass of its own.
+      const bool in_gather = drift != 0 && D >= 2 && frame_.held;
       if (drift != 0) {
         Array l(lambda);
         PetscCall(l.error());
-        leapfrog_drift_transpose(l.data(), 0, grid_->local_points(), m, drift);
+        if (in_gather)
+          for_edge_strips(strip_, [&](PetscInt lo, PetscInt hi) { leapfrog_drift_transpose(l.data(), lo, hi, m, drift); });
+        else leapfrog_drift_transpose(l.data(), 0, grid_->local_points(), m, drift);
       }
       PetscCall(ghosts_.begin(lambda, Xl_));
       PetscCall(fill_ghosts(pos_.ref, pos_.g, pos_ghosts_, m, false, true));
       PetscCall(fill_ghosts(lambda, Xl_, ghosts_, C, true, true));
-      PetscCall((transpose<m, 2 * m, 0, m, m, true>(t, pos_, lambda, lambda, w, mu, in_adjoint_, true)));
+      PetscCall((transpose<m, 2 * m, 0, m, m, true>(t, pos_, lambda, lambda, w, mu, in_adjoint_, true, in_gather ? drift : 0.0)));
     }
     PetscFunctionReturn(0);
   }
   // A whole leapfrog step in one sweep (Model::second_order_step), 2D and 3D: the kick and drift of the
   // points within forward_strip_ of the owned block's edge, then their ghosts (all that the points near the edge
   // read, as for G), then row by row (the rows (j, k) in memory order): the kick and drift of the inner
-  // points of the rows G on this row will read (R rows ahead in 2D, R planes in 3D), G on the row as
-  // rhs() evaluates it, the row's forcing, and the second kick. The rows a point reads are in the cache
+  // points of the rows G on this row will read (R rows ahead in 2D, R planes in 3D), G's velocity rows
+  // (the accelerations) on the row as rhs() evaluates them, the row's forcing, and the second kick. The rows a point reads are in the cache
   // from the kick and drift a little earlier: one pass over the state from memory instead of three.
   static constexpr bool FusedStep = pointwise::PairsOf<Eq>::value > 0 && D >= 2 && K == 0 && H == 0 && !Flux;
   bool has_second_order_step() const override { return FusedStep && second_order_pairs() > 0; }
-  FLEXIPDE_SWEEP PetscErrorCode second_order_step(PetscReal t, Vec U, Vec F, const LeapfrogStepParts &parts) override {
+  FLEXIPDE_SWEEP PetscErrorCode second_order_step(PetscReal t, Vec U, PetscScalar *accel, const LeapfrogStepParts &parts) override {
     PetscFunctionBeginUser;
     if constexpr (FusedStep) {
       const PetscInt xm = grid_->xm(), ym = grid_->ym(), zm = grid_->zm(), B = forward_strip_, rows = ym * zm;
-      const bool inner_cols = xm > 2 * B;
-      // rows with inner points: B or more rows (and in 3D planes) from the block's edge
-      const auto inner = [&](PetscInt r) {
-        const PetscInt j = r % ym, k = r / ym;
-        return inner_cols && j >= B && j < ym - B && (D < 3 || (k >= B && k < zm - B));
-      };
       const PetscInt reach = D == 3 ? R * ym : R; // G on row r reads rows up to r + reach
       {
-        Array u(U), f(F);
+        Array u(U);
         PetscCall(u.error());
-        PetscCall(f.error());
-        for (PetscInt r = 0; r < rows; ++r) {
-          const PetscInt row = r * xm;
-          if (!inner(r)) parts.kick_drift(u.data(), f.data(), row, row + xm);
-          else {
-            parts.kick_drift(u.data(), f.data(), row, row + B);
-            parts.kick_drift(u.data(), f.data(), row + xm - B, row + xm);
-          }
-        }
+        for_edge_strips(B, [&](PetscInt lo, PetscInt hi) { parts.kick_drift(u.data(), accel, lo, hi); });
       }
       PetscCall(load(U, st_, false, forward_strip_));
       // the forcing's points in row order (stable: a point's terms add in rhs()'s order)
@@ -1251,15 +1264,15 @@ public:
         }
       StateView sv(st_);
       ConstArray p(P_);
-      Array g(F), u(U);
+      Array u(U);
       PetscCall(sv.error());
       PetscCall(p.error());
-      PetscCall(g.error());
       PetscCall(u.error());
       pointwise::Frame f = frame(t, sv, p.data());
       uncoupled(f);
       const pointwise::Frame fe = edge_frame(f);
-      PetscScalar *out = g.data(), *ud = u.data();
+      constexpr int m = pointwise::PairsOf<Eq>::value; // G's velocity rows are components m..2m-1
+      PetscScalar *out = accel, *ud = u.data();
       with_constants([&](auto sc) {
         with_model([&](const auto &eq) {
           const auto point = [=](PetscInt at, PetscInt own, PetscInt i, PetscInt j, PetscInt k, auto ck) {
@@ -1268,16 +1281,10 @@ public:
             rhs_of(eq, Pt<Mode::Value, 0, 0, where == 1, C, where == 1, decltype(sc)::value>(where >= 2 ? fe : f, at,
                                                                                              where >= 2 ? at : own, i, j, k),
                    gv);
-            for (int c = 0; c < C; ++c) out[own * C + c] = gv[c];
+            for (int c = 0; c < m; ++c) out[own * m + c] = gv[m + c];
           };
-          const RunPlan &plan = runs(R, true, false);
-          size_t next_run[3] = {0, 0, 0}, next_force = 0;
-          const auto row_runs = [&](int kind, PetscInt j, PetscInt k) { // the runs of one kind in row (j, k)
-            const std::vector<Run> &v = plan.kind[kind];
-            const size_t a = next_run[kind];
-            while (next_run[kind] < v.size() && v[next_run[kind]].j == j && v[next_run[kind]].k == k) ++next_run[kind];
-            return std::make_pair(v.data() + a, v.data() + next_run[kind]);
-          };
+          RowCursor cursor(runs(R, true, false));
+          size_t next_force = 0;
           // The inner rows before `drifted` have had their kick and drift, rows [0, kicked) their second
           // kick. The kick and drift run two rows ahead of G's reach and the second kick one row behind
           // G, so that G never loads entries whose stores are still on their way to the cache.
@@ -1285,8 +1292,8 @@ public:
           for (PetscInt r = 0; r < rows; ++r) {
             const PetscInt j = grid_->ys() + r % ym, k = grid_->zs() + r / ym;
             for (; drifted < rows && drifted <= r + reach + 2; ++drifted)
-              if (inner(drifted)) parts.kick_drift(ud, out, drifted * xm + B, drifted * xm + xm - B);
-            const auto k0 = row_runs(0, j, k), k1 = row_runs(1, j, k), k2 = row_runs(2, j, k);
+              if (inner_row(B, drifted)) parts.kick_drift(ud, out, drifted * xm + B, drifted * xm + xm - B);
+            const auto k0 = cursor.take(0, j, k), k1 = cursor.take(1, j, k), k2 = cursor.take(2, j, k);
             run_kind(k0.first, k0.second, point, Check<false>());
             run_kind(k1.first, k1.second, point, Check<true>());
             run_kind(k2.first, k2.second, point, Edge());
@@ -1294,7 +1301,7 @@ public:
               for (; next_force < forcing_order_.size(); ++next_force) {
                 const PetscInt e = forcing_order_[next_force], own = source_->stencil.local[e];
                 if (own >= (r + 1) * xm) break;
-                out[own * C + Eq::forced_component] += source_->density(e, t);
+                out[own * m + Eq::forced_component - m] += source_->density(e, t);
               }
             for (; kicked < r; ++kicked) parts.kick(ud, out, kicked * xm, (kicked + 1) * xm);
           }
@@ -1770,6 +1777,33 @@ private:
   struct RunPlan {
     std::vector<Run> kind[4]; // Check<false>, Check<true>, Edge, EdgeNearWall
   };
+  // A plan's runs row by row (rows (j, k) in memory order, each kind's runs in that order).
+  struct RowCursor {
+    explicit RowCursor(const RunPlan &p) : plan(p) {}
+    std::pair<const Run *, const Run *> take(int kind, PetscInt j, PetscInt k) { // the runs of one kind in row (j, k)
+      const std::vector<Run> &v = plan.kind[kind];
+      const size_t a = next[kind];
+      while (next[kind] < v.size() && v[next[kind]].j == j && v[next[kind]].k == k) ++next[kind];
+      return {v.data() + a, v.data() + next[kind]};
+    }
+    const RunPlan &plan;
+    size_t next[4] = {0, 0, 0, 0};
+  };
+  // Whether owned row r (rows (j, k) in memory order) has points B or more points (and rows, planes)
+  // from the block's edge: its inner points, [r xm + B, r xm + xm - B).
+  bool inner_row(PetscInt B, PetscInt r) const {
+    const PetscInt xm = grid_->xm(), ym = grid_->ym(), zm = grid_->zm(), j = r % ym, k = r / ym;
+    return xm > 2 * B && j >= B && j < ym - B && (D < 3 || (k >= B && k < zm - B));
+  }
+  // fn(lo, hi) on the owned points within B of the block's edge, ranges [lo, hi) of points in memory order.
+  template <class Fn> void for_edge_strips(PetscInt B, Fn &&fn) const {
+    const PetscInt xm = grid_->xm(), rows = grid_->ym() * grid_->zm();
+    for (PetscInt r = 0; r < rows; ++r) {
+      const PetscInt row = r * xm;
+      if (!inner_row(B, r)) fn(row, row + xm);
+      else fn(row, row + B), fn(row + xm - B, row + xm);
+    }
+  }
   // All runs of one kind: one function per kind and sweep, whose loops the compiler vectorises. It
   // works on its own copy of the sweep's point function, so that what that captures by value (the
   // model, the frame) is known to no store. (A sweep writes the point's own entries alone and reads

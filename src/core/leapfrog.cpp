@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <string>
+#include <vector>
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
@@ -19,10 +20,12 @@ struct Leapfrog {
   PetscInt pairs = 0; // m
   PetscInt dof = 0;   // 2m
   Vec F = nullptr;    // G(t, U) at the state the TS holds: its p rows are a(t, q), the next kick
+  // With the model's fused step (step below): a(t, q) alone, m per point, instead of F.
+  std::vector<PetscScalar> accel;
   Vec Y0 = nullptr;   // the state at the start of the last step (the step's one "stage")
   Vec W = nullptr;    // adjoint work: (dG/dU)^T lambda
   Vec dmu = nullptr;  // adjoint work: (dG/dtheta)^T lambda
-  // F is valid for the vector state and time recorded here (first same as last).
+  // F (or accel) is valid for the vector state and time recorded here (first same as last).
   PetscObjectState F_state = -1;
   PetscReal F_time = 0;
   bool F_valid = false;
@@ -66,12 +69,15 @@ struct Leapfrog {
 Leapfrog *data(TS ts) { return static_cast<Leapfrog *>(ts->data); }
 
 // The per-point loops below take the number of pairs M as a template argument when it is 1 (the
-// wave equations), so that the compiler sees fixed strides; M = 0 means "m at run time".
-template <int M>
+// wave equations), so that the compiler sees fixed strides; M = 0 means "m at run time". They read a
+// from F's velocity rows (2m entries per point, n entries in all) or, with Accel, from an array of the
+// accelerations alone (m per point: the fused step's).
+template <bool Accel> inline PetscInt accel_at(PetscInt k, PetscInt m, PetscInt c) { return Accel ? k * m + c : 2 * k * m + m + c; }
+template <int M, bool Accel = false>
 void kick_loop(PetscScalar *__restrict u, const PetscScalar *__restrict f, PetscInt n, PetscInt m_rt, PetscReal s) {
   const PetscInt m = M ? M : m_rt, d = 2 * m;
-  for (PetscInt i = 0; i < n; i += d)
-    for (PetscInt c = m; c < d; ++c) u[i + c] += s * f[i + c];
+  for (PetscInt k = 0; k < n / d; ++k)
+    for (PetscInt c = 0; c < m; ++c) u[k * d + m + c] += s * f[accel_at<Accel>(k, m, c)];
 }
 
 // p += s * F_p on every grid point (the kick).
@@ -157,37 +163,37 @@ void start_kick_drift_sink(PetscScalar *__restrict u, const PetscScalar *__restr
 #define FLEXIPDE_LEAPFROG_SINK 1
 #endif
 
-template <int M>
+template <int M, bool Accel = false>
 void start_kick_drift_loop(PetscScalar *__restrict u, const PetscScalar *__restrict f, PetscScalar *__restrict y,
                            PetscInt n, PetscInt m_rt, PetscReal dt) {
   const PetscInt m = M ? M : m_rt, d = 2 * m;
   if (y)
     for (PetscInt i = 0; i < n; ++i) y[i] = u[i];
-  for (PetscInt i = 0; i < n; i += d)
+  for (PetscInt k = 0; k < n / d; ++k)
     for (PetscInt c = 0; c < m; ++c) {
-      const PetscScalar ph = u[i + m + c] + 0.5 * dt * f[i + m + c];
-      u[i + m + c] = ph;
-      u[i + c] += dt * ph;
+      const PetscScalar ph = u[k * d + m + c] + 0.5 * dt * f[accel_at<Accel>(k, m, c)];
+      u[k * d + m + c] = ph;
+      u[k * d + c] += dt * ph;
     }
 }
 
 // The damped first kick and the drift: p += dt/2 g F_p with g from the factors (those of the velocity
 // rows after a second kick, of the position rows when F is fresh), then q += dt p; Y0 = U first and the
 // new positions to `sink` when given.
-template <int M>
+template <int M, bool Accel = false>
 void damped_start_kick_drift_loop(PetscScalar *__restrict u, const PetscScalar *__restrict f, PetscScalar *__restrict y,
                                   PetscScalar *__restrict sink, const PetscScalar *__restrict factors, bool fresh,
                                   PetscInt n, PetscInt m_rt, PetscReal dt) {
   const PetscInt m = M ? M : m_rt, d = 2 * m, row = fresh ? 0 : m;
   if (y)
     for (PetscInt i = 0; i < n; ++i) y[i] = u[i];
-  for (PetscInt i = 0, k = 0; i < n; i += d)
-    for (PetscInt c = 0; c < m; ++c, ++k) {
-      const PetscScalar g = factors[i + row + c];
-      const PetscScalar ph = u[i + m + c] + 0.5 * dt * g * f[i + m + c];
-      u[i + m + c] = ph;
-      u[i + c] += dt * ph;
-      if (sink) sink[k] = u[i + c];
+  for (PetscInt k = 0; k < n / d; ++k)
+    for (PetscInt c = 0; c < m; ++c) {
+      const PetscScalar g = factors[k * d + row + c];
+      const PetscScalar ph = u[k * d + m + c] + 0.5 * dt * g * f[accel_at<Accel>(k, m, c)];
+      u[k * d + m + c] = ph;
+      u[k * d + c] += dt * ph;
+      if (sink) sink[k * m + c] = u[k * d + c];
     }
 }
 
@@ -215,29 +221,28 @@ PetscErrorCode update_factors(Leapfrog &lf, PetscReal dt) {
   PetscFunctionReturn(0);
 }
 
-// The point-local parts of a step for a model's fused sweep (leapfrog_set_step): the loops of
-// start_kick_drift and kick on ranges of points.
+// The point-local parts of a step for a model's fused sweep (leapfrog_set_step) on ranges of points.
 class StepParts final : public LeapfrogStepParts {
 public:
   StepParts(PetscInt pairs, const PetscScalar *factors, PetscScalar *sink, bool fresh, PetscReal dt)
       : m_(pairs), factors_(factors), sink_(sink), fresh_(fresh), dt_(dt) {}
-  void kick_drift(PetscScalar *u, const PetscScalar *f, PetscInt begin, PetscInt end) const override {
-    const PetscInt d = 2 * m_, a = begin * d, n = (end - begin) * d;
+  void kick_drift(PetscScalar *u, const PetscScalar *a, PetscInt begin, PetscInt end) const override {
+    const PetscInt d = 2 * m_, o = begin * d, n = (end - begin) * d;
+    const PetscScalar *ar = a + begin * m_;
     PetscScalar *q = sink_ ? sink_ + begin * m_ : nullptr;
     if (factors_) {
-      if (m_ == 1) damped_start_kick_drift_loop<1>(u + a, f + a, nullptr, q, factors_ + a, fresh_, n, 1, dt_);
-      else damped_start_kick_drift_loop<0>(u + a, f + a, nullptr, q, factors_ + a, fresh_, n, m_, dt_);
-    } else if (q) {
-      if (m_ == 1) start_kick_drift_loop<1>(u + a, f + a, nullptr, n, 1, dt_);
-      else start_kick_drift_loop<0>(u + a, f + a, nullptr, n, m_, dt_);
-      copy_positions(u + a, q, end - begin);
-    } else if (m_ == 1) start_kick_drift_loop<1>(u + a, f + a, nullptr, n, 1, dt_);
-    else start_kick_drift_loop<0>(u + a, f + a, nullptr, n, m_, dt_);
+      if (m_ == 1) damped_start_kick_drift_loop<1, true>(u + o, ar, nullptr, q, factors_ + o, fresh_, n, 1, dt_);
+      else damped_start_kick_drift_loop<0, true>(u + o, ar, nullptr, q, factors_ + o, fresh_, n, m_, dt_);
+      return;
+    }
+    if (m_ == 1) start_kick_drift_loop<1, true>(u + o, ar, nullptr, n, 1, dt_);
+    else start_kick_drift_loop<0, true>(u + o, ar, nullptr, n, m_, dt_);
+    if (q) copy_positions(u + o, q, end - begin);
   }
-  void kick(PetscScalar *u, const PetscScalar *f, PetscInt begin, PetscInt end) const override {
-    const PetscInt a = begin * 2 * m_, n = (end - begin) * 2 * m_;
-    if (m_ == 1) kick_loop<1>(u + a, f + a, n, 1, 0.5 * dt_);
-    else kick_loop<0>(u + a, f + a, n, m_, 0.5 * dt_);
+  void kick(PetscScalar *u, const PetscScalar *a, PetscInt begin, PetscInt end) const override {
+    const PetscInt o = begin * 2 * m_, n = (end - begin) * 2 * m_;
+    if (m_ == 1) kick_loop<1, true>(u + o, a + begin * m_, n, 1, 0.5 * dt_);
+    else kick_loop<0, true>(u + o, a + begin * m_, n, m_, 0.5 * dt_);
   }
 
 private:
@@ -308,6 +313,17 @@ PetscErrorCode TSStep_Leapfrog(TS ts) {
   PetscCall(PetscObjectStateGet((PetscObject)U, &st));
   const bool fresh = !lf->F_valid || st != lf->F_state || t != lf->F_time;
   if (fresh) PetscCall(TSComputeRHSFunction(ts, t, U, lf->F));
+  if (fresh && lf->step) { // the fused step keeps a alone: the velocity rows of F
+    const PetscScalar *f;
+    PetscInt n;
+    PetscCall(VecGetLocalSize(U, &n));
+    lf->accel.resize((size_t)(n / 2));
+    PetscCall(VecGetArrayRead(lf->F, &f));
+    const PetscInt m = lf->pairs, d = 2 * m;
+    for (PetscInt k = 0; k < n / d; ++k)
+      for (PetscInt c = 0; c < m; ++c) lf->accel[k * m + c] = f[k * d + m + c];
+    PetscCall(VecRestoreArrayRead(lf->F, &f));
+  }
   if (ts->steps == 0) { // once per solve: does anything read this solve's stages?
     PetscBool store = PETSC_FALSE;
     if (ts->trajectory) PetscCall(PetscObjectTypeCompare((PetscObject)ts->trajectory, FLEXIPDE_TSTRAJECTORY_STORE, &store));
@@ -324,7 +340,7 @@ PetscErrorCode TSStep_Leapfrog(TS ts) {
       PetscCall(VecGetArrayRead(lf->factors, &g));
     }
     lf->sunk = nullptr;
-    PetscCall(lf->step(lf->step_ctx, t + dt, U, lf->F, StepParts(lf->pairs, g, sink, fresh, dt)));
+    PetscCall(lf->step(lf->step_ctx, t + dt, U, lf->accel.data(), StepParts(lf->pairs, g, sink, fresh, dt)));
     lf->sunk = sink;
 #if defined(FLEXIPDE_LEAPFROG_SINK)
     if (sink) _mm_sfence(); // the non-temporal stores of the positions, before anyone reads them
@@ -375,6 +391,8 @@ PetscErrorCode TSReset_Leapfrog(TS ts) {
   PetscCall(VecDestroy(&lf->dmu));
   PetscCall(VecDestroy(&lf->r_end));
   PetscCall(VecDestroy(&lf->factors));
+  lf->accel.clear();
+  lf->accel.shrink_to_fit();
   if (lf->Q_placed) PetscCall(VecResetArray(lf->Q));
   lf->Q_placed = false;
   PetscCall(VecDestroy(&lf->Q));
@@ -511,6 +529,37 @@ PetscErrorCode adjoint_level(TS ts, PetscReal t, Vec X, PetscReal w_right, Petsc
   PetscFunctionReturn(0);
 }
 
+// The last-level cache (the indices go outwards: the last one listed) and the number of cores that
+// share it, from /sys (32 MB and 2 if unknown).
+struct LastLevelCache {
+  size_t bytes = (size_t)32 << 20, sharing = 2;
+};
+const LastLevelCache &last_level_cache() {
+  static const LastLevelCache llc = [] {
+    LastLevelCache c;
+    for (int index = 0; index < 8; ++index) {
+      const std::string dir = "/sys/devices/system/cpu/cpu0/cache/index" + std::to_string(index) + "/";
+      std::ifstream size_file(dir + "size"), cpus_file(dir + "shared_cpu_list");
+      std::string size, cpus;
+      if (!(size_file >> size) || !(cpus_file >> cpus)) continue;
+      size_t value = std::strtoul(size.c_str(), nullptr, 10);
+      if (size.back() == 'K') value <<= 10;
+      else if (size.back() == 'M') value <<= 20;
+      size_t sharing = 0; // "0-1,4" -> 3
+      for (size_t at = 0; at < cpus.size();) {
+        const size_t comma = std::min(cpus.find(',', at), cpus.size());
+        const std::string range = cpus.substr(at, comma - at);
+        const size_t dash = range.find('-');
+        sharing += dash == std::string::npos ? 1 : std::stoul(range.substr(dash + 1)) - std::stoul(range) + 1;
+        at = comma + 1;
+      }
+      if (sharing > 0 && value > 0) c.bytes = value, c.sharing = sharing;
+    }
+    return c;
+  }();
+  return llc;
+}
+
 // Reverses step k-1 -> k. On entry ts->ptime = t_k, ts->time_step = -(t_k - t_{k-1}),
 // ts->steps = k-1, Y0 = U_{k-1}, and lambda = dJ/dU_k with all of level k's contributions (the
 // first adjoint step, k = n, adds level n's itself: the TS still holds U_n).
@@ -519,8 +568,14 @@ PetscErrorCode TSAdjointStep_Leapfrog(TS ts) {
   const PetscReal dt = -ts->time_step, tk = ts->ptime;
   PetscFunctionBegin;
   if (ts->adjoint_steps == 0) PetscCall(adjoint_level(ts, tk, ts->vec_sol, 0, 0.5 * dt, 0.5 * dt));
-  // the drift's transpose: in the model's kick at level k-1 when it has one (one sweep fewer), else here
-  const bool fuse_drift = lf->adjoint_kick != nullptr && !lf->sigma;
+  // The drift's transpose: handed to the model's kick at level k-1 when it has one and a rank's lambda
+  // and positions exceed the whole last-level cache (the kick may fold it into its sweep: one pass over
+  // memory fewer), else a pass of its own here: a pass over data the cache holds costs less than the
+  // kick's sweep broken into rows (docs/performance.md).
+  PetscInt n;
+  PetscCall(VecGetLocalSize(ts->vec_sol, &n));
+  const bool fuse_drift =
+      lf->adjoint_kick != nullptr && !lf->sigma && sizeof(PetscScalar) * (size_t)(n + n / 2) > last_level_cache().bytes;
   if (!fuse_drift)
     for (PetscInt k = 0; k < ts->numcost; ++k) PetscCall(drift_transpose(*lf, ts->vecs_sensi[k], dt));
   // level k-1: the right half-kick of this step, then (except at t_0) the left one of the step before
@@ -666,29 +721,8 @@ PetscErrorCode leapfrog_set_adjoint_kick(TS ts, LeapfrogAdjointKick kick, void *
 }
 
 bool leapfrog_one_sweep_pays(size_t bytes) {
-  static const size_t share = [] { // the last-level cache per core that shares it (16 MB if unknown)
-    size_t best = 0;
-    for (int index = 0; index < 8; ++index) {
-      const std::string dir = "/sys/devices/system/cpu/cpu0/cache/index" + std::to_string(index) + "/";
-      std::ifstream size_file(dir + "size"), cpus_file(dir + "shared_cpu_list");
-      std::string size, cpus;
-      if (!(size_file >> size) || !(cpus_file >> cpus)) continue;
-      size_t value = std::strtoul(size.c_str(), nullptr, 10);
-      if (size.back() == 'K') value <<= 10;
-      else if (size.back() == 'M') value <<= 20;
-      size_t sharing = 0; // "0-1,4" -> 3
-      for (size_t at = 0; at < cpus.size();) {
-        const size_t comma = std::min(cpus.find(',', at), cpus.size());
-        const std::string range = cpus.substr(at, comma - at);
-        const size_t dash = range.find('-');
-        sharing += dash == std::string::npos ? 1 : std::stoul(range.substr(dash + 1)) - std::stoul(range) + 1;
-        at = comma + 1;
-      }
-      if (sharing > 0) best = value / sharing; // the indices go outwards: the last one read is the largest
-    }
-    return best > 0 ? best : (size_t)16 << 20;
-  }();
-  return bytes > share;
+  const LastLevelCache &llc = last_level_cache();
+  return bytes > llc.bytes / llc.sharing;
 }
 
 PetscErrorCode leapfrog_set_step(TS ts, LeapfrogStep step, void *ctx) {

@@ -272,10 +272,10 @@ PetscErrorCode Simulation::adjoint_kick_cb(void *ctx, PetscReal t, Vec U, Vec la
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode Simulation::step_cb(void *ctx, PetscReal t, Vec U, Vec F, const LeapfrogStepParts &parts) {
+PetscErrorCode Simulation::step_cb(void *ctx, PetscReal t, Vec U, PetscScalar *accel, const LeapfrogStepParts &parts) {
   auto *sim = static_cast<Simulation *>(ctx);
   PetscFunctionBeginUser;
-  PetscCall(sim->model_->second_order_step(t, U, F, parts));
+  PetscCall(sim->model_->second_order_step(t, U, accel, parts));
   PetscFunctionReturn(0);
 }
 
@@ -623,7 +623,7 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
     if (leapfrog_fused_)
       PetscCall(leapfrog_set_adjoint_kick(ts, adjoint_kick_cb, this));
     const size_t state_bytes = (size_t)grid_->local_points() * model_->dof() * sizeof(PetscScalar);
-    if (model_->has_second_order_step() && leapfrog_one_sweep_pays(2 * state_bytes)) // U and F
+    if (model_->has_second_order_step() && leapfrog_one_sweep_pays(state_bytes + state_bytes / 2)) // U and a
       PetscCall(leapfrog_set_step(ts, step_cb, this));
   }
   // An explicit RK only applies dG/dU (its adjoint: the transpose): the model's matrix-free operator
