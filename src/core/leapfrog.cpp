@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <cstdlib>
 #include <fstream>
+#include <limits>
 #include <string>
 #include <vector>
 #if defined(__SSE2__)
@@ -37,6 +38,9 @@ struct Leapfrog {
   // same as last; the adjoint drift's lambda_p), 1/(1 + s) in the position rows (the first kick after a
   // fresh G; the adjoint drift's lambda_q), so that the adjoint reads them in lambda's layout.
   Vec sigma = nullptr, factors = nullptr;
+  // The runs [first, second) of points where sigma is not 0 (in any velocity row), in order: elsewhere
+  // both factors are 1 and the undamped loops give the same numbers without reading them.
+  std::vector<std::pair<PetscInt, PetscInt>> damped;
   // what the integrand of a time-integrated objective reads (leapfrog_set_integrand_reads)
   bool integrand_reads_velocities = true, integrand_reads_parameters = true;
   // adds w dr/dU to lambda in place, when the objective can (leapfrog_set_integrand_adjoint)
@@ -98,6 +102,20 @@ PetscErrorCode kick(const Leapfrog &lf, Vec U, Vec F, PetscReal s) {
 
 PetscErrorCode update_factors(Leapfrog &lf, PetscReal dt);
 
+// fn(lo, hi, damped) over [begin, end) (points) cut at the edges of the damped runs.
+template <class Fn> void for_damping_runs(const std::vector<std::pair<PetscInt, PetscInt>> &damped, PetscInt begin, PetscInt end, Fn &&fn) {
+  auto run = std::upper_bound(damped.begin(), damped.end(), std::make_pair(begin, std::numeric_limits<PetscInt>::max()));
+  if (run != damped.begin() && std::prev(run)->second > begin) --run;
+  PetscInt at = begin;
+  for (; at < end && run != damped.end() && run->first < end; ++run) {
+    if (run->first > at) fn(at, run->first, false);
+    const PetscInt lo = std::max(at, run->first), hi = std::min(end, run->second);
+    if (hi > lo) fn(lo, hi, true);
+    at = std::max(at, hi);
+  }
+  if (at < end) fn(at, end, false);
+}
+
 // The drift's transpose on the adjoint: lambda_p += dt * lambda_q, and with damping (the two kicks'
 // factors on either side of it) lambda_p = ((1 - s) lambda_p + dt lambda_q) / (1 + s), s = sigma dt/2
 // (the forward drift is fused into start_kick_drift).
@@ -112,8 +130,11 @@ PetscErrorCode drift_transpose(Leapfrog &lf, Vec lambda, PetscReal dt) {
     const PetscInt m = lf.pairs, d = lf.dof;
     PetscCall(update_factors(lf, dt));
     PetscCall(VecGetArrayRead(lf.factors, &g));
-    for (PetscInt i = 0; i < n; i += d)
-      for (PetscInt c = 0; c < m; ++c) l[i + m + c] = g[i + m + c] * l[i + m + c] + dt * g[i + c] * l[i + c];
+    for_damping_runs(lf.damped, 0, n / d, [&](PetscInt lo, PetscInt hi, bool damped) {
+      if (!damped) return leapfrog_drift_transpose(l, lo, hi, m, dt);
+      for (PetscInt i = lo * d; i < hi * d; i += d)
+        for (PetscInt c = 0; c < m; ++c) l[i + m + c] = g[i + m + c] * l[i + m + c] + dt * g[i + c] * l[i + c];
+    });
     PetscCall(VecRestoreArrayRead(lf.factors, &g));
   } else leapfrog_drift_transpose(l, 0, n / lf.dof, lf.pairs, dt);
   PetscCall(VecRestoreArray(lambda, &l));
@@ -209,12 +230,20 @@ PetscErrorCode update_factors(Leapfrog &lf, PetscReal dt) {
   PetscCall(VecGetArrayRead(lf.sigma, &sg));
   PetscCall(VecGetArrayWrite(lf.factors, &g));
   const PetscInt m = lf.pairs, d = 2 * m;
-  for (PetscInt i = 0; i < n; i += d)
+  lf.damped.clear();
+  for (PetscInt i = 0; i < n; i += d) {
+    bool damped = false;
     for (PetscInt c = 0; c < m; ++c) {
       const PetscScalar s = 0.5 * dt * sg[i + m + c];
       g[i + c] = 1.0 / (1.0 + s);
       g[i + m + c] = (1.0 - s) / (1.0 + s);
+      damped = damped || sg[i + m + c] != 0;
     }
+    const PetscInt k = i / d;
+    if (!damped) continue;
+    if (!lf.damped.empty() && lf.damped.back().second == k) ++lf.damped.back().second;
+    else lf.damped.emplace_back(k, k + 1);
+  }
   PetscCall(VecRestoreArrayWrite(lf.factors, &g));
   PetscCall(VecRestoreArrayRead(lf.sigma, &sg));
   lf.dt_scaled = dt;
@@ -224,20 +253,20 @@ PetscErrorCode update_factors(Leapfrog &lf, PetscReal dt) {
 // The point-local parts of a step for a model's fused sweep (leapfrog_set_step) on ranges of points.
 class StepParts final : public LeapfrogStepParts {
 public:
-  StepParts(PetscInt pairs, const PetscScalar *factors, PetscScalar *sink, bool fresh, PetscReal dt)
-      : m_(pairs), factors_(factors), sink_(sink), fresh_(fresh), dt_(dt) {}
+  // factors, damped: the damping's (null: none) and its runs.
+  StepParts(PetscInt pairs, const PetscScalar *factors, const std::vector<std::pair<PetscInt, PetscInt>> *damped,
+            PetscScalar *sink, bool fresh, PetscReal dt)
+      : m_(pairs), factors_(factors), damped_(damped), sink_(sink), fresh_(fresh), dt_(dt) {}
   void kick_drift(PetscScalar *u, const PetscScalar *a, PetscInt begin, PetscInt end) const override {
-    const PetscInt d = 2 * m_, o = begin * d, n = (end - begin) * d;
-    const PetscScalar *ar = a + begin * m_;
-    PetscScalar *q = sink_ ? sink_ + begin * m_ : nullptr;
-    if (factors_) {
-      if (m_ == 1) damped_start_kick_drift_loop<1, true>(u + o, ar, nullptr, q, factors_ + o, fresh_, n, 1, dt_);
-      else damped_start_kick_drift_loop<0, true>(u + o, ar, nullptr, q, factors_ + o, fresh_, n, m_, dt_);
-      return;
-    }
-    if (m_ == 1) start_kick_drift_loop<1, true>(u + o, ar, nullptr, n, 1, dt_);
-    else start_kick_drift_loop<0, true>(u + o, ar, nullptr, n, m_, dt_);
-    if (q) copy_positions(u + o, q, end - begin);
+    if (factors_)
+      for_damping_runs(*damped_, begin, end, [&](PetscInt lo, PetscInt hi, bool damped) {
+        if (!damped) return plain_kick_drift(u, a, lo, hi);
+        const PetscInt d = 2 * m_, o = lo * d, n = (hi - lo) * d;
+        PetscScalar *q = sink_ ? sink_ + lo * m_ : nullptr;
+        if (m_ == 1) damped_start_kick_drift_loop<1, true>(u + o, a + lo * m_, nullptr, q, factors_ + o, fresh_, n, 1, dt_);
+        else damped_start_kick_drift_loop<0, true>(u + o, a + lo * m_, nullptr, q, factors_ + o, fresh_, n, m_, dt_);
+      });
+    else plain_kick_drift(u, a, begin, end);
   }
   void kick(PetscScalar *u, const PetscScalar *a, PetscInt begin, PetscInt end) const override {
     const PetscInt o = begin * 2 * m_, n = (end - begin) * 2 * m_;
@@ -246,6 +275,15 @@ public:
   }
 
 private:
+  // The undamped first kick and drift (and the positions to the sink).
+  void plain_kick_drift(PetscScalar *u, const PetscScalar *a, PetscInt begin, PetscInt end) const {
+    const PetscInt d = 2 * m_, o = begin * d, n = (end - begin) * d;
+    const PetscScalar *ar = a + begin * m_;
+    PetscScalar *q = sink_ ? sink_ + begin * m_ : nullptr;
+    if (m_ == 1) start_kick_drift_loop<1, true>(u + o, ar, nullptr, n, 1, dt_);
+    else start_kick_drift_loop<0, true>(u + o, ar, nullptr, n, m_, dt_);
+    if (q) copy_positions(u + o, q, end - begin);
+  }
   // The positions of npt points of u (2m entries each) to q (m each): the cache lines of q that the
   // range covers whole with non-temporal stores (the trajectory is not read again until the adjoint),
   // the partial ones at its ends with plain stores, which other ranges of the step complete.
@@ -262,6 +300,7 @@ private:
   }
   PetscInt m_;
   const PetscScalar *factors_;
+  const std::vector<std::pair<PetscInt, PetscInt>> *damped_;
   PetscScalar *sink_;
   bool fresh_;
   PetscReal dt_;
@@ -340,7 +379,7 @@ PetscErrorCode TSStep_Leapfrog(TS ts) {
       PetscCall(VecGetArrayRead(lf->factors, &g));
     }
     lf->sunk = nullptr;
-    PetscCall(lf->step(lf->step_ctx, t + dt, U, lf->accel.data(), StepParts(lf->pairs, g, sink, fresh, dt)));
+    PetscCall(lf->step(lf->step_ctx, t + dt, U, lf->accel.data(), StepParts(lf->pairs, g, &lf->damped, sink, fresh, dt)));
     lf->sunk = sink;
 #if defined(FLEXIPDE_LEAPFROG_SINK)
     if (sink) _mm_sfence(); // the non-temporal stores of the positions, before anyone reads them
