@@ -1235,11 +1235,12 @@ public:
     PetscFunctionReturn(0);
   }
   // A whole leapfrog step in one sweep (Model::second_order_step), 2D and 3D: the kick and drift of the
-  // points within forward_strip_ of the owned block's edge, then their ghosts (all that the points near the edge
-  // read, as for G), then row by row (the rows (j, k) in memory order): the kick and drift of the inner
-  // points of the rows G on this row will read (R rows ahead in 2D, R planes in 3D), G's velocity rows
-  // (the accelerations) on the row as rhs() evaluates them, the row's forcing, and the second kick. The rows a point reads are in the cache
-  // from the kick and drift a little earlier: one pass over the state from memory instead of three.
+  // points within forward_strip_ of the owned block's edge, then their ghosts (all that the points near
+  // the edge read, as for G), then row by row (the rows (j, k) in memory order): the kick and drift of
+  // the inner points of the rows G on this row will read (R rows ahead in 2D, R planes in 3D), G's
+  // velocity rows (the accelerations) on the row as rhs() evaluates them, the row's forcing, and the
+  // second kick. The rows a point reads are in the cache from the kick and drift a little earlier: one
+  // pass over the state from memory instead of three.
   static constexpr bool FusedStep = pointwise::PairsOf<Eq>::value > 0 && D >= 2 && K == 0 && H == 0 && !Flux;
   bool has_second_order_step() const override { return FusedStep && second_order_pairs() > 0; }
   FLEXIPDE_SWEEP PetscErrorCode second_order_step(PetscReal t, Vec U, PetscScalar *accel, const LeapfrogStepParts &parts) override {
