@@ -942,18 +942,15 @@ public:
           run_kind(plan.kind[2], point, Edge());
         } else if constexpr (ADDY && D >= 2) {
           constexpr int m = CS; // the kick's x_p and y = x_q: m components each
-          const PetscInt xm = grid_->xm(), ym = grid_->ym(), rows = ym * grid_->zm(), B = strip_;
-          const PetscInt ahead = (D == 3 ? R * ym : R) + 2; // two rows beyond the reach of the rows' reads
           RowCursor cursor(plan);
-          for (PetscInt r = 0, drifted = 0; r < rows; ++r) {
-            for (; drifted < rows && drifted <= r + ahead; ++drifted)
-              if (inner_row(B, drifted)) leapfrog_drift_transpose(y, drifted * xm + B, drifted * xm + xm - B, m, drift);
-            const PetscInt j = grid_->ys() + r % ym, k = grid_->zs() + r / ym;
-            const auto k0 = cursor.take(0, j, k), k1 = cursor.take(1, j, k), k2 = cursor.take(2, j, k);
-            run_kind(k0.first, k0.second, point, Check<false>());
-            run_kind(k1.first, k1.second, wall_point, Edge());
-            run_kind(k2.first, k2.second, point, Edge());
-          }
+          for_rows_ahead(
+              strip_, [&](PetscInt lo, PetscInt hi) { leapfrog_drift_transpose(y, lo, hi, m, drift); },
+              [&](PetscInt, PetscInt j, PetscInt k) {
+                const auto k0 = cursor.take(0, j, k), k1 = cursor.take(1, j, k), k2 = cursor.take(2, j, k);
+                run_kind(k0.first, k0.second, point, Check<false>());
+                run_kind(k1.first, k1.second, wall_point, Edge());
+                run_kind(k2.first, k2.second, point, Edge());
+              });
         }
       } else for_points<true, true>(2 * R, point); // (equations on a wall test wall(): EdgeNearWall)
       // An owned point's mirror images beyond odd walls are read by the stencils next to the wall:
@@ -1247,7 +1244,6 @@ public:
     PetscFunctionBeginUser;
     if constexpr (FusedStep) {
       const PetscInt xm = grid_->xm(), ym = grid_->ym(), zm = grid_->zm(), B = forward_strip_, rows = ym * zm;
-      const PetscInt reach = D == 3 ? R * ym : R; // G on row r reads rows up to r + reach
       {
         Array u(U);
         PetscCall(u.error());
@@ -1286,26 +1282,24 @@ public:
           };
           RowCursor cursor(runs(R, true, false));
           size_t next_force = 0;
-          // The inner rows before `drifted` have had their kick and drift, rows [0, kicked) their second
-          // kick. The kick and drift run two rows ahead of G's reach and the second kick one row behind
-          // G, so that G never loads entries whose stores are still on their way to the cache.
-          PetscInt drifted = 0, kicked = 0;
-          for (PetscInt r = 0; r < rows; ++r) {
-            const PetscInt j = grid_->ys() + r % ym, k = grid_->zs() + r / ym;
-            for (; drifted < rows && drifted <= r + reach + 2; ++drifted)
-              if (inner_row(B, drifted)) parts.kick_drift(ud, out, drifted * xm + B, drifted * xm + xm - B);
-            const auto k0 = cursor.take(0, j, k), k1 = cursor.take(1, j, k), k2 = cursor.take(2, j, k);
-            run_kind(k0.first, k0.second, point, Check<false>());
-            run_kind(k1.first, k1.second, point, Check<true>());
-            run_kind(k2.first, k2.second, point, Edge());
-            if constexpr (pointwise::HasForcing<Eq>::value)
-              for (; next_force < forcing_order_.size(); ++next_force) {
-                const PetscInt e = forcing_order_[next_force], own = source_->stencil.local[e];
-                if (own >= (r + 1) * xm) break;
-                out[own * m + Eq::forced_component - m] += source_->density(e, t);
-              }
-            for (; kicked < r; ++kicked) parts.kick(ud, out, kicked * xm, (kicked + 1) * xm);
-          }
+          // Rows [0, kicked) have had their second kick, one row behind G, so that G never loads
+          // entries whose stores are still on their way to the cache.
+          PetscInt kicked = 0;
+          for_rows_ahead(
+              B, [&](PetscInt lo, PetscInt hi) { parts.kick_drift(ud, out, lo, hi); },
+              [&](PetscInt r, PetscInt j, PetscInt k) {
+                const auto k0 = cursor.take(0, j, k), k1 = cursor.take(1, j, k), k2 = cursor.take(2, j, k);
+                run_kind(k0.first, k0.second, point, Check<false>());
+                run_kind(k1.first, k1.second, point, Check<true>());
+                run_kind(k2.first, k2.second, point, Edge());
+                if constexpr (pointwise::HasForcing<Eq>::value)
+                  for (; next_force < forcing_order_.size(); ++next_force) {
+                    const PetscInt e = forcing_order_[next_force], own = source_->stencil.local[e];
+                    if (own >= (r + 1) * xm) break;
+                    out[own * m + Eq::forced_component - m] += source_->density(e, t);
+                  }
+                for (; kicked < r; ++kicked) parts.kick(ud, out, kicked * xm, (kicked + 1) * xm);
+              });
           for (; kicked < rows; ++kicked) parts.kick(ud, out, kicked * xm, (kicked + 1) * xm);
         });
       });
@@ -1803,6 +1797,19 @@ private:
       const PetscInt row = r * xm;
       if (!inner_row(B, r)) fn(row, row + xm);
       else fn(row, row + B), fn(row + xm - B, row + xm);
+    }
+  }
+  // The owned rows (j, k) in memory order, row(r, j, k) on each, and inner(lo, hi) on the inner points
+  // of every inner row up to two rows beyond the reach of row r's stencils (R rows in 2D, R planes in
+  // 3D) before it: what row r reads has had its inner() a little earlier, so it is still in the cache,
+  // and none of it has stores still on their way there. (The leapfrog's fused step and kick.)
+  template <class Inner, class Row> void for_rows_ahead(PetscInt B, Inner &&inner, Row &&row) const {
+    const PetscInt xm = grid_->xm(), ym = grid_->ym(), rows = ym * grid_->zm();
+    const PetscInt ahead = (D == 3 ? R * ym : R) + 2;
+    for (PetscInt r = 0, done = 0; r < rows; ++r) {
+      for (; done < rows && done <= r + ahead; ++done)
+        if (inner_row(B, done)) inner(done * xm + B, done * xm + xm - B);
+      row(r, grid_->ys() + r % ym, grid_->zs() + r / ym);
     }
   }
   // All runs of one kind: one function per kind and sweep, whose loops the compiler vectorises. It
