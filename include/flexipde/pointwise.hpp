@@ -1146,7 +1146,7 @@ public:
       if (record) { // the stage's positions alone
         PetscCall(VecPlaceArray(pos_rec_, record));
         pos_.ref = pos_rec_;
-        PetscCall(fill_ghosts(pos_rec_, pos_.g, pos_ghosts_, m));
+        PetscCall(fill_ghosts<m>(pos_rec_, pos_.g, pos_ghosts_));
         PetscCall((transpose<0, C, 0, C, m, false, true>(t, pos_, x, y, 1.0, mu, in_adjoint_)));
         PetscCall(VecResetArray(pos_rec_));
         PetscFunctionReturn(0);
@@ -1225,8 +1225,8 @@ public:
         else leapfrog_drift_transpose(l.data(), 0, grid_->local_points(), m, drift);
       }
       PetscCall(ghosts_.begin(lambda, Xl_));
-      PetscCall(fill_ghosts(pos_.ref, pos_.g, pos_ghosts_, m, false, true));
-      PetscCall(fill_ghosts(lambda, Xl_, ghosts_, C, true, true));
+      PetscCall(fill_ghosts<m>(pos_.ref, pos_.g, pos_ghosts_, false, true));
+      PetscCall(fill_ghosts(lambda, Xl_, ghosts_, true, true));
       PetscCall((transpose<m, 2 * m, 0, m, m, true>(t, pos_, lambda, lambda, w, mu, in_adjoint_, true, in_gather ? drift : 0.0)));
     }
     PetscFunctionReturn(0);
@@ -2008,14 +2008,16 @@ private:
     s.ref = s.copy;
     PetscFunctionReturn(0);
   }
-  // The ghosted `local` from the global x, ncomp per point: its ghosts and the owned points within
+  // The ghosted `local` from the global x, NC components per point: its ghosts and the owned points within
   // `strip` (strip_ unless given) of the block's edge (all a checked or Edge point reads), then the positions the fold table
   // maps elsewhere: mirror images beyond odd walls (their sign times the point's value) and 0 on held
   // walls and beyond other walls, or, for a cotangent (the x of a transpose, whose entries are per
   // equation), 0 at all of them: beyond a wall and on a held wall there is no equation.
-  // begun: the caller has begun the scatter (to have two arrays' ghosts on their way at once).
-  PetscErrorCode fill_ghosts(Vec x, Vec local, const GhostExchange &ex, PetscInt ncomp = C, bool cotangent = false,
-                             bool begun = false, PetscInt strip = 0) const {
+  // begun: the caller has begun the scatter (to have two arrays' ghosts on their way at once). NC is known
+  // at compile time so that a fold's NC stores are inline, not a call per position.
+  template <int NC = C>
+  PetscErrorCode fill_ghosts(Vec x, Vec local, const GhostExchange &ex, bool cotangent = false, bool begun = false,
+                             PetscInt strip = 0) const {
     PetscFunctionBeginUser;
     if (!begun) PetscCall(ex.begin(x, local));
     {
@@ -2028,8 +2030,8 @@ private:
       const PetscInt xs = grid_->xs(), xm = grid_->xm(), ys = grid_->ys(), ym = grid_->ym(), zs = grid_->zs(), zm = grid_->zm();
       const PetscInt w = strip > 0 ? strip : strip_;
       auto copy = [&](PetscInt j, PetscInt k, PetscInt i0, PetscInt i1) {
-        copy_entries(o.data() + (((k - zs) * ym + j - ys) * xm + i0 - xs) * ncomp, (i1 - i0) * ncomp,
-                     g.data() + (((k - gzs) * gym + j - gys) * gxm + i0 - gxs) * ncomp);
+        copy_entries(o.data() + (((k - zs) * ym + j - ys) * xm + i0 - xs) * NC, (i1 - i0) * NC,
+                     g.data() + (((k - gzs) * gym + j - gys) * gxm + i0 - gxs) * NC);
       };
       for (PetscInt k = zs; k < zs + zm; ++k) {
         const bool edge_plane = D > 2 && (k < zs + w || k >= zs + zm - w);
@@ -2046,12 +2048,12 @@ private:
       PetscCall(g.error());
       PetscScalar *a = g.data();
       for (const auto &e : folded_)
-        for (PetscInt c = 0; c < ncomp; ++c) a[e.at * ncomp + c] = cotangent || e.src < 0 ? 0.0 : e.sign * a[e.src * ncomp + c];
+        for (int c = 0; c < NC; ++c) a[e.at * NC + c] = cotangent || e.src < 0 ? 0.0 : e.sign * a[e.src * NC + c];
     }
     PetscFunctionReturn(0);
   }
   PetscErrorCode fill_ghosts(Vec x, Vec local, bool cotangent = false) const {
-    return fill_ghosts(x, local, ghosts_, C, cotangent);
+    return fill_ghosts(x, local, ghosts_, cotangent);
   }
   // The ghosted box's sources and signs (Frame::src, Frame::sgn).
   void make_fold_table() {
@@ -2108,7 +2110,7 @@ private:
     PetscFunctionBeginUser;
     if (keep) PetscCall(VecCopy(U, s.copy));
     s.ref = keep ? s.copy.get() : U;
-    PetscCall(fill_ghosts(s.ref, s.g, ghosts_, C, false, false, strip));
+    PetscCall(fill_ghosts(s.ref, s.g, ghosts_, false, false, strip));
     if constexpr (KL) PetscCall(auxiliary_lines(s.ref, s.line));
     else if constexpr (K > 0)
       if (!uniform_) PetscCall(auxiliaries(s.ref, s.a)); // (uniform coupling: the sweeps read a = 0)
