@@ -22,18 +22,8 @@
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
-#include <string.h>
-#include <time.h>
 
-static double now(void) {
-  struct timespec t;
-  clock_gettime(CLOCK_MONOTONIC, &t);
-  return t.tv_sec + 1e-9 * t.tv_nsec;
-}
-static int by_value(const void *a, const void *b) {
-  const double x = *(const double *)a, y = *(const double *)b;
-  return x < y ? -1 : x > y;
-}
+#include "reference_common.h"
 
 /* a = c^2 L q on the interior of row r (q: row-major, `stride` entries per point) */
 #define ACC(q, stride, r, i)                                                                              \
@@ -131,7 +121,7 @@ int main(int argc, char **argv) {
       sum = 0;
       for (size_t p = 0; p < N; ++p) sum += qn[p * st];
     }
-    qsort(t, repeats, sizeof(double), by_value);
+    qsort(t, repeats, sizeof(double), cmp);
     printf("%-24s n %d, %d steps: %.4f s, %5.0f Mpt/s, sum of u_n %.12e\n", names[variant], n, steps, t[repeats / 2],
            (double)N * steps / t[repeats / 2] / 1e6, sum);
   }

@@ -1,4 +1,4 @@
-/* Shared by the hand-written reference loops (reference_*.c): a monotonic clock and the comparison
+/* Shared by the hand-written reference loops (reference_*.c, leapfrog_layouts.c): a monotonic clock and the comparison
    qsort needs for medians. */
 #ifndef FLEXIPDE_REFERENCE_COMMON_H
 #define FLEXIPDE_REFERENCE_COMMON_H
