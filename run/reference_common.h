@@ -1,5 +1,5 @@
-/* Shared by the hand-written reference loops (reference_*.c, leapfrog_layouts.c): a monotonic clock and the comparison
-   qsort needs for medians. */
+/* Shared by the hand-written reference loops (reference_*.c, leapfrog_layouts.c): a monotonic clock
+   and the comparison qsort needs for medians. */
 #ifndef FLEXIPDE_REFERENCE_COMMON_H
 #define FLEXIPDE_REFERENCE_COMMON_H
 #include <time.h>
