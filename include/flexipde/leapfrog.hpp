@@ -110,6 +110,37 @@ protected:
 // accel = G_p(t, U) (m per owned point) at the state after kick_drift, and U after kick (t: the step's end).
 using LeapfrogStep = PetscErrorCode (*)(void *ctx, PetscReal t, Vec U, PetscScalar *accel, const LeapfrogStepParts &parts);
 PetscErrorCode leapfrog_set_step(TS ts, LeapfrogStep step, void *ctx);
+// Optional split step (Model::second_order_split_step): the integrator keeps the positions q and the
+// velocities v in arrays of their own between steps, v at the half steps, and makes a step
+//   v_{k+1/2} = v_{k-1/2} + dt a(t_k, q_k),   q_{k+1} = q_k + dt v_{k+1/2}
+// (the two half-kicks that meet at t_k as one; with damping (1 + s) v_{k+1/2} = (1 - s) v_{k-1/2} + dt a_k)
+// in one sweep over q and v: the stencils read whole vectors of positions, and a is never stored. It is
+// the same scheme as the kick-drift-kick above, in another order of rounding. U = (q, p) is formed
+// (p_k = v_{k-1/2} + dt/2 G_p(q_k, v_{k-1/2})) only when someone reads it: at the end of a solve, before
+// a step of the other kind, for monitors that ask (leapfrog_form_solution); a solve whose steps are
+// watched by anything else (monitors, step hooks, events, other trajectories, an integrand that reads
+// velocities) takes the kick-drift-kick steps.
+class LeapfrogSplitParts {
+public:
+  // v += the kick of the time level with the accelerations a of the points [begin, end) (m each, a[0]
+  // the first point's): once the points' a is final.
+  virtual void kick(PetscScalar *v, const PetscScalar *a, PetscInt begin, PetscInt end) const = 0;
+  // q += dt v on the points [begin, end) (and q to the trajectory's slot): once no G reads their q_k.
+  virtual void drift(PetscScalar *q, const PetscScalar *v, PetscInt begin, PetscInt end) const = 0;
+
+protected:
+  ~LeapfrogSplitParts() = default;
+};
+// Q: the positions (m per owned point, the model's positions layout), changed in place; v: the velocities
+// (m per owned point); t: the step's start, where a is evaluated.
+using LeapfrogSplitStep = PetscErrorCode (*)(void *ctx, PetscReal t, Vec Q, PetscScalar *v, const LeapfrogSplitParts &parts);
+PetscErrorCode leapfrog_set_split_step(TS ts, LeapfrogSplitStep step, void *ctx);
+// The TS's solution made current (collective; nothing when it is): for a monitor that reads it, which
+// says so with leapfrog_monitor_forms_solution (a monitor that does not say so makes every step a
+// kick-drift-kick step). TSMonitorDefault reads no state.
+PetscErrorCode leapfrog_form_solution(TS ts);
+using LeapfrogMonitor = PetscErrorCode (*)(TS, PetscInt, PetscReal, Vec, void *);
+PetscErrorCode leapfrog_monitor_forms_solution(TS ts, LeapfrogMonitor monitor);
 // Whether one sweep beats three passes for a rank whose U and accelerations take `bytes`: when they exceed the
 // last-level cache's share per core. Within the caches the three passes stream faster; beyond them one
 // sweep saves two passes over memory (docs/performance.md).

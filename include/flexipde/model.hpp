@@ -19,7 +19,8 @@
 namespace flexipde {
 
 struct PointSource;       // survey.hpp
-class LeapfrogStepParts; // leapfrog.hpp
+class LeapfrogStepParts;  // leapfrog.hpp
+class LeapfrogSplitParts; // leapfrog.hpp
 
 // Bounds on the spectrum of dG/dU, used to refuse explicit steps beyond the stability limit.
 struct Spectrum {
@@ -99,6 +100,15 @@ public:
   virtual PetscErrorCode second_order_step(PetscReal t, Vec U, PetscScalar *accel, const LeapfrogStepParts &parts) {
     (void)t, (void)accel, (void)parts;
     SETERRQ(PetscObjectComm((PetscObject)U), PETSC_ERR_SUP, "Model %s has no fused leapfrog step", name());
+  }
+  // With second_order_step: the leapfrog's split step on the positions Q (m per owned point, the layout of
+  // a grid DM with m components; changed in place) and the velocities v (m per owned point): parts.kick on
+  // every point with a = G_p at t and the positions (the velocities read as 0: G_p's damping is the
+  // integrator's) once the point's a is final, and parts.drift on every point once no G reads its
+  // positions (on any rank); collective.
+  virtual PetscErrorCode second_order_split_step(PetscReal t, Vec Q, PetscScalar *v, const LeapfrogSplitParts &parts) {
+    (void)t, (void)v, (void)parts;
+    SETERRQ(PetscObjectComm((PetscObject)Q), PETSC_ERR_SUP, "Model %s has no leapfrog split step", name());
   }
   // Optional: the products of one explicit-RK adjoint stage fused into one sweep without any matrix:
   // at state U,

@@ -58,7 +58,8 @@ public:
   virtual bool integrand_reads_parameters() const { return true; }
   // Optional, for an integrand whose dr/dU is sparse (the receivers): lambda += w dr/dU(t, U) in place,
   // without a state-sized dr/dU. U is a state or, for an integrand that reads no velocity, the positions
-  // alone (m per grid point, as the leapfrog's adjoint stores them).
+  // alone (m per grid point, as the leapfrog's adjoint stores them); such an objective's integrand()
+  // takes the positions alone too (the leapfrog's split steps hand it them).
   virtual bool adds_integrand_dU() const { return false; }
   virtual PetscErrorCode integrand_dU_add(PetscReal t, Vec U, PetscReal w, Vec lambda) {
     (void)t, (void)U, (void)w;

@@ -1250,15 +1250,7 @@ public:
         for_edge_strips(B, [&](PetscInt lo, PetscInt hi) { parts.kick_drift(u.data(), accel, lo, hi); });
       }
       PetscCall(load(U, st_, false, forward_strip_));
-      // the forcing's points in row order (stable: a point's terms add in rhs()'s order)
-      forcing_order_.clear();
-      if constexpr (pointwise::HasForcing<Eq>::value)
-        if (source_) {
-          for (PetscInt k = 0; k < source_->stencil.n; ++k)
-            if (forced_point(source_->stencil.local[k])) forcing_order_.push_back(k);
-          std::stable_sort(forcing_order_.begin(), forcing_order_.end(),
-                           [&](PetscInt a, PetscInt b) { return source_->stencil.local[a] < source_->stencil.local[b]; });
-        }
+      sort_forcing();
       StateView sv(st_);
       ConstArray p(P_);
       Array u(U);
@@ -1305,6 +1297,78 @@ public:
       });
     }
     PetscFunctionReturn(0);
+  }
+  // The leapfrog's split step (Model::second_order_split_step), 2D and 3D: the ghosts of the positions
+  // q_k and copies of those within forward_strip_ of the owned block's edge (all that the points near the
+  // edge read), then row by row (the rows (j, k) in memory order): a = G_p on the row as rhs() evaluates
+  // it at the positions (the velocities read as 0), the row's forcing, the row's kick, and the drift of
+  // the rows the stencils read no more (R rows behind in 2D, R planes and R rows in 3D). The positions
+  // and velocities pass through the cache once, and a only through a row's buffer.
+  FLEXIPDE_SWEEP PetscErrorCode second_order_split_step(PetscReal t, Vec Q, PetscScalar *v,
+                                                        const LeapfrogSplitParts &parts) override {
+    PetscFunctionBeginUser;
+    if constexpr (FusedStep) {
+      constexpr int m = pointwise::PairsOf<Eq>::value;
+      const PetscInt xm = grid_->xm(), ym = grid_->ym(), rows = ym * grid_->zm();
+      const PetscInt behind = D == 3 ? R * ym + R : R; // the furthest row after it that reads a row
+      PetscCall(fill_ghosts<m>(Q, pos_.g, pos_ghosts_, false, false, forward_strip_));
+      sort_forcing();
+      Array q(Q);
+      ConstArray g(pos_.g), p(P_);
+      PetscCall(q.error());
+      PetscCall(g.error());
+      PetscCall(p.error());
+      pointwise::Frame f = frame_;
+      f.t = t, f.U = q.data(), f.Ug = g.data(), f.P = p.data();
+      uncoupled(f);
+      const pointwise::Frame fe = edge_frame(f);
+      row_accel_.resize((size_t)(xm * m));
+      PetscScalar *qd = q.data(), *row = row_accel_.data();
+      with_constants([&](auto sc) {
+        with_model([&](const auto &eq) {
+          RowCursor cursor(runs(R, true, false));
+          size_t next_force = 0;
+          PetscInt drifted = 0; // rows [0, drifted) hold q_{k+1}
+          for (PetscInt r = 0; r < rows; ++r) {
+            const PetscInt j = grid_->ys() + r % ym, k = grid_->zs() + r / ym, first = r * xm;
+            PetscScalar *out = row - first * m; // a of owned point `own` at out[own * m]
+            const auto point = [=](PetscInt at, PetscInt own, PetscInt i, PetscInt j, PetscInt k, auto ck) {
+              constexpr int where = decltype(ck)::value;
+              double gv[C];
+              rhs_of(eq, Pt<Mode::Value, 0, 0, where == 1, m, where == 1, decltype(sc)::value>(where >= 2 ? fe : f, at,
+                                                                                             where >= 2 ? at : own, i, j, k),
+                     gv);
+              for (int c = 0; c < m; ++c) out[own * m + c] = gv[m + c];
+            };
+            const auto k0 = cursor.take(0, j, k), k1 = cursor.take(1, j, k), k2 = cursor.take(2, j, k);
+            run_kind(k0.first, k0.second, point, Check<false>());
+            run_kind(k1.first, k1.second, point, Check<true>());
+            run_kind(k2.first, k2.second, point, Edge());
+            if constexpr (pointwise::HasForcing<Eq>::value)
+              for (; next_force < forcing_order_.size(); ++next_force) {
+                const PetscInt e = forcing_order_[next_force], own = source_->stencil.local[e];
+                if (own >= first + xm) break;
+                out[own * m + Eq::forced_component - m] += source_->density(e, t);
+              }
+            parts.kick(v, row, first, first + xm);
+            for (; drifted + behind <= r; ++drifted) parts.drift(qd, v, drifted * xm, (drifted + 1) * xm);
+          }
+          for (; drifted < rows; ++drifted) parts.drift(qd, v, drifted * xm, (drifted + 1) * xm);
+        });
+      });
+    }
+    PetscFunctionReturn(0);
+  }
+  // The forcing's points in row order (stable: a point's terms add in rhs()'s order).
+  void sort_forcing() {
+    forcing_order_.clear();
+    if constexpr (pointwise::HasForcing<Eq>::value)
+      if (source_) {
+        for (PetscInt k = 0; k < source_->stencil.n; ++k)
+          if (forced_point(source_->stencil.local[k])) forcing_order_.push_back(k);
+        std::stable_sort(forcing_order_.begin(), forcing_order_.end(),
+                         [&](PetscInt a, PetscInt b) { return source_->stencil.local[a] < source_->stencil.local[b]; });
+      }
   }
   bool positions_suffice() const {
     if (positions_probe_ < 0) {
@@ -2584,6 +2648,7 @@ private:
   };
   std::vector<Image> images_;
   std::vector<PetscInt> forcing_order_; // second_order_step's forced points in row order
+  std::vector<PetscScalar> row_accel_;  // second_order_split_step's accelerations of one row
   mutable std::deque<std::pair<PetscInt, RunPlan>> plans_; // for_points' runs, per margin and flags
   std::vector<double> sgn_;
   PetscInt strip_ = 1;         // the owned edge strips fill_ghosts copies into a ghosted array (the gather's),

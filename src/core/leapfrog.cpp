@@ -41,6 +41,8 @@ struct Leapfrog {
   // The runs [first, second) of points where sigma is not 0 (in any velocity row), in order: elsewhere
   // both factors are 1 and the undamped loops give the same numbers without reading them.
   std::vector<std::pair<PetscInt, PetscInt>> damped;
+  // The same factors m per point, for the split step's kick: 1/(1 + s) and (1 - s)/(1 + s).
+  std::vector<PetscScalar> inv_factor, keep_factor;
   // what the integrand of a time-integrated objective reads (leapfrog_set_integrand_reads)
   bool integrand_reads_velocities = true, integrand_reads_parameters = true;
   // adds w dr/dU to lambda in place, when the objective can (leapfrog_set_integrand_adjoint)
@@ -68,6 +70,20 @@ struct Leapfrog {
   // steps (PETSc's, binomial checkpointing). Plain forward solves and the "store" trajectory (which
   // hands the adjoint U_{k-1} itself) skip the copy, a third of a step's memory traffic.
   bool copy_stage = true;
+  // The model's split step (leapfrog_set_split_step), the positions Qs (m per point) and velocities Vs
+  // it keeps between steps, and the monitors that form the solution themselves when they read it.
+  LeapfrogSplitStep split = nullptr;
+  void *split_ctx = nullptr;
+  Vec Qs = nullptr;
+  std::vector<PetscScalar> Vs;
+  std::vector<LeapfrogMonitor> forming_monitors;
+  // Qs and Vs hold the state at split_time when split_valid, v at split_time - split_dt/2 (split_dt = 0:
+  // v is p at split_time itself, as loaded from U). U was last consistent with them when its object
+  // state was split_u_state; u_behind: they have moved on since, and U is stale.
+  bool split_valid = false, u_behind = false;
+  PetscReal split_time = 0, split_dt = 0;
+  Vec split_u = nullptr; // (not a reference: compared only)
+  PetscObjectState split_u_state = -1;
 };
 
 Leapfrog *data(TS ts) { return static_cast<Leapfrog *>(ts->data); }
@@ -231,12 +247,14 @@ PetscErrorCode update_factors(Leapfrog &lf, PetscReal dt) {
   PetscCall(VecGetArrayWrite(lf.factors, &g));
   const PetscInt m = lf.pairs, d = 2 * m;
   lf.damped.clear();
+  lf.inv_factor.resize((size_t)(n / 2));
+  lf.keep_factor.resize((size_t)(n / 2));
   for (PetscInt i = 0; i < n; i += d) {
     bool damped = false;
     for (PetscInt c = 0; c < m; ++c) {
       const PetscScalar s = 0.5 * dt * sg[i + m + c];
-      g[i + c] = 1.0 / (1.0 + s);
-      g[i + m + c] = (1.0 - s) / (1.0 + s);
+      g[i + c] = lf.inv_factor[i / 2 + c] = 1.0 / (1.0 + s);
+      g[i + m + c] = lf.keep_factor[i / 2 + c] = (1.0 - s) / (1.0 + s);
       damped = damped || sg[i + m + c] != 0;
     }
     const PetscInt k = i / d;
@@ -306,6 +324,63 @@ private:
   PetscReal dt_;
 };
 
+// The point-local parts of a split step (leapfrog_set_split_step) on ranges of points.
+class SplitParts final : public LeapfrogSplitParts {
+public:
+  // inv, keep, damped: the damping's factors 1/(1 + s) and (1 - s)/(1 + s), m per point, and its runs
+  // (null: none); fresh: v is p at the step's start (a half kick), else at the half step before it;
+  // sink: where the n new positions also go (null: nowhere), on a cache line.
+  SplitParts(PetscInt pairs, const PetscScalar *inv, const PetscScalar *keep,
+             const std::vector<std::pair<PetscInt, PetscInt>> *damped, PetscScalar *sink, PetscInt n, bool fresh, PetscReal dt)
+      : m_(pairs), inv_(inv), keep_(fresh ? inv : keep), damped_(damped), sink_(sink), n_(n), dt_(dt), w_(fresh ? 0.5 * dt : dt) {}
+  // v += w a, or with damping (1 + s) v_{k+1/2} = (1 - s) v_{k-1/2} + dt a (fresh: (1 + s) v = p_k + dt/2 a).
+  void kick(PetscScalar *v, const PetscScalar *a, PetscInt begin, PetscInt end) const override {
+    const PetscInt m = m_;
+    const PetscReal w = w_;
+    const auto plain = [&](PetscInt lo, PetscInt hi) {
+      PetscScalar *__restrict vv = v + lo * m;
+      const PetscScalar *__restrict aa = a + (lo - begin) * m;
+      for (PetscInt i = 0; i < (hi - lo) * m; ++i) vv[i] += w * aa[i];
+    };
+    if (!inv_) return plain(begin, end);
+    for_damping_runs(*damped_, begin, end, [&](PetscInt lo, PetscInt hi, bool damped) {
+      if (!damped) return plain(lo, hi);
+      PetscScalar *__restrict vv = v + lo * m;
+      const PetscScalar *__restrict aa = a + (lo - begin) * m, *__restrict g = inv_ + lo * m, *__restrict gk = keep_ + lo * m;
+      for (PetscInt i = 0; i < (hi - lo) * m; ++i) vv[i] = gk[i] * vv[i] + w * g[i] * aa[i];
+    });
+  }
+  void drift(PetscScalar *q, const PetscScalar *v, PetscInt begin, PetscInt end) const override {
+    PetscScalar *__restrict qq = q + begin * m_;
+    const PetscScalar *__restrict vv = v + begin * m_;
+    const PetscReal dt = dt_;
+    for (PetscInt i = 0; i < (end - begin) * m_; ++i) qq[i] += dt * vv[i];
+    if (sink_) sink_positions(q, end * m_);
+  }
+
+private:
+  // sink[copied, upto) = q[copied, upto) as far as whole cache lines of the sink go (the last range:
+  // all of it), with non-temporal stores: the trajectory is not read again until the adjoint, and no line
+  // gets both kinds of store. Ranges that come out of order are copied with plain stores.
+  void sink_positions(const PetscScalar *q, PetscInt upto) const {
+    PetscInt k = copied_, end = upto;
+#if defined(FLEXIPDE_LEAPFROG_SINK)
+    if (upto < n_) end = (PetscInt)(((reinterpret_cast<uintptr_t>(sink_ + upto) & ~(uintptr_t)63) - reinterpret_cast<uintptr_t>(sink_)) / sizeof(PetscScalar));
+    if (reinterpret_cast<uintptr_t>(sink_ + k) % 16 == 0)
+      for (; k + 2 <= end; k += 2) _mm_stream_pd(sink_ + k, _mm_loadu_pd(q + k));
+#endif
+    for (; k < end; ++k) sink_[k] = q[k];
+    copied_ = std::max(copied_, end);
+  }
+  PetscInt m_;
+  const PetscScalar *inv_, *keep_;
+  const std::vector<std::pair<PetscInt, PetscInt>> *damped_;
+  PetscScalar *sink_;
+  PetscInt n_;
+  mutable PetscInt copied_ = 0;
+  PetscReal dt_, w_;
+};
+
 // Y0 = U (when asked for), then the first kick and the drift; the new positions also go to lf.sink
 // when there is one (and no Y0), recorded in lf.sunk. fresh: F was evaluated at U itself (not kept
 // from the last step's second kick), which matters with damping only.
@@ -343,26 +418,149 @@ PetscErrorCode start_kick_drift(Leapfrog &lf, Vec U, Vec F, Vec Y0, PetscReal dt
   PetscFunctionReturn(0);
 }
 
+// The fused step keeps a alone: the velocity rows of F.
+PetscErrorCode keep_accelerations(Leapfrog &lf) {
+  const PetscScalar *f;
+  PetscInt n;
+  PetscFunctionBegin;
+  PetscCall(VecGetLocalSize(lf.F, &n));
+  lf.accel.resize((size_t)(n / 2));
+  PetscCall(VecGetArrayRead(lf.F, &f));
+  const PetscInt m = lf.pairs, d = 2 * m;
+  for (PetscInt k = 0; k < n / d; ++k)
+    for (PetscInt c = 0; c < m; ++c) lf.accel[k * m + c] = f[k * d + m + c];
+  PetscCall(VecRestoreArrayRead(lf.F, &f));
+  PetscFunctionReturn(0);
+}
+
+// The split arrays from U = (q, p) at the TS's time: v = p, at the time itself.
+PetscErrorCode split_load(TS ts, Leapfrog &lf) {
+  Vec U = ts->vec_sol;
+  const PetscScalar *u;
+  PetscScalar *q;
+  PetscInt n;
+  PetscFunctionBegin;
+  PetscCall(VecGetLocalSize(U, &n));
+  const PetscInt m = lf.pairs, d = 2 * m, npt = n / d;
+  if (!lf.Qs) {
+    PetscCall(VecCreate(PetscObjectComm((PetscObject)ts), &lf.Qs));
+    PetscCall(VecSetSizes(lf.Qs, npt * m, PETSC_DETERMINE));
+    PetscCall(VecSetBlockSize(lf.Qs, m));
+    PetscCall(VecSetType(lf.Qs, VECSTANDARD));
+  }
+  lf.Vs.resize((size_t)(npt * m));
+  PetscCall(VecGetArrayRead(U, &u));
+  PetscCall(VecGetArrayWrite(lf.Qs, &q));
+  for (PetscInt k = 0; k < npt; ++k)
+    for (PetscInt c = 0; c < m; ++c) q[k * m + c] = u[k * d + c], lf.Vs[k * m + c] = u[k * d + m + c];
+  PetscCall(VecRestoreArrayWrite(lf.Qs, &q));
+  PetscCall(VecRestoreArrayRead(U, &u));
+  PetscCall(PetscObjectStateGet((PetscObject)U, &lf.split_u_state));
+  lf.split_u = U;
+  lf.split_valid = true;
+  lf.u_behind = false;
+  lf.split_time = ts->ptime;
+  lf.split_dt = 0;
+  PetscFunctionReturn(0);
+}
+
+// U = (q_k, p_k) from the split arrays, when they are ahead of it: U = (q_k, v_{k-1/2}), then the
+// kick p_k = v + dt/2 G_p(q_k, v), whose F is the one the next kick-drift-kick step would keep.
+PetscErrorCode split_form(TS ts, Leapfrog &lf) {
+  Vec U = ts->vec_sol;
+  PetscScalar *u;
+  const PetscScalar *q;
+  PetscInt n;
+  PetscObjectState st;
+  PetscFunctionBegin;
+  if (!lf.split_valid || !lf.u_behind) PetscFunctionReturn(0);
+  PetscCall(PetscObjectStateGet((PetscObject)U, &st));
+  if (U != lf.split_u || st != lf.split_u_state) { // U was set since: it holds the state, not the arrays
+    lf.split_valid = lf.u_behind = false;
+    PetscFunctionReturn(0);
+  }
+  PetscCall(VecGetLocalSize(U, &n));
+  const PetscInt m = lf.pairs, d = 2 * m, npt = n / d;
+  PetscCall(VecGetArrayWrite(U, &u));
+  PetscCall(VecGetArrayRead(lf.Qs, &q));
+  for (PetscInt k = 0; k < npt; ++k)
+    for (PetscInt c = 0; c < m; ++c) u[k * d + c] = q[k * m + c], u[k * d + m + c] = lf.Vs[k * m + c];
+  PetscCall(VecRestoreArrayRead(lf.Qs, &q));
+  PetscCall(VecRestoreArrayWrite(U, &u));
+  PetscCall(TSComputeRHSFunction(ts, lf.split_time, U, lf.F));
+  PetscCall(kick(lf, U, lf.F, 0.5 * lf.split_dt));
+  PetscCall(PetscObjectStateGet((PetscObject)U, &lf.F_state));
+  lf.F_time = lf.split_time;
+  lf.F_valid = true;
+  if (lf.step) PetscCall(keep_accelerations(lf));
+  lf.split_u_state = lf.F_state;
+  lf.u_behind = false;
+  PetscFunctionReturn(0);
+}
+
+// Whether anything but the split step's own readers may look at U between steps: monitors other than
+// TSMonitorDefault and those that form the solution themselves, step hooks, events, forward
+// sensitivities, Jacobian tests, a trajectory other than "store", or an integrand that reads velocities.
+bool solution_watched(TS ts, const Leapfrog &lf) {
+  for (PetscInt i = 0; i < ts->numbermonitors; ++i) {
+    const LeapfrogMonitor fn = ts->monitor[i];
+    if (fn == reinterpret_cast<LeapfrogMonitor>(TSMonitorDefault)) continue;
+    if (std::find(lf.forming_monitors.begin(), lf.forming_monitors.end(), fn) == lf.forming_monitors.end()) return true;
+  }
+  if (ts->prestep || ts->poststep || ts->postevaluate || ts->event || ts->forward_solve || ts->testjacobian ||
+      ts->testjacobiantranspose)
+    return true;
+  if (ts->quadraturets && ts->costintegralfwd && lf.integrand_reads_velocities) return true;
+  return lf.copy_stage;
+}
+
+// A split step (leapfrog_set_split_step): from the split arrays, loaded from U when U was set since
+// they were last consistent (or the step size changed: the next step starts from U_k). need_stage: Y0 =
+// U_k first (the forward cost integral's r(t_k, U_k)).
+PetscErrorCode split_step(TS ts, Leapfrog &lf, bool need_stage) {
+  Vec U = ts->vec_sol;
+  const PetscReal dt = ts->time_step, t = ts->ptime;
+  PetscObjectState st;
+  PetscFunctionBegin;
+  PetscCall(PetscObjectStateGet((PetscObject)U, &st));
+  if (lf.split_valid && (U != lf.split_u || st != lf.split_u_state || t != lf.split_time)) lf.split_valid = false;
+  if (lf.split_valid && lf.split_dt != 0 && lf.split_dt != dt) {
+    PetscCall(split_form(ts, lf));
+    lf.split_valid = false;
+  }
+  if (!lf.split_valid) PetscCall(split_load(ts, lf));
+  if (need_stage) {
+    PetscCall(split_form(ts, lf));
+    PetscCall(VecCopy(U, lf.Y0));
+  }
+  PetscScalar *sink = need_stage ? nullptr : lf.sink;
+  if (lf.sigma) PetscCall(update_factors(lf, dt));
+  lf.sunk = nullptr;
+  const PetscScalar *inv = lf.sigma ? lf.inv_factor.data() : nullptr, *keep = lf.sigma ? lf.keep_factor.data() : nullptr;
+  PetscCall(lf.split(lf.split_ctx, t, lf.Qs, lf.Vs.data(),
+                     SplitParts(lf.pairs, inv, keep, &lf.damped, sink, (PetscInt)lf.Vs.size(), lf.split_dt == 0, dt)));
+#if defined(FLEXIPDE_LEAPFROG_SINK)
+  if (sink) _mm_sfence(); // the non-temporal stores of the positions, before anyone reads them
+#endif
+  lf.sunk = sink;
+  lf.sink = nullptr; // one step only
+  lf.split_time = t + dt;
+  lf.split_dt = dt;
+  lf.u_behind = true;
+  lf.F_valid = false;
+  ts->ptime += dt;
+  // U at the end of the solve (TSStep's test, with room for the rounding of the times)
+  if (ts->steps + 1 >= ts->max_steps || ts->ptime >= ts->max_time - 1e-10 * PetscMax((PetscReal)1, PetscAbsReal(ts->max_time)))
+    PetscCall(split_form(ts, lf));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode TSStep_Leapfrog(TS ts) {
   Leapfrog *lf = data(ts);
   Vec U = ts->vec_sol;
   const PetscReal dt = ts->time_step, t = ts->ptime;
   PetscObjectState st;
   PetscFunctionBegin;
-  PetscCall(PetscObjectStateGet((PetscObject)U, &st));
-  const bool fresh = !lf->F_valid || st != lf->F_state || t != lf->F_time;
-  if (fresh) PetscCall(TSComputeRHSFunction(ts, t, U, lf->F));
-  if (fresh && lf->step) { // the fused step keeps a alone: the velocity rows of F
-    const PetscScalar *f;
-    PetscInt n;
-    PetscCall(VecGetLocalSize(U, &n));
-    lf->accel.resize((size_t)(n / 2));
-    PetscCall(VecGetArrayRead(lf->F, &f));
-    const PetscInt m = lf->pairs, d = 2 * m;
-    for (PetscInt k = 0; k < n / d; ++k)
-      for (PetscInt c = 0; c < m; ++c) lf->accel[k * m + c] = f[k * d + m + c];
-    PetscCall(VecRestoreArrayRead(lf->F, &f));
-  }
   if (ts->steps == 0) { // once per solve: does anything read this solve's stages?
     PetscBool store = PETSC_FALSE;
     if (ts->trajectory) PetscCall(PetscObjectTypeCompare((PetscObject)ts->trajectory, FLEXIPDE_TSTRAJECTORY_STORE, &store));
@@ -370,6 +568,18 @@ PetscErrorCode TSStep_Leapfrog(TS ts) {
   }
   // the forward cost integral reads r(t_k, U_k) from Y0 when it does not have it from the last step
   const bool need_stage = lf->copy_stage || (ts->quadraturets && ts->costintegralfwd && lf->r_end_step != ts->steps);
+  // A split step unless someone reads U after it: a watcher, or a trajectory that gave the step no slot
+  // for its positions (such as single-precision storage, or when it keeps U_k for an integrand).
+  if (lf->split && !solution_watched(ts, *lf) && (!ts->trajectory || (lf->sink && !need_stage))) {
+    PetscCall(split_step(ts, *lf, need_stage));
+    PetscFunctionReturn(0);
+  }
+  PetscCall(split_form(ts, *lf)); // (the split arrays go stale with this step)
+  lf->split_valid = false;
+  PetscCall(PetscObjectStateGet((PetscObject)U, &st));
+  const bool fresh = !lf->F_valid || st != lf->F_state || t != lf->F_time;
+  if (fresh) PetscCall(TSComputeRHSFunction(ts, t, U, lf->F));
+  if (fresh && lf->step) PetscCall(keep_accelerations(*lf));
   if (lf->step) { // the model's one sweep: the parts below on every point, in its order
     if (need_stage) PetscCall(VecCopy(U, lf->Y0));
     PetscScalar *sink = need_stage ? nullptr : lf->sink;
@@ -432,6 +642,10 @@ PetscErrorCode TSReset_Leapfrog(TS ts) {
   PetscCall(VecDestroy(&lf->factors));
   lf->accel.clear();
   lf->accel.shrink_to_fit();
+  PetscCall(VecDestroy(&lf->Qs));
+  lf->Vs.clear();
+  lf->Vs.shrink_to_fit();
+  lf->split_valid = lf->u_behind = false;
   if (lf->Q_placed) PetscCall(VecResetArray(lf->Q));
   lf->Q_placed = false;
   PetscCall(VecDestroy(&lf->Q));
@@ -449,6 +663,9 @@ PetscErrorCode TSDestroy_Leapfrog(TS ts) {
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetPairs_C", nullptr));
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetAdjointKick_C", nullptr));
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetStep_C", nullptr));
+  PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetSplitStep_C", nullptr));
+  PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogFormSolution_C", nullptr));
+  PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogMonitorFormsSolution_C", nullptr));
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetDamping_C", nullptr));
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetIntegrandReads_C", nullptr));
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetIntegrandAdjoint_C", nullptr));
@@ -474,7 +691,8 @@ PetscErrorCode TSForwardCostIntegral_Leapfrog(TS ts) {
   if (lf->r_end_step != ts->steps)
     PetscCall(TSComputeRHSFunction(quadts, ts->ptime_prev, lf->Y0, lf->r_end)); // r(t_k, U_k)
   PetscCall(VecAXPY(quadts->vec_sol, 0.5 * dt, lf->r_end));
-  PetscCall(TSComputeRHSFunction(quadts, ts->ptime, ts->vec_sol, lf->r_end)); // r(t_{k+1}, U_{k+1})
+  // r(t_{k+1}, U_{k+1}), from the split step's positions when U is behind them (r reads no velocity then)
+  PetscCall(TSComputeRHSFunction(quadts, ts->ptime, lf->split_valid && lf->u_behind ? lf->Qs : ts->vec_sol, lf->r_end));
   PetscCall(VecAXPY(quadts->vec_sol, 0.5 * dt, lf->r_end));
   lf->r_end_step = ts->steps + 1;
   PetscFunctionReturn(0);
@@ -690,6 +908,25 @@ PetscErrorCode set_step(TS ts, LeapfrogStep step, void *ctx) {
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode set_split_step(TS ts, LeapfrogSplitStep step, void *ctx) {
+  PetscFunctionBegin;
+  data(ts)->split = step;
+  data(ts)->split_ctx = ctx;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode form_solution(TS ts) {
+  PetscFunctionBegin;
+  PetscCall(split_form(ts, *data(ts)));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode monitor_forms_solution(TS ts, LeapfrogMonitor monitor) {
+  PetscFunctionBegin;
+  data(ts)->forming_monitors.push_back(monitor);
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode TSCreate_Leapfrog(TS ts) {
   PetscFunctionBegin;
   ts->data = new Leapfrog();
@@ -708,6 +945,9 @@ PetscErrorCode TSCreate_Leapfrog(TS ts) {
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetPairs_C", set_pairs));
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetAdjointKick_C", set_adjoint_kick));
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetStep_C", set_step));
+  PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetSplitStep_C", set_split_step));
+  PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogFormSolution_C", form_solution));
+  PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogMonitorFormsSolution_C", monitor_forms_solution));
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetDamping_C", set_damping));
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetIntegrandReads_C", set_integrand_reads));
   PetscCall(PetscObjectComposeFunction((PetscObject)ts, "FlexipdeLeapfrogSetIntegrandAdjoint_C", set_integrand_adjoint));
@@ -767,6 +1007,24 @@ bool leapfrog_one_sweep_pays(size_t bytes) {
 PetscErrorCode leapfrog_set_step(TS ts, LeapfrogStep step, void *ctx) {
   PetscFunctionBegin;
   PetscTryMethod(ts, "FlexipdeLeapfrogSetStep_C", (TS, LeapfrogStep, void *), (ts, step, ctx));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode leapfrog_set_split_step(TS ts, LeapfrogSplitStep step, void *ctx) {
+  PetscFunctionBegin;
+  PetscTryMethod(ts, "FlexipdeLeapfrogSetSplitStep_C", (TS, LeapfrogSplitStep, void *), (ts, step, ctx));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode leapfrog_form_solution(TS ts) {
+  PetscFunctionBegin;
+  PetscTryMethod(ts, "FlexipdeLeapfrogFormSolution_C", (TS), (ts));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode leapfrog_monitor_forms_solution(TS ts, LeapfrogMonitor monitor) {
+  PetscFunctionBegin;
+  PetscTryMethod(ts, "FlexipdeLeapfrogMonitorFormsSolution_C", (TS, LeapfrogMonitor), (ts, monitor));
   PetscFunctionReturn(0);
 }
 

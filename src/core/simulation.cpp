@@ -279,6 +279,13 @@ PetscErrorCode Simulation::step_cb(void *ctx, PetscReal t, Vec U, PetscScalar *a
   PetscFunctionReturn(0);
 }
 
+PetscErrorCode Simulation::split_step_cb(void *ctx, PetscReal t, Vec Q, PetscScalar *v, const LeapfrogSplitParts &parts) {
+  auto *sim = static_cast<Simulation *>(ctx);
+  PetscFunctionBeginUser;
+  PetscCall(sim->model_->second_order_split_step(t, Q, v, parts));
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode Simulation::stage_adjoint_cb(void *ctx, PetscReal t, Vec U, const PetscScalar *record,
                                             const StageCombination &x, Vec y, Vec mu) {
   auto *sim = static_cast<Simulation *>(ctx);
@@ -293,6 +300,9 @@ PetscErrorCode Simulation::quad_rhs_cb(TS, PetscReal t, Vec U, Vec F, void *ctx)
   PetscReal r;
   PetscScalar *f;
   PetscFunctionBeginUser;
+  // the leapfrog's split step hands an integrand that reads no velocity the positions alone: an objective
+  // that adds its dr/dU in place reads them so (Objective::adds_integrand_dU), others see a state
+  if (!sim->objective_->adds_integrand_dU()) PetscCall(sim->integrand_state(U, &U));
   PetscCall(sim->objective_->integrand(t, U, &r));
   PetscCall(VecGetArray(F, &f)); // F is sequential, one entry, on every rank alike
   f[0] = r;
@@ -566,7 +576,10 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
                              &petsc_step_, nullptr));
   PetscOptionsEnd();
   PetscCheck(blowup_every_ >= 0, comm, PETSC_ERR_ARG_OUTOFRANGE, "-sim_blowup_check_every must be non-negative");
-  if (blowup_every_ > 0) PetscCall(TSMonitorSet(ts, blowup_monitor, this, nullptr));
+  if (blowup_every_ > 0) {
+    PetscCall(TSMonitorSet(ts, blowup_monitor, this, nullptr));
+    PetscCall(leapfrog_monitor_forms_solution(ts, blowup_monitor));
+  }
 
   TSType type;
   PetscCall(TSGetType(ts, &type));
@@ -625,6 +638,7 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
     const size_t state_bytes = (size_t)grid_->local_points() * model_->dof() * sizeof(PetscScalar);
     if (model_->has_second_order_step() && leapfrog_one_sweep_pays(state_bytes + state_bytes / 2)) // U and a
       PetscCall(leapfrog_set_step(ts, step_cb, this));
+    if (model_->has_second_order_step()) PetscCall(leapfrog_set_split_step(ts, split_step_cb, this));
   }
   // An explicit RK only applies dG/dU (its adjoint: the transpose): the model's matrix-free operator
   // when it has one.
@@ -833,11 +847,12 @@ PetscErrorCode Simulation::check_stability(TS ts) {
 
 // A monitor, so that it runs after every accepted step of TSSolve (and not in the steps the
 // checkpointing trajectory re-runs, which repeat steps already checked).
-PetscErrorCode Simulation::blowup_monitor(TS, PetscInt step, PetscReal t, Vec U, void *ctx) {
+PetscErrorCode Simulation::blowup_monitor(TS ts, PetscInt step, PetscReal t, Vec U, void *ctx) {
   auto *sim = static_cast<Simulation *>(ctx);
   PetscReal nrm;
   PetscFunctionBeginUser;
   if (step % sim->blowup_every_) PetscFunctionReturn(0);
+  PetscCall(leapfrog_form_solution(ts)); // (U is the TS's solution)
   PetscCall(VecNorm(U, NORM_2, &nrm));
   PetscCheck(std::isfinite((double)nrm), sim->grid_->comm(), PETSC_ERR_FP,
              "The solution holds NaN/Inf at t = %g (step %" PetscInt_FMT " of %" PetscInt_FMT ", dt = %g): reduce -ts_dt, "

@@ -706,6 +706,14 @@ PetscErrorCode Survey::data_at(PetscReal t) {
 PetscErrorCode Survey::residual(PetscReal t, Vec U) {
   PetscFunctionBeginUser;
   PetscCheck(nt_ > 0, comm_, PETSC_ERR_ORDER, "The survey has no data: record synthetic data or give -survey_data_file");
+  PetscCall(sample(U));
+  PetscCall(data_at(t));
+  PetscCall(VecAXPY(y_, -1.0, dvec_));
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode Survey::sample(Vec U) {
+  PetscFunctionBeginUser;
   PetscInt n, nstate;
   PetscCall(VecGetLocalSize(U, &n));
   PetscCall(MatGetLocalSize(R_, nullptr, &nstate));
@@ -717,8 +725,6 @@ PetscErrorCode Survey::residual(PetscReal t, Vec U) {
     if (!R_positions_) PetscCall(assemble_sampling(per_point, U, R_positions_.out()));
     PetscCall(MatMult(R_positions_, U, y_));
   }
-  PetscCall(data_at(t));
-  PetscCall(VecAXPY(y_, -1.0, dvec_));
   PetscFunctionReturn(0);
 }
 
@@ -748,7 +754,7 @@ PetscErrorCode Survey::integrand(PetscReal t, Vec U, PetscReal *r) {
     PetscInt k;
     *r = 0;
     if (!sample_index(t, sample_dt_, nt_, &k)) PetscFunctionReturn(0);
-    PetscCall(MatMult(R_, U, y_));
+    PetscCall(sample(U));
     if (rank_ == 0) {
       ConstArray y(y_);
       PetscCall(y.error());
