@@ -1329,17 +1329,21 @@ public:
           RowCursor cursor(runs(R, true, false));
           size_t next_force = 0;
           PetscInt drifted = 0; // rows [0, drifted) hold q_{k+1}
+          // a of owned point `own` at out[own * m]: the row's buffer, offset for each row. The point
+          // function reads it through a pointer, so that it is made once, not for every row.
+          PetscScalar *out = nullptr, *const *row_out = &out;
+          const auto point = [=](PetscInt at, PetscInt own, PetscInt i, PetscInt j, PetscInt k, auto ck) {
+            constexpr int where = decltype(ck)::value;
+            double gv[C];
+            rhs_of(eq, Pt<Mode::Value, 0, 0, where == 1, m, where == 1, decltype(sc)::value>(where >= 2 ? fe : f, at,
+                                                                                           where >= 2 ? at : own, i, j, k),
+                   gv);
+            PetscScalar *o = *row_out;
+            for (int c = 0; c < m; ++c) o[own * m + c] = gv[m + c];
+          };
           for (PetscInt r = 0; r < rows; ++r) {
             const PetscInt j = grid_->ys() + r % ym, k = grid_->zs() + r / ym, first = r * xm;
-            PetscScalar *out = row - first * m; // a of owned point `own` at out[own * m]
-            const auto point = [=](PetscInt at, PetscInt own, PetscInt i, PetscInt j, PetscInt k, auto ck) {
-              constexpr int where = decltype(ck)::value;
-              double gv[C];
-              rhs_of(eq, Pt<Mode::Value, 0, 0, where == 1, m, where == 1, decltype(sc)::value>(where >= 2 ? fe : f, at,
-                                                                                             where >= 2 ? at : own, i, j, k),
-                     gv);
-              for (int c = 0; c < m; ++c) out[own * m + c] = gv[m + c];
-            };
+            out = row - first * m;
             const auto k0 = cursor.take(0, j, k), k1 = cursor.take(1, j, k), k2 = cursor.take(2, j, k);
             run_kind(k0.first, k0.second, point, Check<false>());
             run_kind(k1.first, k1.second, point, Check<true>());
