@@ -2651,7 +2651,7 @@ private:
     double sign;
   };
   std::vector<Image> images_;
-  std::vector<PetscInt> forcing_order_; // second_order_step's forced points in row order
+  std::vector<PetscInt> forcing_order_; // the leapfrog steps' forced points in row order
   std::vector<PetscScalar> row_accel_;  // second_order_split_step's accelerations of one row
   mutable std::deque<std::pair<PetscInt, RunPlan>> plans_; // for_points' runs, per margin and flags
   std::vector<double> sgn_;
