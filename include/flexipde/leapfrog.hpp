@@ -25,8 +25,9 @@
 // with weight dt (dt/2 at t_0 and T): an adjoint step costs one product with (dG/dU)^T and one
 // with (dG/dtheta)^T, and needs only the state at the step's start (kept as the step's one
 // "stage", so PETSc's memory trajectory stores it and nothing is recomputed). With the model's fused kick
-// (Model::second_order_adjoint) the undamped drift's transpose is handed to the kick beyond the caches,
-// which may fold it into its own sweep over lambda. Since G_q = p, (dG/dU)^T lambda has A^T lambda_p in its q rows and
+// (Model::second_order_adjoint) lambda_q and lambda_p live in arrays of their own between steps, and the
+// undamped drift's transpose is handed to the kick beyond the caches, which may fold it into its own
+// sweep over lambda. Since G_q = p, (dG/dU)^T lambda has A^T lambda_p in its q rows and
 // (dG/dtheta)^T lambda = (da/dtheta)^T lambda_p (sigma depends on no parameter), so the full Jacobians
 // serve without masking.
 //
@@ -58,36 +59,37 @@ PetscErrorCode leapfrog_set_integrand_reads(TS ts, bool velocities, bool paramet
 bool leapfrog_positions_suffice(TS ts);
 // Optional: lambda += w dr/dU(t, X) in place, X a state or (leapfrog_positions_suffice) the positions
 // alone, for integrands with a sparse dr/dU (Objective::integrand_dU_add); else the adjoint adds the
-// quadrature TS's dense dr/dU.
+// quadrature TS's dense dr/dU. With the model's kick (leapfrog_set_adjoint_kick) and positions alone,
+// lambda is the adjoint's positions part lambda_q (m per point).
 using LeapfrogIntegrandAdjoint = PetscErrorCode (*)(void *ctx, PetscReal t, Vec X, PetscReal w, Vec lambda);
 PetscErrorCode leapfrog_set_integrand_adjoint(TS ts, LeapfrogIntegrandAdjoint fn, void *ctx);
 bool is_leapfrog(TS ts);
 PetscInt leapfrog_pairs(TS ts); // m, or 0 for another TS type
-// Optional fused adjoint kick at one time level (Model::second_order_adjoint): first
+// Optional fused adjoint kick at one time level (Model::second_order_adjoint), on the adjoint's positions
+// and velocities held in arrays of their own (lambda_q, lambda_p: m per owned point each, the model's
+// positions layout): first
 //   lambda_p += drift lambda_q  (the transpose of the drift that ends at this level; drift = 0: none),
 // then
 //   lambda_q += w (da/dq)^T lambda_p,  mu += w (da/dtheta)^T lambda_p  (mu null: no parameters).
-// When set, the adjoint calls it instead of computing and applying the RHS Jacobians, and, beyond the
-// caches (leapfrog_one_sweep_pays of lambda and the positions), hands it each step's drift instead of
-// making a pass of its own (the model may fold it into its sweep).
+// When set, the adjoint keeps lambda so between steps (the stencils' transposes read whole vectors of
+// lambda_p) and forms the TS's interleaved lambda at the end of the solve and for adjoint monitors; it
+// calls the kick instead of computing and applying the RHS Jacobians, and, beyond the caches, hands it
+// each undamped step's drift instead of making a pass of its own (the model may fold it into its sweep).
 // `prefetch`: the stored positions the next adjoint step will read (leapfrog_place_positions), for the
 // kick to prefetch while it sweeps (null: none).
-using LeapfrogAdjointKick = PetscErrorCode (*)(void *ctx, PetscReal t, Vec U, Vec lambda, PetscReal w, Vec mu, PetscReal drift,
-                                               const PetscScalar *prefetch);
+using LeapfrogAdjointKick = PetscErrorCode (*)(void *ctx, PetscReal t, Vec U, Vec lambda_q, Vec lambda_p, PetscReal w, Vec mu,
+                                               PetscReal drift, const PetscScalar *prefetch);
 // One prefetch per cache line of the n entries at q (null: nothing), for kicks that do not spread them.
 inline void leapfrog_prefetch(const PetscScalar *q, PetscInt n) {
   if (!q) return;
   const char *b = reinterpret_cast<const char *>(q);
   for (size_t o = 0; o < sizeof(PetscScalar) * (size_t)n; o += 64) __builtin_prefetch(b + o, 0, 3);
 }
-// The drift's transpose lambda_p += s lambda_q on the points [lo, hi) of an interleaved array of m
-// pairs per point (2m entries each), for kicks that apply it in a pass of their own.
-inline void leapfrog_drift_transpose(PetscScalar *lambda, PetscInt lo, PetscInt hi, PetscInt m, PetscReal s) {
-  if (m == 1)
-    for (PetscInt i = lo; i < hi; ++i) lambda[2 * i + 1] += s * lambda[2 * i];
-  else
-    for (PetscInt i = lo; i < hi; ++i)
-      for (PetscInt c = 0; c < m; ++c) lambda[2 * m * i + m + c] += s * lambda[2 * m * i + c];
+// The drift's transpose lambda_p += s lambda_q on the entries [lo, hi) of the split arrays, for kicks
+// that apply it in a pass of their own.
+inline void leapfrog_drift_transpose(PetscScalar *__restrict lambda_p, const PetscScalar *__restrict lambda_q, PetscInt lo,
+                                     PetscInt hi, PetscReal s) {
+  for (PetscInt i = lo; i < hi; ++i) lambda_p[i] += s * lambda_q[i];
 }
 // Optional fused forward step (Model::second_order_step): the model sweeps a whole step in one pass
 // over the grid, applying the integrator's point-local parts below to ranges of owned points in an
@@ -147,6 +149,10 @@ PetscErrorCode leapfrog_monitor_forms_solution(TS ts, LeapfrogMonitor monitor);
 bool leapfrog_one_sweep_pays(size_t bytes);
 // The kick takes U as a whole state or as the positions alone.
 PetscErrorCode leapfrog_set_adjoint_kick(TS ts, LeapfrogAdjointKick kick, void *ctx);
+// An adjoint monitor that reads no lambda (statistics), for every TS: the adjoint forms the interleaved
+// lambda after every step only for the other monitors.
+using LeapfrogAdjointMonitor = PetscErrorCode (*)(TS, PetscInt, PetscReal, Vec, PetscInt, Vec *, Vec *, void *);
+void leapfrog_adjoint_monitor_reads_no_lambda(LeapfrogAdjointMonitor monitor);
 // For a trajectory that stores the positions alone (m of every 2m components, contiguous): the next
 // adjoint step's level k-1 reads them from q in place when the kick takes positions (*placed), else
 // the trajectory must fill the stage with U_{k-1} itself. q must stay valid until that step is done.

@@ -75,10 +75,12 @@ public:
   // parameters (an absorbing sponge), else no p. 0 when the model has no such form.
   virtual PetscInt second_order_pairs() const { return 0; }
   // Optional, for second-order models: the leapfrog adjoint's work at one time level fused into one
-  // sweep without any matrix: at state U, first lambda_p += drift lambda_q at every point (the
-  // transpose of the drift that ends at this level; drift = 0: none), then
+  // sweep without any matrix, on the adjoint's positions and velocities in arrays of their own (lambda_q,
+  // lambda_p: m per owned point each, laid out like the positions): at state U, first
+  // lambda_p += drift lambda_q at every point (the transpose of the drift that ends at this level;
+  // drift = 0: none), then
   //   lambda_q += w (dG_p/dq)^T lambda_p   and, unless mu is null,   mu += w (dG_p/dtheta)^T lambda_p
-  // (lambda updated in place). A model may fold the drift into its sweep or apply it first
+  // (both updated in place). A model may fold the drift into its sweep or apply it first
   // (leapfrog_drift_transpose). U is a whole state or the positions q alone (m contiguous components
   // per grid point, laid out like the grid's own one-component Vecs for m = 1; G_p reads nothing
   // else): a full-storage trajectory hands the kick the stored positions in place. `prefetch` (null:
@@ -86,10 +88,10 @@ public:
   // prefetch them, best spread over its sweep. Without this the integrator uses rhs_jacobian and
   // rhs_jacobian_p with their transposes and its own drift pass: the same numbers in more passes.
   virtual bool has_second_order_adjoint() const { return false; }
-  virtual PetscErrorCode second_order_adjoint(PetscReal t, Vec U, Vec lambda, PetscReal w, Vec mu, PetscReal drift,
-                                              const PetscScalar *prefetch) {
-    (void)t, (void)U, (void)w, (void)mu, (void)drift, (void)prefetch;
-    SETERRQ(PetscObjectComm((PetscObject)lambda), PETSC_ERR_SUP, "Model %s has no fused second-order adjoint", name());
+  virtual PetscErrorCode second_order_adjoint(PetscReal t, Vec U, Vec lambda_q, Vec lambda_p, PetscReal w, Vec mu,
+                                              PetscReal drift, const PetscScalar *prefetch) {
+    (void)t, (void)U, (void)lambda_p, (void)w, (void)mu, (void)drift, (void)prefetch;
+    SETERRQ(PetscObjectComm((PetscObject)lambda_q), PETSC_ERR_SUP, "Model %s has no fused second-order adjoint", name());
   }
   // Optional, for second-order models: a whole leapfrog step in one sweep over the grid. accel = G_p(t, U)
   // (m per owned point, the velocity rows of G) at the state after parts.kick_drift, which must reach

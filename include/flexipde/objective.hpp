@@ -59,7 +59,8 @@ public:
   // Optional, for an integrand whose dr/dU is sparse (the receivers): lambda += w dr/dU(t, U) in place,
   // without a state-sized dr/dU. U is a state or, for an integrand that reads no velocity, the positions
   // alone (m per grid point, as the leapfrog's adjoint stores them); such an objective's integrand()
-  // takes the positions alone too (the leapfrog's split steps hand it them).
+  // takes the positions alone too (the leapfrog's split steps hand it them). lambda is shaped as a state
+  // or, for such an integrand, as the positions (the leapfrog's adjoint keeps lambda_q apart).
   virtual bool adds_integrand_dU() const { return false; }
   virtual PetscErrorCode integrand_dU_add(PetscReal t, Vec U, PetscReal w, Vec lambda) {
     (void)t, (void)U, (void)w;

@@ -702,8 +702,11 @@ public:
     if constexpr (pointwise::PairsOf<Eq>::value > 0) {
       PetscCall(grid.create_dm(pointwise::PairsOf<Eq>::value, pos_dm_.out()));
       PetscCall(pos_ghosts_.create(pos_dm_));
+      PetscCall(lambda_ghosts_.create(pos_dm_));
       PetscCall(DMCreateLocalVector(pos_dm_, pos_.g.out()));
       PetscCall(VecSet(pos_.g, 0.0));
+      PetscCall(DMCreateLocalVector(pos_dm_, lam_g_.out()));
+      PetscCall(VecSet(lam_g_, 0.0));
       PetscCall(DMCreateGlobalVector(pos_dm_, pos_rec_.out()));
       PetscCall(DMCreateGlobalVector(pos_dm_, pos_copy_.out()));
     }
@@ -868,15 +871,16 @@ public:
   // components in [ylo, yhi) are written (added, times w, if add_y): the leapfrog's kick is this with
   // x = lambda_p, y = lambda_q. z (auxiliary fields; null: none) gets the gather of (dG/da)^T x.
   // What is written is known at compile time (WY: y, ADDY: added, WG: gk), so the loop has no branch.
-  // drift (the leapfrog kick, y the array of x, held walls, 2D and 3D; 0: none): x_p += drift x_q on the
-  // owned points beyond strip_ of the block's edge (the caller drifted those within it) row by row just
-  // ahead of the rows that read them, so that lambda passes through the cache once per time level.
-  template <int CLO, int CHI, int YLO, int YHI, int CS, bool WY, bool ADDY, bool WG, bool SC>
+  // SPLIT: x holds the components [CLO, CHI) alone and y [YLO, YHI) alone, in arrays of their own.
+  // drift (the leapfrog kick, SPLIT, held walls, 2D and 3D; 0: none): xd = x += drift y on the owned
+  // points beyond strip_ of the block's edge (the caller drifted those within it) row by row just ahead
+  // of the rows that read them, so that lambda passes through the cache once per time level.
+  template <int CLO, int CHI, int YLO, int YHI, int CS, bool WY, bool ADDY, bool WG, bool SC, bool SPLIT>
   FLEXIPDE_SWEEP PetscErrorCode gather(PetscReal t, const LocalState &s, const PetscScalar *xo, const PetscScalar *xl,
                                        const PetscScalar *xh, PetscScalar *y, PetscReal w, PetscReal *const *gk,
-                                       PetscScalar *z, PetscReal drift = 0) {
+                                       PetscScalar *z, PetscReal drift = 0, PetscScalar *xd = nullptr) {
     PetscFunctionBeginUser;
-    PetscCheck(drift == 0 || (ADDY && D >= 2 && frame_.held), grid_->comm(), PETSC_ERR_PLIB,
+    PetscCheck(drift == 0 || (SPLIT && ADDY && D >= 2 && frame_.held && xd), grid_->comm(), PETSC_ERR_PLIB,
                "gather: a drift rides only on a leapfrog kick's row sweep with held walls in 2D or 3D");
     {
       StateView sv(s);
@@ -893,8 +897,8 @@ public:
       const auto store = [=](PetscInt own, PetscInt i, const double *yv, const double *zv, const double *gv) {
         if constexpr (WY)
           for (int c = YLO; c < YHI; ++c) {
-            if constexpr (ADDY) y[own * C + c] += w * yv[c];
-            else y[own * C + c] = yv[c];
+            if constexpr (ADDY) y[x_at<YLO, YHI, SPLIT>(own, c)] += w * yv[c];
+            else y[x_at<YLO, YHI, SPLIT>(own, c)] = yv[c];
           }
         if constexpr (KL && WY)
           for (int k = 0; k < K; ++k) z[i * K + k] += zv[k];
@@ -908,7 +912,7 @@ public:
         double yv[C] = {};
         double zv[K > 0 ? K : 1] = {};
         double gv[NG > 0 ? NG : 1] = {};
-        gather_offsets<CLO, CHI, where, CS, SC>(eq, where >= 2 ? fe : f, xh, at, where >= 2 ? at : own, i, j, k, yv, zv, gv,
+        gather_offsets<CLO, CHI, where, CS, SC, true, SPLIT>(eq, where >= 2 ? fe : f, xh, at, where >= 2 ? at : own, i, j, k, yv, zv, gv,
                                                 Offsets());
         store(own, i, yv, zv, gv);
       };
@@ -916,7 +920,7 @@ public:
       // with RF = 1 the gather point by point differentiates each face twice with half the lanes, and
       // the blocks' stored terms cost more than they save once lanes of parameters the flux does not
       // read (advection's velocities with a field D) are stored too.
-      constexpr bool face_blocks = Flux && CS == C && (RF >= 2 || C + (SC ? 0 : NG) <= 2);
+      constexpr bool face_blocks = Flux && !SPLIT && CS == C && (RF >= 2 || C + (SC ? 0 : NG) <= 2);
       if constexpr (face_blocks) {
         const RunPlan &plan = runs(2 * R, true, true);
         gather_face_runs<CLO, CHI, SC>(plan.kind[0], eq, f, xh, store);
@@ -931,7 +935,7 @@ public:
           double yv[C] = {};
           double zv[K > 0 ? K : 1] = {};
           double gv[NG > 0 ? NG : 1] = {};
-          gather_offsets<CLO, CHI, 2, CS, SC>(eq, fe, xh, at, at, i, j, k, yv, zv, gv, Offsets());
+          gather_offsets<CLO, CHI, 2, CS, SC, true, SPLIT>(eq, fe, xh, at, at, i, j, k, yv, zv, gv, Offsets());
           for (int c = 0; c < C; ++c) yv[c] = 0.0;
           store(own, i, yv, zv, gv);
         };
@@ -940,11 +944,11 @@ public:
           run_kind(plan.kind[0], point, Check<false>());
           run_kind(plan.kind[1], wall_point, Edge());
           run_kind(plan.kind[2], point, Edge());
-        } else if constexpr (ADDY && D >= 2) {
-          constexpr int m = CS; // the kick's x_p and y = x_q: m components each
+        } else if constexpr (SPLIT && ADDY && D >= 2) {
+          constexpr int m = CS; // the kick's x = lambda_p and y = lambda_q: m components each
           RowCursor cursor(plan);
           for_rows_ahead(
-              strip_, [&](PetscInt lo, PetscInt hi) { leapfrog_drift_transpose(y, lo, hi, m, drift); },
+              strip_, [&](PetscInt lo, PetscInt hi) { leapfrog_drift_transpose(xd, y, lo * m, hi * m, drift); },
               [&](PetscInt, PetscInt j, PetscInt k) {
                 const auto k0 = cursor.take(0, j, k), k1 = cursor.take(1, j, k), k2 = cursor.take(2, j, k);
                 run_kind(k0.first, k0.second, point, Check<false>());
@@ -958,8 +962,8 @@ public:
       if constexpr (WY)
         for (const auto &v : images_) {
           double yv[C] = {}, zv[K > 0 ? K : 1] = {}, gv[NG > 0 ? NG : 1] = {};
-          gather_offsets<CLO, CHI, 3, CS, SC>(eq, fe, xh, v.at, v.at, v.i, v.j, v.k, yv, zv, gv, Offsets());
-          for (int c = YLO; c < YHI; ++c) y[v.own * C + c] += (ADDY ? w : 1.0) * v.sign * yv[c];
+          gather_offsets<CLO, CHI, 3, CS, SC, true, SPLIT>(eq, fe, xh, v.at, v.at, v.i, v.j, v.k, yv, zv, gv, Offsets());
+          for (int c = YLO; c < YHI; ++c) y[x_at<YLO, YHI, SPLIT>(v.own, c)] += (ADDY ? w : 1.0) * v.sign * yv[c];
         }
       });
     }
@@ -973,11 +977,14 @@ public:
   // as B^T x before the sweep and L^T z after it.
   // ADDY: y += w (dG/dU)^T x (the leapfrog kick), else y = (dG/dU)^T x. GRAD: y is formed and so is the
   // gradient, a null mu's into scratch: one compiled sweep where the gradient costs little next to y.
-  template <int CLO = 0, int CHI = C, int YLO = 0, int YHI = C, int CS = C, bool ADDY = false, bool GRAD = ADDY>
+  // SPLIT (the leapfrog kick): x = lambda_p and y = lambda_q, m per point each, x ghosted in lam_g_.
+  template <int CLO = 0, int CHI = C, int YLO = 0, int YHI = C, int CS = C, bool ADDY = false, bool GRAD = ADDY, bool SPLIT = false>
   // x_ghosts: Xl_ already holds x ghosted (the caller filled it). drift: the gather's (the leapfrog kick).
   PetscErrorCode transpose(PetscReal t, const LocalState &s, Vec x, Vec y, PetscReal w, Vec mu, bool defer,
                            bool x_ghosts = false, PetscReal drift = 0) {
     PetscFunctionBeginUser;
+    static_assert(!SPLIT || (Local && ADDY && CHI - CLO == YHI - YLO), "split arrays: the leapfrog kick of a local model");
+    PetscCheck(!SPLIT || x_ghosts, grid_->comm(), PETSC_ERR_PLIB, "transpose: split arrays come ghosted");
     if (!x_ghosts) PetscCall(fill_ghosts(x, Xl_, true));
     if constexpr (Coupling)
       if (uniform_ && mu) PetscCall(eq_.auxiliary_fields_adjoint(x, map_vecs_.data())); // L_k^T x
@@ -993,12 +1000,14 @@ public:
       PetscCall(DMGlobalToLocal(out_dm_, Hg_, INSERT_VALUES, XHl_));
     }
     {
-      ConstArray xg(Xl_), xha(XHl_);
-      PetscScalar *ya = nullptr, *m = nullptr, *za = nullptr;
+      ConstArray xg(SPLIT ? lam_g_.get() : Xl_.get()), xha(XHl_);
+      PetscScalar *ya = nullptr, *m = nullptr, *za = nullptr, *xd = nullptr;
       const PetscScalar *xo;
       if (y) PetscCall(VecGetArray(y, &ya));
-      if (y == x) xo = ya; // the leapfrog kick: reads x's components, writes others
-      else PetscCall(VecGetArrayRead(x, &xo));
+      if (SPLIT && drift != 0) { // the drift writes x
+        PetscCall(VecGetArray(x, &xd));
+        xo = xd;
+      } else PetscCall(VecGetArrayRead(x, &xo));
       if (mu) PetscCall(VecGetArray(mu, &m));
       if (KL && y) std::fill(zline_.begin(), zline_.end(), 0.0), za = zline_.data();
       else if (K > 0 && y) PetscCall(VecGetArray(Zg_, &za));
@@ -1008,8 +1017,8 @@ public:
       auto run = [&](auto wy, auto wg) {
         PetscErrorCode ierr = 0;
         with_constants([&](auto sc) {
-          ierr = gather<CLO, CHI, YLO, YHI, CS, decltype(wy)::value, ADDY, decltype(wg)::value, decltype(sc)::value>(
-              t, s, xo, xg.data(), xha.data(), ya, w, gk, za, drift);
+          ierr = gather<CLO, CHI, YLO, YHI, CS, decltype(wy)::value, ADDY, decltype(wg)::value, decltype(sc)::value, SPLIT>(
+              t, s, xo, xg.data(), xha.data(), ya, w, gk, za, drift, xd);
         });
         return ierr;
       };
@@ -1023,9 +1032,10 @@ public:
       if (uniform_ && mu) PetscCall(add_coupling_gradient(s, w, gk));
       if (mu && !theta_.empty()) {
         if (!defer) std::fill(dtheta_.begin(), dtheta_.end(), 0.0);
-        PetscCall((theta_gather<CLO, CHI, CS>(t, s, xo, w, defer ? theta_acc_.data() : dtheta_.data())));
+        PetscCall((theta_gather<CLO, CHI, CS, SPLIT>(t, s, xo, w, defer ? theta_acc_.data() : dtheta_.data())));
       }
-      if (y != x) PetscCall(VecRestoreArrayRead(x, &xo));
+      if (xd) PetscCall(VecRestoreArray(x, &xd));
+      else PetscCall(VecRestoreArrayRead(x, &xo));
       if (za && !KL) PetscCall(VecRestoreArray(Zg_, &za));
       if (mu) PetscCall(VecRestoreArray(mu, &m));
       if (y) PetscCall(VecRestoreArray(y, &ya));
@@ -1191,12 +1201,13 @@ public:
     PetscFunctionReturn(0);
   }
 
-  // Leapfrog kick at one time level: lambda_p += drift lambda_q, then lambda_q += w (dG_p/dq)^T lambda_p
-  // and mu += w (dG_p/dp)^T lambda_p, the transposes in one gather sweep.
+  // Leapfrog kick at one time level, lambda_q and lambda_p in arrays of their own (m per point):
+  // lambda_p += drift lambda_q, then lambda_q += w (dG_p/dq)^T lambda_p and mu += w (dG_p/dp)^T lambda_p,
+  // the transposes in one gather sweep that reads lambda_p in whole vectors.
   // U may be the positions alone (m per point; G_p reads nothing else), which is all a trajectory then
   // stores.
   bool has_second_order_adjoint() const override { return pointwise::PairsOf<Eq>::value > 0; }
-  PetscErrorCode second_order_adjoint(PetscReal t, Vec U, Vec lambda, PetscReal w, Vec mu, PetscReal drift,
+  PetscErrorCode second_order_adjoint(PetscReal t, Vec U, Vec lambda_q, Vec lambda_p, PetscReal w, Vec mu, PetscReal drift,
                                       const PetscScalar *next) override {
     constexpr int m = pointwise::PairsOf<Eq>::value;
     PetscFunctionBeginUser;
@@ -1211,23 +1222,26 @@ public:
         PetscCall(positions_of(U, q.data()));
         pos_.ref = pos_copy_;
       }
-      // the ghosts of the positions and of lambda (after the drift) travel at once
+      // the ghosts of the positions and of lambda_p (after the drift) travel at once
       PetscCall(pos_ghosts_.begin(pos_.ref, pos_.g));
       // The drift's transpose: with held walls in 2D and 3D on the block's edge strips now (their ghosts
       // and copies are read from the start) and on the rest within the gather, rows just ahead of the
       // rows that read them (one pass over lambda); else in a pass of its own.
       const bool in_gather = drift != 0 && D >= 2 && frame_.held;
       if (drift != 0) {
-        Array l(lambda);
-        PetscCall(l.error());
+        Array lp(lambda_p);
+        ConstArray lq(lambda_q);
+        PetscCall(lp.error());
+        PetscCall(lq.error());
         if (in_gather)
-          for_edge_strips(strip_, [&](PetscInt lo, PetscInt hi) { leapfrog_drift_transpose(l.data(), lo, hi, m, drift); });
-        else leapfrog_drift_transpose(l.data(), 0, grid_->local_points(), m, drift);
+          for_edge_strips(strip_, [&](PetscInt lo, PetscInt hi) { leapfrog_drift_transpose(lp.data(), lq.data(), lo * m, hi * m, drift); });
+        else leapfrog_drift_transpose(lp.data(), lq.data(), 0, grid_->local_points() * m, drift);
       }
-      PetscCall(ghosts_.begin(lambda, Xl_));
+      PetscCall(lambda_ghosts_.begin(lambda_p, lam_g_));
       PetscCall(fill_ghosts<m>(pos_.ref, pos_.g, pos_ghosts_, false, true));
-      PetscCall(fill_ghosts(lambda, Xl_, ghosts_, true, true));
-      PetscCall((transpose<m, 2 * m, 0, m, m, true>(t, pos_, lambda, lambda, w, mu, in_adjoint_, true, in_gather ? drift : 0.0)));
+      PetscCall(fill_ghosts<m>(lambda_p, lam_g_, lambda_ghosts_, true, true));
+      PetscCall((transpose<m, 2 * m, 0, m, m, true, true, true>(t, pos_, lambda_p, lambda_q, w, mu, in_adjoint_, true,
+                                                                 in_gather ? drift : 0.0)));
     }
     PetscFunctionReturn(0);
   }
@@ -1557,7 +1571,7 @@ private:
   }
   // acc[e] += w sum_i sum_{c in [CLO, CHI)} x_c(i) dG_c(i)/dtheta_e over the owned points i: G(i) taped
   // at Rev numbers and swept backward once per point.
-  template <int CLO, int CHI, int CS>
+  template <int CLO, int CHI, int CS, bool SPLIT = false>
   FLEXIPDE_SWEEP PetscErrorCode theta_gather(PetscReal t, const LocalState &s, const PetscScalar *xo, PetscReal w,
                                              PetscReal *acc) const {
     PetscFunctionBeginUser;
@@ -1572,7 +1586,10 @@ private:
       tape.begin(ne);
       rhs_of(eq_, pointwise::ReversePoint<C, K, NG, Sten, decltype(ck)::value, CS, KL>(f, at, own, i, j, k), g);
       tape.begin_seeding();
-      for (int c = CLO; c < CHI; ++c) tape.seed(g[c].i, w * PetscRealPart(xo[own * C + c]));
+      for (int c = CLO; c < CHI; ++c) {
+        const PetscInt xi = x_at<CLO, CHI, SPLIT>(own, c);
+        tape.seed(g[c].i, w * PetscRealPart(xo[xi]));
+      }
       tape.backward();
       for (int e = 0; e < ne; ++e) acc[e] += tape.adjoint(e);
     });
@@ -2386,16 +2403,17 @@ private:
   // differentiated with respect to the inputs at the point, contracted with x there.
   // In flux form, away from walls: the source's gather so, and each face that reads the point once.
   // XF: with the faces along x (else the caller has them: gather_face_runs).
-  template <int CLO, int CHI, int W, int CS, bool SC, bool XF = true, class M, int... E>
+  template <int CLO, int CHI, int W, int CS, bool SC, bool XF = true, bool SPLIT = false, class M, int... E>
   static void gather_offsets(const M &eq, const pointwise::Frame &f, const PetscScalar *xh, PetscInt at, PetscInt own, PetscInt i,
                              PetscInt j, PetscInt k, double *yv, double *zv, double *gv, std::integer_sequence<int, E...>) {
+    static_assert(!(SPLIT && Flux), "split arrays: the leapfrog's models, never in flux form");
     if constexpr (Flux && (W == 0 || W == 2)) {
       if constexpr (pointwise::HasSource<Eq>::value)
-        (gather_one<Sten::offset(E)[0], Sten::offset(E)[1], Sten::offset(E)[2], CLO, CHI, W, CS, SC, 1>(eq, f, xh, at, own, i, j, k,
+        (gather_one<Sten::offset(E)[0], Sten::offset(E)[1], Sten::offset(E)[2], CLO, CHI, W, CS, SC, 1, SPLIT>(eq, f, xh, at, own, i, j, k,
                                                                                                       yv, zv, gv), ...);
       // constant parameters: dG(j)/dp x(j) from G at the point, as the points that take the gather of G
       // count them (per face, the faces between the two kinds of point would be missed or counted twice)
-      if constexpr (SC && NG > 0) gather_one<0, 0, 0, CLO, CHI, W, CS, SC, 2>(eq, f, xh, at, own, i, j, k, yv, zv, gv);
+      if constexpr (SC && NG > 0) gather_one<0, 0, 0, CLO, CHI, W, CS, SC, 2, SPLIT>(eq, f, xh, at, own, i, j, k, yv, zv, gv);
       if constexpr (NFACE > 0) {
         using Faces = std::make_integer_sequence<int, 2 * RF>;
         if constexpr (XF) gather_faces<0, CLO, CHI, SC>(eq, f, at, own, i, j, k, yv, gv, Faces());
@@ -2403,9 +2421,14 @@ private:
         if constexpr (D == 3) gather_faces<2, CLO, CHI, SC>(eq, f, at, own, i, j, k, yv, gv, Faces());
       }
     } else
-      (gather_one<Sten::offset(E)[0], Sten::offset(E)[1], Sten::offset(E)[2], CLO, CHI, W, CS, SC>(eq, f, xh, at, own, i, j, k, yv,
-                                                                                                 zv, gv),
+      (gather_one<Sten::offset(E)[0], Sten::offset(E)[1], Sten::offset(E)[2], CLO, CHI, W, CS, SC, 0, SPLIT>(eq, f, xh, at, own, i, j,
+                                                                                                            k, yv, zv, gv),
        ...);
+  }
+  // Where x's component c at a point is: interleaved (C per point) or, SPLIT, in an array of the
+  // components [CLO, CHI) alone (the leapfrog adjoint's lambda_p; its lambda_q likewise for y).
+  template <int LO, int HI, bool SPLIT> static constexpr PetscInt x_at(PetscInt point, int c) {
+    return SPLIT ? point * (HI - LO) + c - LO : point * C + c;
   }
   template <int d, int CLO, int CHI, bool SC, class M, int... q>
   static void gather_faces(const M &eq, const pointwise::Frame &f, PetscInt at, PetscInt own, PetscInt i, PetscInt j, PetscInt k,
@@ -2437,7 +2460,7 @@ private:
   // gather skips the others. (Beyond it the transpose's x reads 0, so that an Edge point's neighbours
   // there would add nothing; but their stencils would reach beyond the ghosted box.)
   // PART: 0 G, 1 the source term S alone (flux form), 2 G for the parameters' lanes alone.
-  template <int OX, int OY, int OZ, int CLO, int CHI, int W, int CS, bool SC, int PART = 0, class M>
+  template <int OX, int OY, int OZ, int CLO, int CHI, int W, int CS, bool SC, int PART = 0, bool SPLIT = false, class M>
   static void gather_one(const M &eq, const pointwise::Frame &f, const PetscScalar *xh, PetscInt at, PetscInt own, PetscInt i,
                          PetscInt j, PetscInt k, double *yv, double *zv, double *gv) {
     constexpr bool CK = W == 1;
@@ -2459,7 +2482,10 @@ private:
       if constexpr (!(PART == 1 && SC)) // (constant parameters: PART 2)
         for (int q = 0; q < NG; ++q) gv[q] += g.d[C + K + q] * xc;
     };
-    for (int c = CLO; c < CHI; ++c) contract(gd[c], PetscRealPart(CK ? f.Xg[sat * C + c] : f.X[sown * C + c]));
+    for (int c = CLO; c < CHI; ++c) {
+      const PetscInt xi = CK ? x_at<CLO, CHI, SPLIT>(sat, c) : x_at<CLO, CHI, SPLIT>(sown, c);
+      contract(gd[c], PetscRealPart(CK ? f.Xg[xi] : f.X[xi]));
+    }
     for (int m = 0; m < H; ++m) contract(gd[C + m], PetscRealPart(xh[sat * H + m]));
   }
 
@@ -2660,6 +2686,8 @@ private:
   OwnedDM pos_dm_;             // second-order models: the positions alone,
   LocalState pos_;             // as the leapfrog's trajectory stores them
   GhostExchange pos_ghosts_;
+  GhostExchange lambda_ghosts_; // the leapfrog adjoint's lambda_p, ghosted in lam_g_ (m per point)
+  OwnedVec lam_g_;
   OwnedVec pos_rec_;           // an explicit RK's stored positions of a stage, placed (stage_adjoint)
   OwnedVec pos_copy_;          // the positions copied out of a whole state
   mutable int positions_probe_ = -1; // positions_suffice: unknown, no, yes

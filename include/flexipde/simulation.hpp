@@ -79,7 +79,7 @@ private:
   static PetscErrorCode rhs_cb(TS, PetscReal, Vec, Vec, void *);
   static PetscErrorCode rhs_jacobian_cb(TS, PetscReal, Vec, Mat, Mat, void *);
   static PetscErrorCode rhs_jacobian_p_cb(TS, PetscReal, Vec, Mat, void *);
-  static PetscErrorCode adjoint_kick_cb(void *, PetscReal, Vec, Vec, PetscReal, Vec, PetscReal, const PetscScalar *);
+  static PetscErrorCode adjoint_kick_cb(void *, PetscReal, Vec, Vec, Vec, PetscReal, Vec, PetscReal, const PetscScalar *);
   static PetscErrorCode step_cb(void *, PetscReal, Vec, PetscScalar *, const LeapfrogStepParts &);
   static PetscErrorCode split_step_cb(void *, PetscReal, Vec, PetscScalar *, const LeapfrogSplitParts &);
   static PetscErrorCode stage_adjoint_cb(void *, PetscReal, Vec, const PetscScalar *, const StageCombination &, Vec, Vec);

@@ -156,6 +156,7 @@ private:
   // d(t) of the current shot into dvec_ (rank 0 holds every entry).
   PetscErrorCode data_at(PetscReal t);
   PetscErrorCode sample(Vec U);                 // y_ = R U, U a state or the positions alone
+  PetscErrorCode positions_sampling(Vec Q);     // R_positions_, Q shaped as the positions
   PetscErrorCode residual(PetscReal t, Vec U); // y_ = R U - d(t)
   // R for vectors of `per_point` components per grid point (the state's dof_, or the positions alone)
   PetscErrorCode assemble_sampling(PetscInt per_point, Vec like, Mat *R) const;

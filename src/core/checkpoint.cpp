@@ -562,6 +562,7 @@ PetscErrorCode setup_adjoint_trajectory(TS ts, CheckpointStats *stats) {
   // trajectory's own options, so -ts_trajectory_* still override).
   PetscCall(PetscObjectAddOptionsHandler((PetscObject)ts, checkpoint_options, nullptr, stats));
   PetscCall(TSAdjointMonitorSet(ts, checkpoint_statistics, stats, nullptr));
+  leapfrog_adjoint_monitor_reads_no_lambda(checkpoint_statistics);
   PetscFunctionReturn(0);
 }
 

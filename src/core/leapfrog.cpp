@@ -84,7 +84,17 @@ struct Leapfrog {
   PetscReal split_time = 0, split_dt = 0;
   Vec split_u = nullptr; // (not a reference: compared only)
   PetscObjectState split_u_state = -1;
+  // With the model's adjoint kick: lambda's positions and velocities parts per cost (m per point each),
+  // current instead of ts->vecs_sensi while lambda_split.
+  std::vector<Vec> Lq, Lp;
+  bool lambda_split = false;
 };
+
+// Adjoint monitors known to read no lambda (leapfrog_adjoint_monitor_reads_no_lambda).
+std::vector<LeapfrogAdjointMonitor> &quiet_adjoint_monitors() {
+  static std::vector<LeapfrogAdjointMonitor> list;
+  return list;
+}
 
 Leapfrog *data(TS ts) { return static_cast<Leapfrog *>(ts->data); }
 
@@ -132,6 +142,15 @@ template <class Fn> void for_damping_runs(const std::vector<std::pair<PetscInt, 
   if (at < end) fn(at, end, false);
 }
 
+// lambda_p += s lambda_q on the points [lo, hi) of an interleaved lambda (2m entries per point).
+void interleaved_drift_transpose(PetscScalar *lambda, PetscInt lo, PetscInt hi, PetscInt m, PetscReal s) {
+  if (m == 1)
+    for (PetscInt i = lo; i < hi; ++i) lambda[2 * i + 1] += s * lambda[2 * i];
+  else
+    for (PetscInt i = lo; i < hi; ++i)
+      for (PetscInt c = 0; c < m; ++c) lambda[2 * m * i + m + c] += s * lambda[2 * m * i + c];
+}
+
 // The drift's transpose on the adjoint: lambda_p += dt * lambda_q, and with damping (the two kicks'
 // factors on either side of it) lambda_p = ((1 - s) lambda_p + dt lambda_q) / (1 + s), s = sigma dt/2
 // (the forward drift is fused into start_kick_drift).
@@ -147,14 +166,69 @@ PetscErrorCode drift_transpose(Leapfrog &lf, Vec lambda, PetscReal dt) {
     PetscCall(update_factors(lf, dt));
     PetscCall(VecGetArrayRead(lf.factors, &g));
     for_damping_runs(lf.damped, 0, n / d, [&](PetscInt lo, PetscInt hi, bool damped) {
-      if (!damped) return leapfrog_drift_transpose(l, lo, hi, m, dt);
+      if (!damped) return interleaved_drift_transpose(l, lo, hi, m, dt);
       for (PetscInt i = lo * d; i < hi * d; i += d)
         for (PetscInt c = 0; c < m; ++c) l[i + m + c] = g[i + m + c] * l[i + m + c] + dt * g[i + c] * l[i + c];
     });
     PetscCall(VecRestoreArrayRead(lf.factors, &g));
-  } else leapfrog_drift_transpose(l, 0, n / lf.dof, lf.pairs, dt);
+  } else interleaved_drift_transpose(l, 0, n / lf.dof, lf.pairs, dt);
   PetscCall(VecRestoreArray(lambda, &l));
   PetscFunctionReturn(0);
+}
+
+// The same on the split lambda: lambda_p = keep lambda_p + dt inv lambda_q with the damping's factors.
+PetscErrorCode split_drift_transpose(Leapfrog &lf, Vec lambda_q, Vec lambda_p, PetscReal dt) {
+  PetscScalar *lp;
+  const PetscScalar *lq;
+  PetscInt n;
+  PetscFunctionBegin;
+  PetscCall(VecGetLocalSize(lambda_p, &n));
+  PetscCall(VecGetArray(lambda_p, &lp));
+  PetscCall(VecGetArrayRead(lambda_q, &lq));
+  if (lf.sigma) {
+    const PetscInt m = lf.pairs;
+    PetscCall(update_factors(lf, dt));
+    const PetscScalar *keep = lf.keep_factor.data(), *inv = lf.inv_factor.data();
+    for_damping_runs(lf.damped, 0, n / m, [&](PetscInt lo, PetscInt hi, bool damped) {
+      if (!damped) return leapfrog_drift_transpose(lp, lq, lo * m, hi * m, dt);
+      for (PetscInt i = lo * m; i < hi * m; ++i) lp[i] = keep[i] * lp[i] + dt * inv[i] * lq[i];
+    });
+  } else leapfrog_drift_transpose(lp, lq, 0, n, dt);
+  PetscCall(VecRestoreArrayRead(lambda_q, &lq));
+  PetscCall(VecRestoreArray(lambda_p, &lp));
+  PetscFunctionReturn(0);
+}
+
+// lambda split (lf.Lq, lf.Lp) from ts->vecs_sensi, or (form) vecs_sensi from them.
+PetscErrorCode lambda_split_load(TS ts, Leapfrog &lf, bool form) {
+  PetscFunctionBegin;
+  const PetscInt m = lf.pairs, d = 2 * m;
+  for (PetscInt k = 0; k < ts->numcost; ++k) {
+    PetscScalar *l, *q, *p;
+    PetscInt n;
+    PetscCall(VecGetLocalSize(ts->vecs_sensi[k], &n));
+    PetscCall(VecGetArray(ts->vecs_sensi[k], &l));
+    PetscCall(VecGetArray(lf.Lq[k], &q));
+    PetscCall(VecGetArray(lf.Lp[k], &p));
+    for (PetscInt i = 0; i < n / d; ++i)
+      for (PetscInt c = 0; c < m; ++c) {
+        if (form) l[i * d + c] = q[i * m + c], l[i * d + m + c] = p[i * m + c];
+        else q[i * m + c] = l[i * d + c], p[i * m + c] = l[i * d + m + c];
+      }
+    PetscCall(VecRestoreArray(lf.Lp[k], &p));
+    PetscCall(VecRestoreArray(lf.Lq[k], &q));
+    PetscCall(VecRestoreArray(ts->vecs_sensi[k], &l));
+  }
+  lf.lambda_split = !form;
+  PetscFunctionReturn(0);
+}
+
+// Whether an adjoint monitor may read lambda (all but those registered as reading none).
+bool lambda_watched(TS ts) {
+  const auto &quiet = quiet_adjoint_monitors();
+  for (PetscInt i = 0; i < ts->numberadjointmonitors; ++i)
+    if (std::find(quiet.begin(), quiet.end(), ts->adjointmonitor[i]) == quiet.end()) return true;
+  return false;
 }
 
 // lambda_q += s * W_q (the q rows of (dG/dU)^T lambda = A^T lambda_p).
@@ -643,6 +717,10 @@ PetscErrorCode TSReset_Leapfrog(TS ts) {
   lf->accel.clear();
   lf->accel.shrink_to_fit();
   PetscCall(VecDestroy(&lf->Qs));
+  for (Vec &v : lf->Lq) PetscCall(VecDestroy(&v));
+  for (Vec &v : lf->Lp) PetscCall(VecDestroy(&v));
+  lf->Lq.clear(), lf->Lp.clear();
+  lf->lambda_split = false;
   lf->Vs.clear();
   lf->Vs.shrink_to_fit();
   lf->split_valid = lf->u_behind = false;
@@ -705,9 +783,39 @@ PetscErrorCode TSAdjointSetUp_Leapfrog(TS ts) {
              "-ts_type leapfrog has no second-order adjoint");
   PetscCheck(!ts->quadraturets || ts->costintegralfwd, PetscObjectComm((PetscObject)ts), PETSC_ERR_SUP,
              "-ts_type leapfrog accumulates cost integrals in the forward sweep only");
-  if (lf->adjoint_kick) PetscFunctionReturn(0); // the model's fused kick needs no work vectors
+  lf->lambda_split = false;
+  if (lf->adjoint_kick) { // the model's fused kick needs no work vectors, only lambda's two parts
+    PetscInt n;
+    PetscCall(VecGetLocalSize(ts->vecs_sensi[0], &n));
+    for (PetscInt k = (PetscInt)lf->Lq.size(); k < ts->numcost; ++k) {
+      Vec q, p;
+      PetscCall(VecCreate(PetscObjectComm((PetscObject)ts), &q));
+      PetscCall(VecSetSizes(q, n / 2, PETSC_DETERMINE));
+      PetscCall(VecSetBlockSize(q, lf->pairs));
+      PetscCall(VecSetType(q, VECSTANDARD));
+      PetscCall(VecDuplicate(q, &p));
+      lf->Lq.push_back(q), lf->Lp.push_back(p);
+    }
+    PetscFunctionReturn(0);
+  }
   if (!lf->W) PetscCall(VecDuplicate(ts->vecs_sensi[0], &lf->W));
   if (ts->vecs_sensip && !lf->dmu) PetscCall(VecDuplicate(ts->vecs_sensip[0], &lf->dmu));
+  PetscFunctionReturn(0);
+}
+
+// lambda_q += w g_q and lambda_p += w g_p, g interleaved (2m entries per point).
+PetscErrorCode add_split(const Leapfrog &lf, const PetscScalar *g, PetscReal w, Vec lambda_q, Vec lambda_p) {
+  PetscScalar *q, *p;
+  PetscInt n;
+  PetscFunctionBegin;
+  PetscCall(VecGetLocalSize(lambda_q, &n));
+  PetscCall(VecGetArray(lambda_q, &q));
+  PetscCall(VecGetArray(lambda_p, &p));
+  const PetscInt m = lf.pairs;
+  for (PetscInt i = 0; i < n / m; ++i)
+    for (PetscInt c = 0; c < m; ++c) q[i * m + c] += w * g[2 * m * i + c], p[i * m + c] += w * g[2 * m * i + m + c];
+  PetscCall(VecRestoreArray(lambda_p, &p));
+  PetscCall(VecRestoreArray(lambda_q, &q));
   PetscFunctionReturn(0);
 }
 
@@ -724,7 +832,7 @@ PetscErrorCode half_kicks(TS ts, Mat J, PetscReal t, Vec X, PetscReal w, PetscRe
   if (w == 0 && drift == 0) PetscFunctionReturn(0);
   if (lf->adjoint_kick) {
     for (PetscInt k = 0; k < ts->numcost; ++k)
-      PetscCall(lf->adjoint_kick(lf->adjoint_kick_ctx, t, X, ts->vecs_sensi[k], w,
+      PetscCall(lf->adjoint_kick(lf->adjoint_kick_ctx, t, X, lf->Lq[k], lf->Lp[k], w,
                                  ts->vecs_sensip ? ts->vecs_sensip[k] : nullptr, drift, k == 0 ? prefetch : nullptr));
     PetscFunctionReturn(0);
   }
@@ -760,17 +868,24 @@ PetscErrorCode adjoint_level(TS ts, PetscReal t, Vec X, PetscReal w_right, Petsc
   if (!quadts) PetscFunctionReturn(0);
   Leapfrog *lf = data(ts);
   const bool with_p = ts->vecs_sensip && lf->integrand_reads_parameters;
-  if (lf->integrand_adjoint) // lambda += w dr/dU in place (a sparse dr/dU)
+  if (lf->integrand_adjoint) { // lambda += w dr/dU in place (a sparse dr/dU)
+    // split: into lambda_q when dr/dU has no velocity rows, else into lambda formed for the call
+    const bool into_q = lf->lambda_split && !lf->integrand_reads_velocities, around = lf->lambda_split && !into_q;
+    if (around) PetscCall(lambda_split_load(ts, *lf, true));
     for (PetscInt k = 0; k < ts->numcost; ++k)
-      PetscCall(lf->integrand_adjoint(lf->integrand_adjoint_ctx, t, X, w_quad, ts->vecs_sensi[k]));
-  else {
+      PetscCall(lf->integrand_adjoint(lf->integrand_adjoint_ctx, t, X, w_quad, into_q ? lf->Lq[k] : ts->vecs_sensi[k]));
+    if (around) PetscCall(lambda_split_load(ts, *lf, false));
+  } else {
     PetscCall(TSGetRHSJacobian(quadts, &Jquad, nullptr, nullptr, nullptr));
     PetscCall(TSComputeRHSJacobian(quadts, t, X, Jquad, nullptr));
     for (PetscInt k = 0; k < ts->numcost; ++k) {
       PetscCall(MatDenseGetColumn(Jquad, k, &col));
-      PetscCall(VecPlaceArray(ts->vec_drdu_col, col));
-      PetscCall(VecAXPY(ts->vecs_sensi[k], w_quad, ts->vec_drdu_col));
-      PetscCall(VecResetArray(ts->vec_drdu_col));
+      if (lf->lambda_split) PetscCall(add_split(*lf, col, w_quad, lf->Lq[k], lf->Lp[k]));
+      else {
+        PetscCall(VecPlaceArray(ts->vec_drdu_col, col));
+        PetscCall(VecAXPY(ts->vecs_sensi[k], w_quad, ts->vec_drdu_col));
+        PetscCall(VecResetArray(ts->vec_drdu_col));
+      }
       PetscCall(MatDenseRestoreColumn(Jquad, &col));
     }
   }
@@ -824,6 +939,9 @@ PetscErrorCode TSAdjointStep_Leapfrog(TS ts) {
   Leapfrog *lf = data(ts);
   const PetscReal dt = -ts->time_step, tk = ts->ptime;
   PetscFunctionBegin;
+  // With the model's kick lambda is split from the first step on and formed after the last one (and
+  // after each step an adjoint monitor may read).
+  if (lf->adjoint_kick && (ts->adjoint_steps == 0 || !lf->lambda_split)) PetscCall(lambda_split_load(ts, *lf, false));
   if (ts->adjoint_steps == 0) PetscCall(adjoint_level(ts, tk, ts->vec_sol, 0, 0.5 * dt, 0.5 * dt));
   // The drift's transpose: handed to the model's kick at level k-1 when it has one and a rank's lambda
   // and positions exceed the whole last-level cache (the kick may fold it into its sweep: one pass over
@@ -834,7 +952,10 @@ PetscErrorCode TSAdjointStep_Leapfrog(TS ts) {
   const bool fuse_drift =
       lf->adjoint_kick != nullptr && !lf->sigma && sizeof(PetscScalar) * (size_t)(n + n / 2) > last_level_cache().bytes;
   if (!fuse_drift)
-    for (PetscInt k = 0; k < ts->numcost; ++k) PetscCall(drift_transpose(*lf, ts->vecs_sensi[k], dt));
+    for (PetscInt k = 0; k < ts->numcost; ++k) {
+      if (lf->lambda_split) PetscCall(split_drift_transpose(*lf, lf->Lq[k], lf->Lp[k], dt));
+      else PetscCall(drift_transpose(*lf, ts->vecs_sensi[k], dt));
+    }
   // level k-1: the right half-kick of this step, then (except at t_0) the left one of the step before
   PetscCall(adjoint_level(ts, tk - dt, lf->Q_placed ? lf->Q : lf->Y0, 0.5 * dt, ts->steps == 0 ? 0.5 * dt : dt,
                           ts->steps == 0 ? 0 : 0.5 * dt, fuse_drift ? dt : 0, lf->Q_placed ? lf->Q_next : nullptr));
@@ -843,6 +964,11 @@ PetscErrorCode TSAdjointStep_Leapfrog(TS ts) {
     lf->Q_placed = false;
   }
   lf->Q_next = nullptr;
+  const bool last = ts->steps == 0 || (ts->adjoint_max_steps > 0 && ts->adjoint_steps + 1 >= ts->adjoint_max_steps);
+  if (lf->lambda_split && (last || lambda_watched(ts))) {
+    PetscCall(lambda_split_load(ts, *lf, true));
+    lf->lambda_split = !last;
+  }
   PetscFunctionReturn(0);
 }
 
@@ -1020,6 +1146,11 @@ PetscErrorCode leapfrog_form_solution(TS ts) {
   PetscFunctionBegin;
   PetscTryMethod(ts, "FlexipdeLeapfrogFormSolution_C", (TS), (ts));
   PetscFunctionReturn(0);
+}
+
+void leapfrog_adjoint_monitor_reads_no_lambda(LeapfrogAdjointMonitor monitor) {
+  auto &quiet = quiet_adjoint_monitors();
+  if (std::find(quiet.begin(), quiet.end(), monitor) == quiet.end()) quiet.push_back(monitor);
 }
 
 PetscErrorCode leapfrog_monitor_forms_solution(TS ts, LeapfrogMonitor monitor) {

@@ -264,11 +264,11 @@ PetscErrorCode Simulation::use_shifted_operator(TS ts) {
   PetscFunctionReturn(0);
 }
 
-PetscErrorCode Simulation::adjoint_kick_cb(void *ctx, PetscReal t, Vec U, Vec lambda, PetscReal w, Vec mu, PetscReal drift,
-                                           const PetscScalar *prefetch) {
+PetscErrorCode Simulation::adjoint_kick_cb(void *ctx, PetscReal t, Vec U, Vec lambda_q, Vec lambda_p, PetscReal w, Vec mu,
+                                           PetscReal drift, const PetscScalar *prefetch) {
   auto *sim = static_cast<Simulation *>(ctx);
   PetscFunctionBeginUser;
-  PetscCall(sim->model_->second_order_adjoint(t, U, lambda, w, mu, drift, prefetch));
+  PetscCall(sim->model_->second_order_adjoint(t, U, lambda_q, lambda_p, w, mu, drift, prefetch));
   PetscFunctionReturn(0);
 }
 

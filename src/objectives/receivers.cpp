@@ -718,13 +718,24 @@ PetscErrorCode Survey::sample(Vec U) {
   PetscCall(VecGetLocalSize(U, &n));
   PetscCall(MatGetLocalSize(R_, nullptr, &nstate));
   if (n == nstate) PetscCall(MatMult(R_, U, y_));
-  else { // the positions alone: n / points components per grid point, the recorded one among them
-    const PetscInt points = nstate / dof_, per_point = points ? n / points : 0;
-    PetscCheck(points == 0 || (n == points * per_point && component_ < per_point), PETSC_COMM_SELF, PETSC_ERR_PLIB,
-               "Survey: a vector of %" PetscInt_FMT " local entries is neither a state nor its positions", n);
-    if (!R_positions_) PetscCall(assemble_sampling(per_point, U, R_positions_.out()));
+  else {
+    if (!R_positions_) PetscCall(positions_sampling(U));
     PetscCall(MatMult(R_positions_, U, y_));
   }
+  PetscFunctionReturn(0);
+}
+
+// R_positions_ for vectors shaped as Q: the positions alone, n / points components per grid point,
+// the recorded one among them.
+PetscErrorCode Survey::positions_sampling(Vec Q) {
+  PetscInt n, nstate;
+  PetscFunctionBeginUser;
+  PetscCall(VecGetLocalSize(Q, &n));
+  PetscCall(MatGetLocalSize(R_, nullptr, &nstate));
+  const PetscInt points = nstate / dof_, per_point = points ? n / points : 0;
+  PetscCheck(points == 0 || (n == points * per_point && component_ < per_point), PETSC_COMM_SELF, PETSC_ERR_PLIB,
+             "Survey: a vector of %" PetscInt_FMT " local entries is neither a state nor its positions", n);
+  PetscCall(assemble_sampling(per_point, Q, R_positions_.out()));
   PetscFunctionReturn(0);
 }
 
@@ -778,10 +789,17 @@ PetscErrorCode Survey::integrand_dU(PetscReal t, Vec U, Vec drdU) {
 
 // lambda += w R^T (R U - d(t)): a few entries per receiver, not a state-sized dr/dU.
 PetscErrorCode Survey::integrand_dU_add(PetscReal t, Vec U, PetscReal w, Vec lambda) {
+  PetscInt n, nstate;
   PetscFunctionBeginUser;
   PetscCall(residual(t, U));
   PetscCall(VecScale(y_, w));
-  PetscCall(MatMultTransposeAdd(R_, y_, lambda, lambda));
+  PetscCall(VecGetLocalSize(lambda, &n));
+  PetscCall(MatGetLocalSize(R_, nullptr, &nstate));
+  if (n == nstate) PetscCall(MatMultTransposeAdd(R_, y_, lambda, lambda));
+  else { // the adjoint's positions part alone: sampled as the positions are
+    if (!R_positions_) PetscCall(positions_sampling(lambda));
+    PetscCall(MatMultTransposeAdd(R_positions_, y_, lambda, lambda));
+  }
   PetscFunctionReturn(0);
 }
 
