@@ -199,10 +199,21 @@ PetscErrorCode split_drift_transpose(Leapfrog &lf, Vec lambda_q, Vec lambda_p, P
   PetscFunctionReturn(0);
 }
 
-// lambda split (lf.Lq, lf.Lp) from ts->vecs_sensi, or (form) vecs_sensi from them.
+// lambda split (lf.Lq, lf.Lp, made when first needed) from ts->vecs_sensi, or (form) vecs_sensi from them.
 PetscErrorCode lambda_split_load(TS ts, Leapfrog &lf, bool form) {
   PetscFunctionBegin;
   const PetscInt m = lf.pairs, d = 2 * m;
+  for (PetscInt k = (PetscInt)lf.Lq.size(); k < ts->numcost; ++k) {
+    Vec q, p;
+    PetscInt n;
+    PetscCall(VecGetLocalSize(ts->vecs_sensi[k], &n));
+    PetscCall(VecCreate(PetscObjectComm((PetscObject)ts), &q));
+    PetscCall(VecSetSizes(q, n / 2, PETSC_DETERMINE));
+    PetscCall(VecSetBlockSize(q, m));
+    PetscCall(VecSetType(q, VECSTANDARD));
+    PetscCall(VecDuplicate(q, &p));
+    lf.Lq.push_back(q), lf.Lp.push_back(p);
+  }
   for (PetscInt k = 0; k < ts->numcost; ++k) {
     PetscScalar *l, *q, *p;
     PetscInt n;
@@ -784,20 +795,7 @@ PetscErrorCode TSAdjointSetUp_Leapfrog(TS ts) {
   PetscCheck(!ts->quadraturets || ts->costintegralfwd, PetscObjectComm((PetscObject)ts), PETSC_ERR_SUP,
              "-ts_type leapfrog accumulates cost integrals in the forward sweep only");
   lf->lambda_split = false;
-  if (lf->adjoint_kick) { // the model's fused kick needs no work vectors, only lambda's two parts
-    PetscInt n;
-    PetscCall(VecGetLocalSize(ts->vecs_sensi[0], &n));
-    for (PetscInt k = (PetscInt)lf->Lq.size(); k < ts->numcost; ++k) {
-      Vec q, p;
-      PetscCall(VecCreate(PetscObjectComm((PetscObject)ts), &q));
-      PetscCall(VecSetSizes(q, n / 2, PETSC_DETERMINE));
-      PetscCall(VecSetBlockSize(q, lf->pairs));
-      PetscCall(VecSetType(q, VECSTANDARD));
-      PetscCall(VecDuplicate(q, &p));
-      lf->Lq.push_back(q), lf->Lp.push_back(p);
-    }
-    PetscFunctionReturn(0);
-  }
+  if (lf->adjoint_kick) PetscFunctionReturn(0); // the model's fused kick needs no work vectors (lambda_split_load)
   if (!lf->W) PetscCall(VecDuplicate(ts->vecs_sensi[0], &lf->W));
   if (ts->vecs_sensip && !lf->dmu) PetscCall(VecDuplicate(ts->vecs_sensip[0], &lf->dmu));
   PetscFunctionReturn(0);
