@@ -199,6 +199,17 @@ PetscErrorCode split_drift_transpose(Leapfrog &lf, Vec lambda_q, Vec lambda_p, P
   PetscFunctionReturn(0);
 }
 
+// A state (q, p) with m positions and m momenta per point, interleaved as the Vec holds it, and the
+// split arrays holding each alone (m per point): split_pairs copies u into q and p, join_pairs back.
+void split_pairs(const PetscScalar *__restrict u, PetscScalar *__restrict q, PetscScalar *__restrict p, PetscInt npt, PetscInt m) {
+  for (PetscInt k = 0; k < npt; ++k)
+    for (PetscInt c = 0; c < m; ++c) q[k * m + c] = u[2 * k * m + c], p[k * m + c] = u[2 * k * m + m + c];
+}
+void join_pairs(const PetscScalar *__restrict q, const PetscScalar *__restrict p, PetscScalar *__restrict u, PetscInt npt, PetscInt m) {
+  for (PetscInt k = 0; k < npt; ++k)
+    for (PetscInt c = 0; c < m; ++c) u[2 * k * m + c] = q[k * m + c], u[2 * k * m + m + c] = p[k * m + c];
+}
+
 // lambda split (lf.Lq, lf.Lp, made when first needed) from ts->vecs_sensi, or (form) vecs_sensi from them.
 PetscErrorCode lambda_split_load(TS ts, Leapfrog &lf, bool form) {
   PetscFunctionBegin;
@@ -221,11 +232,8 @@ PetscErrorCode lambda_split_load(TS ts, Leapfrog &lf, bool form) {
     PetscCall(VecGetArray(ts->vecs_sensi[k], &l));
     PetscCall(VecGetArray(lf.Lq[k], &q));
     PetscCall(VecGetArray(lf.Lp[k], &p));
-    for (PetscInt i = 0; i < n / d; ++i)
-      for (PetscInt c = 0; c < m; ++c) {
-        if (form) l[i * d + c] = q[i * m + c], l[i * d + m + c] = p[i * m + c];
-        else q[i * m + c] = l[i * d + c], p[i * m + c] = l[i * d + m + c];
-      }
+    if (form) join_pairs(q, p, l, n / d, m);
+    else split_pairs(l, q, p, n / d, m);
     PetscCall(VecRestoreArray(lf.Lp[k], &p));
     PetscCall(VecRestoreArray(lf.Lq[k], &q));
     PetscCall(VecRestoreArray(ts->vecs_sensi[k], &l));
@@ -536,8 +544,7 @@ PetscErrorCode split_load(TS ts, Leapfrog &lf) {
   lf.Vs.resize((size_t)(npt * m));
   PetscCall(VecGetArrayRead(U, &u));
   PetscCall(VecGetArrayWrite(lf.Qs, &q));
-  for (PetscInt k = 0; k < npt; ++k)
-    for (PetscInt c = 0; c < m; ++c) q[k * m + c] = u[k * d + c], lf.Vs[k * m + c] = u[k * d + m + c];
+  split_pairs(u, q, lf.Vs.data(), npt, m);
   PetscCall(VecRestoreArrayWrite(lf.Qs, &q));
   PetscCall(VecRestoreArrayRead(U, &u));
   PetscCall(PetscObjectStateGet((PetscObject)U, &lf.split_u_state));
@@ -568,8 +575,7 @@ PetscErrorCode split_form(TS ts, Leapfrog &lf) {
   const PetscInt m = lf.pairs, d = 2 * m, npt = n / d;
   PetscCall(VecGetArrayWrite(U, &u));
   PetscCall(VecGetArrayRead(lf.Qs, &q));
-  for (PetscInt k = 0; k < npt; ++k)
-    for (PetscInt c = 0; c < m; ++c) u[k * d + c] = q[k * m + c], u[k * d + m + c] = lf.Vs[k * m + c];
+  join_pairs(q, lf.Vs.data(), u, npt, m);
   PetscCall(VecRestoreArrayRead(lf.Qs, &q));
   PetscCall(VecRestoreArrayWrite(U, &u));
   PetscCall(TSComputeRHSFunction(ts, lf.split_time, U, lf.F));
