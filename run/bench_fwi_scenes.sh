@@ -6,8 +6,11 @@
 #   small  101^2 points, 5000 steps of dt = 5e-4
 #   large  2000^2 points, 100 steps of dt = 5e-5
 # each with walls alone and with the sponge (-wave2d_sponge_width 0.15, its damping in the kicks),
-# on 1 and 2 ranks. Medians of REPS in-process repetitions (-timing_repeats) of a forward solve and of
-# a value + gradient, and what full storage held on rank 0.
+# on 1 and 2 ranks; the small scene also with the perfectly matched layer of the same width
+# (-wave2d_pml_width 0.15), which takes RK4 (its memory variables have no second-order form), and with
+# the sponge under RK4, which tells the integrator's share of the difference from the layer's (at
+# 2000^2 the PML's full storage would take 19 GB). Medians of REPS in-process repetitions
+# (-timing_repeats) of a forward solve and of a value + gradient, and what full storage held on rank 0.
 #
 #   bash run/bench_fwi_scenes.sh              # markdown on stdout, raw logs in $OUT
 #   LARGE=0 REPS=3 bash run/bench_fwi_scenes.sh
@@ -37,29 +40,38 @@ scene_args() { # name -> grid and time options
 scenes="small"
 [ "$LARGE" = 1 ] && scenes="small large"
 
-echo "## The FWI scenes (leapfrog, 41 receivers, field c)"
+echo "## The FWI scenes (41 receivers, field c)"
 echo
 echo "Measured $(date -u +%Y-%m-%dT%H:%MZ) on $(nproc) cores, load average $(cut -d' ' -f1-3 /proc/loadavg); medians of in-process repetitions."
 echo
-echo "| scene | boundary | ranks | forward (s) | value + gradient (s) | gradient / forward | trajectory on rank 0 (MB) |"
-echo "|---|---|---:|---:|---:|---:|---:|"
+boundary_args() { # boundary -> layer and integrator options
+  case $1 in
+    walls) echo "-wave2d_sponge_width 0 -ts_type leapfrog" ;;
+    sponge) echo "-wave2d_sponge_width 0.15 -ts_type leapfrog" ;;
+    sponge_rk4) echo "-wave2d_sponge_width 0.15 -ts_type rk -ts_rk_type 4" ;;
+    pml) echo "-wave2d_pml_width 0.15 -ts_type rk -ts_rk_type 4" ;;
+  esac
+}
+echo "| scene | boundary | integrator | ranks | forward (s) | value + gradient (s) | gradient / forward | trajectory on rank 0 (MB) |"
+echo "|---|---|---|---:|---:|---:|---:|---:|"
 for scene in $scenes; do
   reps=$REPS
-  [ "$scene" = large ] && reps=$(( REPS < 3 ? REPS : 3 ))
-  for boundary in walls sponge; do
-    width=0
-    [ "$boundary" = sponge ] && width=0.15
+  boundaries="walls sponge sponge_rk4 pml"
+  [ "$scene" = large ] && reps=$(( REPS < 3 ? REPS : 3 )) && boundaries="walls sponge"
+  for boundary in $boundaries; do
+    integrator=leapfrog
+    [ "${boundary%_rk4}" != "$boundary" ] || [ "$boundary" = pml ] && integrator=rk4
     for np in 1 2; do
       log="$OUT/${scene}_${boundary}_np$np.log"
       # shellcheck disable=SC2046
-      $MPIEXEC -n $np "$FLEXIPDE" -model wave2d $(scene_args $scene) -ts_type leapfrog -wave2d_sponge_width $width \
+      $MPIEXEC -n $np "$FLEXIPDE" -model wave2d $(scene_args $scene) $(boundary_args $boundary) \
         -wave2d_c_field 1 -wave2d_c 0.9 -true_wave2d_c 1 $survey -task gradient -timing_repeats $reps > "$log"
       fwd=$(sed -n 's/.*forward median \([0-9.e+-]*\) s.*/\1/p' "$log")
       grad=$(sed -n 's/.*gradient median \([0-9.e+-]*\) s.*/\1/p' "$log")
       ratio=$(sed -n 's/.*gradient\/forward \([0-9.e+-]*\).*/\1/p' "$log")
       held=$(sed -n 's/.*full storage held \([0-9.]*\) MB.*/\1/p' "$log" | head -1)
       [ -n "$fwd" ] && [ -n "$grad" ] || { echo "bench_fwi_scenes: no timing in $log" >&2; exit 1; }
-      echo "| $scene | $boundary | $np | $fwd | $grad | $ratio | $held |"
+      echo "| $scene | ${boundary%_rk4} | $integrator | $np | $fwd | $grad | $ratio | $held |"
     done
   done
 done
