@@ -60,7 +60,7 @@ for scene in $scenes; do
   [ "$scene" = large ] && reps=$(( REPS < 3 ? REPS : 3 )) && boundaries="walls sponge"
   for boundary in $boundaries; do
     integrator=leapfrog
-    [ "${boundary%_rk4}" != "$boundary" ] || [ "$boundary" = pml ] && integrator=rk4
+    case "$(boundary_args $boundary)" in *"-ts_type rk"*) integrator=rk4 ;; esac
     for np in 1 2; do
       log="$OUT/${scene}_${boundary}_np$np.log"
       # shellcheck disable=SC2046
