@@ -67,6 +67,16 @@ namespace flexipde {
 enum class StencilShape { Star, Box };
 // The direction d of a face flux (Eq::flux), known at compile time.
 template <int d> using Direction = std::integral_constant<int, d>;
+namespace pointwise {
+template <class F, int... d> inline void each_direction(F &f, std::integer_sequence<int, d...>) { (f(Direction<d>()), ...); }
+} // namespace pointwise
+// f(Direction<0>()), ..., f(Direction<D - 1>()): a sum over directions whose index is a constant in
+// each copy of the body. A model's rhs() writes its loops over directions with it, so that the sweeps
+// see straight-line code whatever the body's size, and their point loops vectorise (a loop the
+// compiler leaves rolled picks each neighbour by a branch on d).
+template <int D, class F> inline void for_each_direction(F &&f) {
+  pointwise::each_direction(f, std::make_integer_sequence<int, D>());
+}
 
 // The smallest and largest value of each parameter (a scalar's value twice), as set last.
 struct ParameterBounds {

@@ -154,6 +154,7 @@ public:
       spectral_radius_ += d2.spectral_radius(grid.h(d));
       lo_[d] = grid.lower(d), hi_[d] = grid.upper(d);
       periodic_[d] = grid.periodic(d);
+      layer_scale_[d] = periodic_[d] || pml_width_ == 0 ? 0 : 1 / pml_width_;
       n_[d] = grid.n(d);
       any_wall = any_wall || !periodic_[d];
       PetscCheck(periodic_[d] || 2 * pml_width_ < hi_[d] - lo_[d], grid.comm(), PETSC_ERR_ARG_OUTOFRANGE,
@@ -177,7 +178,7 @@ public:
       return;
     }
     T lap = T(0.0);
-    for (int d = 0; d < D; ++d) {
+    for_each_direction<D>([&](auto d) {
       T s = weight(0) * pt.u(0, 0);
       for (int k = 1; k <= R; ++k) s += weight(k) * (along(pt, 0, d, -k) + along(pt, 0, d, k));
       s *= sqr(pt.inv_h(d));
@@ -195,7 +196,7 @@ public:
         s += pt.u(chi, 0);
       }
       lap += s;
-    }
+    });
     g[0] = pt.u(1, 0);
     g[1] = sqr(pt.param(c)) * lap;
     if constexpr (Damped) g[1] -= pt.coefficient(0) * pt.u(1, 0);
@@ -254,11 +255,11 @@ private:
   template <class P> static auto along(const P &pt, int q, int d, int k) {
     return d == 0 ? pt.u(q, k) : d == 1 ? pt.u(q, 0, k) : pt.u(q, 0, 0, k);
   }
-  // How far into the PML along direction d, from 0 at its inner edge to 1 on the wall (0 outside it).
+  // How far into the PML along direction d, from 0 at its inner edge to 1 on the wall (0 outside it, and
+  // along periodic directions, which have none).
   template <class P> PetscReal layer_fraction(const P &pt, int d) const {
-    if (periodic_[d]) return 0;
     const PetscReal depth = std::min(pt.x(d) - lo_[d], hi_[d] - pt.x(d));
-    return std::max<PetscReal>(0, pml_width_ - depth) / pml_width_;
+    return std::max<PetscReal>(0, pml_width_ - depth) * layer_scale_[d];
   }
   bool on_wall(int d, PetscInt i) const { return !periodic_[d] && (i == 0 || i == n_[d] - 1); }
   template <class P> bool held(const P &pt) const { return boundary_ == Walls && pt.on_wall(); }
@@ -307,11 +308,12 @@ private:
   PetscReal pml_width_ = 0, pml_strength_ = 0, pml_alpha_ = 10.0;
   PetscReal lo_[D], hi_[D];
   PetscInt n_[D];
+  PetscReal layer_scale_[D]; // 1/W along directions with walls, 0 along periodic ones
   bool periodic_[D];
 
 public:
   AcousticWave() {
-    for (int d = 0; d < D; ++d) ic_x_[d] = 0.5, lo_[d] = 0, hi_[d] = 1, n_[d] = 1, periodic_[d] = false;
+    for (int d = 0; d < D; ++d) ic_x_[d] = 0.5, lo_[d] = 0, hi_[d] = 1, n_[d] = 1, layer_scale_[d] = 0, periodic_[d] = false;
   }
 };
 
