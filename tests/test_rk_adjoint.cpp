@@ -2,7 +2,8 @@
 // (-adjoint_petsc_step), on 1 and 2 ranks: the same gradient to 1e-12 (the two differ only in the
 // rounding of b_i W_i), for every model that runs with TSRK, scalar and field parameters, tableaux of
 // 2 to 4 stages (non-FSAL: rk_adjoint.hpp's path) and an FSAL one (3bs: handed back to PETSc's, so the
-// two must agree exactly). Each case's gradient is also nonzero, so the comparison means something.
+// two must agree exactly), objectives with a cost integrand (receivers, time variation) among them. Each
+// case's gradient is also nonzero, so the comparison means something.
 #include "flexipde/scene.hpp"
 #include "test_support.hpp"
 #include <array>
@@ -77,6 +78,30 @@ std::vector<RkCase> rk_cases() {
        {{"-model", "advection"}, {"-advection_dim", "2"}, {"-grid_periodic", "1"}, {"-da_grid_x", "16"},
         {"-da_grid_y", "12"}, {"-advection_D", "0.02"}, {"-advection_D_field", "1"}, {"-advection_b", "-0.6"},
         {"-ts_rk_type", "4"}},
+       1e-12},
+      // Cost integrands: the receivers' sparse dr/dU, from the stages' positions alone (the records the
+      // wave's full storage keeps), from whole stages re-run by checkpointing, in 2D with the PML;
+      // the time variation's dense dr/dU and its dr/dp.
+      {"wave_rk4_receivers",
+       {{"-da_grid_x", "101"}, {"-wave_c_field", "1"}, {"-wave_ic", "zero"}, {"-ts_max_time", "0.3"},
+        {"-objective_type", "receivers"}, {"-survey_sources_x", "0.45"}, {"-survey_receivers_spread", "0.3,0.7,5"},
+        {"-survey_ricker_f0", "6"}, {"-ts_rk_type", "4"}},
+       1e-12},
+      {"wave_rk4_receivers_checkpointed",
+       {{"-da_grid_x", "101"}, {"-wave_c_field", "1"}, {"-wave_ic", "zero"}, {"-ts_max_time", "0.3"},
+        {"-objective_type", "receivers"}, {"-survey_sources_x", "0.45"}, {"-survey_receivers_spread", "0.3,0.7,5"},
+        {"-survey_ricker_f0", "6"}, {"-ts_rk_type", "4"}, {"-checkpoint_budget", "5"}},
+       1e-12},
+      {"wave2d_pml_rk4_receivers",
+       {{"-model", "wave2d"}, {"-da_grid_x", "25"}, {"-da_grid_y", "21"}, {"-wave2d_c_field", "1"},
+        {"-wave2d_pml_width", "0.2"}, {"-ts_max_time", "0.3"}, {"-objective_type", "receivers"},
+        {"-survey_sources_x", "0.5"}, {"-survey_sources_y", "0.5"}, {"-survey_receivers_spread", "0.3,0.7,4"},
+        {"-survey_receivers_y", "0.35"}, {"-survey_ricker_f0", "5"}, {"-ts_rk_type", "4"}},
+       1e-12},
+      {"advection_time_variation_D_field_rk3",
+       {{"-model", "advection"}, {"-grid_periodic", "1"}, {"-da_grid_x", "64"}, {"-advection_scheme", "fd2"},
+        {"-advection_D", "0.01"}, {"-advection_D_field", "1"}, {"-objective_type", "time_variation"},
+        {"-ts_rk_type", "3"}},
        1e-12},
       {"vlasov_landau_rk4",
        {{"-model", "vlasov"}, {"-vlasov_ic", "landau"}, {"-da_grid_x", "16"}, {"-da_grid_y", "32"},

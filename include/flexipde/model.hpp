@@ -123,7 +123,8 @@ public:
   // the field E(f) at the owned x). rhs_record() is rhs() that also writes them to `record`. Full storage
   // keeps them for every stage (the RHS evaluations at the stages write them in place) and
   // stage_adjoint receives them; when stage_record_replaces_state() it needs nothing else of the stage
-  // (U is null then) and full storage keeps only the records. Without a record (null: the stage was
+  // (U is null then) and full storage keeps only the records, which are then the stage's positions
+  // (second_order_pairs() per point; a cost integrand that reads them alone works from them too). Without a record (null: the stage was
   // recomputed) stage_adjoint works from U.
   virtual PetscInt stage_record_size() const { return 0; }
   virtual bool stage_record_replaces_state() const { return false; }

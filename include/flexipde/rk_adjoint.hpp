@@ -12,9 +12,14 @@
 // Jacobians (no Jacobian callbacks, no copy of the parameter product). Stages with b_i = 0 are handled
 // by the same formula (PETSc's skips their dG/dp). Zero a_ji are skipped.
 //
-// Used for first-order adjoints of non-FSAL tableaux without a cost integrand, for models with the
-// fused stage products; anything else goes to TSRK's own adjoint step, as everything does with
-// -adjoint_petsc_step (read by the Simulation).
+// A cost integrand int r(t, U) dt (PETSc's quadrature TS, integrated forward with the RK's own weights)
+// adds its share to each stage, dLambda_i += h b_i (dr/dU)(Y_i)^T and mu += h b_i (dr/dp)(Y_i)^T, through
+// an integrand hook (rk_adjoint_set_integrand), so a sparse dr/dU (receivers) costs a few entries
+// instead of a dense column and a pass over the state.
+//
+// Used for first-order adjoints of non-FSAL tableaux, for models with the fused stage products and,
+// with a cost integrand, an integrand hook; anything else goes to TSRK's own adjoint step, as
+// everything does with -adjoint_petsc_step (read by the Simulation).
 #pragma once
 #include "flexipde/petsc.hpp"
 #include <petscts.h>
@@ -66,8 +71,18 @@ struct RkStageNeeds {
 // vectorisable pass of its own for s <= 4 (the same numbers as VecMAXPY's, whose pointer loop is not
 // vectorised), else VecMAXPY.
 PetscErrorCode rk_adjoint_install(TS ts, RkStageAdjoint stage, void *stage_ctx, RkStageNeeds needs = {});
-// What the installed adjoint can work from for a non-FSAL tableau without a cost integrand (else all
-// zero: whole stages needed, no records).
+// The cost integrand's share of one stage, at the stage's time t: y += w (dr/dU)(t, U)^T and, unless mu
+// is null, mu += w (dr/dp)(t, U)^T, with w = h b_i, at the stage U or, when the stage's record replaces it
+// (U null; only for a hook set with from_records), at the record, handed as a Vec on the TS's
+// communicator (record_size local entries).
+typedef PetscErrorCode (*RkIntegrandAdjoint)(void *ctx, PetscReal t, Vec U, Vec record, PetscReal w, Vec y, Vec mu);
+
+// After rk_adjoint_install: the hook for a cost integrand (one cost function); without one, a TS with a
+// cost integrand takes TSRK's own adjoint step. from_records: the hook works from a stage's record alone
+// (else, when the records would replace the stages, whole stages are kept).
+PetscErrorCode rk_adjoint_set_integrand(TS ts, RkIntegrandAdjoint integrand, void *integrand_ctx, bool from_records);
+// What the installed adjoint can work from for a non-FSAL tableau (else all zero: whole stages needed,
+// no records).
 PetscErrorCode rk_adjoint_stage_needs(TS ts, RkStageNeeds *needs);
 // Records. Forward: the evaluations of G at stage i of the following steps write their record to
 // base + i * stride (base = null: no records), rk_adjoint_record_target telling an RHS evaluation at U

@@ -83,6 +83,7 @@ private:
   static PetscErrorCode step_cb(void *, PetscReal, Vec, PetscScalar *, const LeapfrogStepParts &);
   static PetscErrorCode split_step_cb(void *, PetscReal, Vec, PetscScalar *, const LeapfrogSplitParts &);
   static PetscErrorCode stage_adjoint_cb(void *, PetscReal, Vec, const PetscScalar *, const StageCombination &, Vec, Vec);
+  static PetscErrorCode integrand_stage_cb(void *, PetscReal, Vec, Vec, PetscReal, Vec, Vec);
   PetscErrorCode check_finite(Vec U, const char *what);
   static PetscErrorCode blowup_monitor(TS, PetscInt, PetscReal, Vec, void *);
   PetscInt blowup_every_ = 100;

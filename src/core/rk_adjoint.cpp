@@ -16,6 +16,10 @@ struct RkAdjoint {
   std::vector<Vec> terms;                     // ... and their dLambda_j
   RkStageAdjoint stage = nullptr;             // the model's fused stage products
   void *stage_ctx = nullptr;
+  RkIntegrandAdjoint integrand = nullptr;     // the cost integrand's share of a stage (null: none handled)
+  void *integrand_ctx = nullptr;
+  bool integrand_from_records = false;
+  Vec record_view = nullptr;                  // a stage's record as a Vec, for the integrand hook
   // Stage records (Model::stage_record_size): `record_size` entries per stage, replacing the stage when
   // record_replaces. Forward: armed at arm_base (stage i at arm_base + i * arm_stride), for the RHS
   // evaluations at the stage Vecs. Adjoint: placed at rec_base.
@@ -26,7 +30,10 @@ struct RkAdjoint {
   const PetscScalar *rec_base = nullptr;
   PetscInt rec_stride = 0;
   PetscInt s = 0, ncost = 0;
-  ~RkAdjoint() { release(); }
+  ~RkAdjoint() {
+    release();
+    (void)VecDestroy(&record_view);
+  }
   void release() {
     for (Vec &v : dlam) (void)VecDestroy(&v);
     dlam.clear();
@@ -67,7 +74,8 @@ PetscErrorCode adjoint_step(TS ts) {
   PetscCheck(ctx, PetscObjectComm((PetscObject)ts), PETSC_ERR_PLIB, "rk_adjoint: context missing");
   PetscCall(TSRKGetTableau(ts, &s, &A, &b, &c, &bembed, &pinterp, &binterp, &fsal));
   (void)bembed, (void)pinterp, (void)binterp;
-  if (fsal || ts->quadraturets || ts->vecs_sensi2 || ts->numcost < 1) {
+  const bool integrand = ts->quadraturets != nullptr;
+  if (fsal || (integrand && (!ctx->integrand || ts->numcost != 1)) || ts->vecs_sensi2 || ts->numcost < 1) {
     // (the store keeps records only for what this step handles: rk_adjoint_stage_needs)
     PetscCheck(!(ctx->rec_base && ctx->record_replaces), PetscObjectComm((PetscObject)ts), PETSC_ERR_PLIB,
                "rk_adjoint: only the stages' records were stored, which this adjoint (FSAL tableau, cost integrand "
@@ -109,7 +117,17 @@ PetscErrorCode adjoint_step(TS ts) {
       x.scratch = ctx->W;
       const PetscScalar *record = ctx->rec_base ? ctx->rec_base + (size_t)i * ctx->rec_stride : nullptr;
       Vec U = record && ctx->record_replaces ? nullptr : Y[i];
-      PetscCall(ctx->stage(ctx->stage_ctx, stage_time, U, record, x, dl[i], ts->vecs_sensip ? ts->vecs_sensip[k] : nullptr));
+      Vec mu = ts->vecs_sensip ? ts->vecs_sensip[k] : nullptr;
+      PetscCall(ctx->stage(ctx->stage_ctx, stage_time, U, record, x, dl[i], mu));
+      if (integrand && U) PetscCall(ctx->integrand(ctx->integrand_ctx, stage_time, U, nullptr, -h * b[i], dl[i], mu));
+      else if (integrand) {
+        if (!ctx->record_view)
+          PetscCall(VecCreateMPIWithArray(PetscObjectComm((PetscObject)ts), 1, ctx->record_size, PETSC_DECIDE, nullptr,
+                                          &ctx->record_view));
+        PetscCall(VecPlaceArray(ctx->record_view, record));
+        PetscCall(ctx->integrand(ctx->integrand_ctx, stage_time, nullptr, ctx->record_view, -h * b[i], dl[i], mu));
+        PetscCall(VecResetArray(ctx->record_view));
+      }
     }
   }
   for (PetscInt k = 0; k < ts->numcost; ++k)
@@ -205,10 +223,25 @@ PetscErrorCode rk_adjoint_install(TS ts, RkStageAdjoint stage, void *stage_ctx, 
   }
   ctx->stage = stage;
   ctx->stage_ctx = stage_ctx;
+  ctx->integrand = nullptr;
+  ctx->integrand_ctx = nullptr;
+  ctx->integrand_from_records = false;
+  if (ctx->record_size != needs.record_size) PetscCall(VecDestroy(&ctx->record_view));
   ctx->record_size = needs.record_size;
   ctx->record_replaces = ctx->record_size > 0 && needs.record_replaces;
   ctx->arm_base = nullptr;
   ctx->rec_base = nullptr;
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode rk_adjoint_set_integrand(TS ts, RkIntegrandAdjoint integrand, void *integrand_ctx, bool from_records) {
+  RkAdjoint *ctx;
+  PetscFunctionBegin;
+  PetscCall(installed(ts, &ctx));
+  PetscCheck(ctx, PetscObjectComm((PetscObject)ts), PETSC_ERR_ORDER, "rk_adjoint: install the adjoint step first");
+  ctx->integrand = integrand;
+  ctx->integrand_ctx = integrand_ctx;
+  ctx->integrand_from_records = integrand && from_records;
   PetscFunctionReturn(0);
 }
 
@@ -220,9 +253,11 @@ PetscErrorCode rk_adjoint_stage_needs(TS ts, RkStageNeeds *needs) {
   PetscFunctionBegin;
   *needs = RkStageNeeds{};
   PetscCall(installed(ts, &ctx));
-  if (!ctx || ts->quadraturets) PetscFunctionReturn(0);
+  if (!ctx || (ts->quadraturets && !ctx->integrand)) PetscFunctionReturn(0);
   PetscCall(TSRKGetTableau(ts, &s, &A, &b, &c, nullptr, nullptr, nullptr, &fsal));
   if (fsal) PetscFunctionReturn(0);
+  // an integrand hook that reads whole stages: no records in their place
+  if (ts->quadraturets && ctx->record_replaces && !ctx->integrand_from_records) PetscFunctionReturn(0);
   needs->record_size = ctx->record_size;
   needs->record_replaces = ctx->record_replaces;
   PetscFunctionReturn(0);

@@ -310,6 +310,28 @@ PetscErrorCode Simulation::quad_rhs_cb(TS, PetscReal t, Vec U, Vec F, void *ctx)
   PetscFunctionReturn(0);
 }
 
+// The cost integrand's share of an RK adjoint stage: y += w dr/dU, mu += w dr/dp at the stage U, or at
+// its positions when the record replaces the stage (set up so only for an integrand that reads them alone).
+PetscErrorCode Simulation::integrand_stage_cb(void *ctx, PetscReal t, Vec U, Vec positions, PetscReal w, Vec y, Vec mu) {
+  auto *sim = static_cast<Simulation *>(ctx);
+  Objective &objective = *sim->objective_;
+  PetscFunctionBeginUser;
+  if (!U) {
+    PetscCall(objective.integrand_dU_add(t, positions, w, y));
+    PetscFunctionReturn(0);
+  }
+  if (objective.adds_integrand_dU()) PetscCall(objective.integrand_dU_add(t, U, w, y));
+  else {
+    PetscCall(objective.integrand_dU(t, U, sim->drdU_col_));
+    PetscCall(VecAXPY(y, w, sim->drdU_col_));
+  }
+  if (mu && objective.integrand_reads_parameters()) {
+    PetscCall(objective.integrand_dp(t, U, sim->drdp_col_));
+    PetscCall(VecAXPY(mu, w, sim->drdp_col_));
+  }
+  PetscFunctionReturn(0);
+}
+
 PetscErrorCode Simulation::integrand_adjoint_cb(void *ctx, PetscReal t, Vec X, PetscReal w, Vec lambda) {
   auto *sim = static_cast<Simulation *>(ctx);
   PetscFunctionBeginUser;
@@ -665,6 +687,15 @@ PetscErrorCode Simulation::create_ts(bool with_adjoint, OwnedTS &ts, bool with_i
       needs.record_replaces = model_->stage_record_replaces_state();
     }
     PetscCall(rk_adjoint_install(ts, stage_adjoint_cb, this, needs));
+    if (objective_ && objective_->has_integrand()) {
+      // A stage record that replaces the stage holds its positions (Model::stage_record_replaces_state):
+      // enough for a sparse integrand of the positions alone (the receivers).
+      const PetscInt m = model_->second_order_pairs();
+      bool from_records = needs.record_replaces && m > 0 && needs.record_size == grid_->local_points() * m &&
+                          objective_->adds_integrand_dU() && !objective_->integrand_reads_parameters();
+      for (PetscInt c = m; c < model_->dof(); ++c) from_records = from_records && !objective_->integrand_reads_component(c);
+      PetscCall(rk_adjoint_set_integrand(ts, integrand_stage_cb, this, from_records));
+    }
   }
   if (with_adjoint && Jp_ && !std::strcmp(type, TSRK)) {
     // PETSc 3.18's TSAdjointStep_RK skips dG/dp for a stage whose weight b_i is zero (it rescales
