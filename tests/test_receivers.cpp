@@ -1,7 +1,8 @@
 // Receivers, Ricker point sources and the time-integrated receiver misfit (survey.hpp), and the Adam
 // TAO type (tao_adam.hpp):
 //   - Taylor tests of dJ/dc (c a field) with two shots, for -ts_type rk and cn,
-//   - the same in 2D (wave2d with its sponge) with Taylor and 1 vs 2 ranks, and the sponge absorbing,
+//   - the same in 2D (wave2d with its sponge, and with the PML under RK4) with Taylor and 1 vs 2 ranks, and
+//     the sponge absorbing,
 //   - a parallel run against a serial one (PETSC_COMM_SELF on every rank), two shots,
 //   - the synthetic misfit at the true model: zero to round-off with cn (data at its step states),
 //   - the data file round trip (-survey_data_write, then -survey_data_file gives the same J), and
@@ -158,6 +159,23 @@ TEST(ReceiverMisfit2D, ParallelMatchesSerial) {
     o.set("-survey_interpolation", how);
     flexipde_test::expect_parallel_matches_serial(std::string("receivers 2D, ") + how);
   }
+}
+
+// The same scene with the perfectly matched layer instead of the sponge, under RK4: the receivers'
+// misfit and the PML's memory variables in the fused RK adjoint (the integrand's share added at every
+// stage), Taylor test and 1 against 2 ranks.
+TEST(ReceiverMisfit2D, PmlRk4) {
+  ScopedOptions o;
+  survey2d_options(o);
+  o.set("-wave2d_pml_width", "0.2");
+  o.set("-ts_type", "rk");
+  o.set("-ts_rk_type", "4");
+  {
+    SceneProblem sp;
+    PETSC_ASSERT_OK(sp.setup(PETSC_COMM_WORLD));
+    expect_taylor(sp, 7, 4, "2D, PML, RK4");
+  }
+  flexipde_test::expect_parallel_matches_serial("receivers 2D, PML, RK4");
 }
 
 // A sponge absorbs: the energy left in the box after the pulse has reached the edges is far below
