@@ -121,6 +121,8 @@ PetscErrorCode adjoint_step(TS ts) {
       PetscCall(ctx->stage(ctx->stage_ctx, stage_time, U, record, x, dl[i], mu));
       if (integrand && U) PetscCall(ctx->integrand(ctx->integrand_ctx, stage_time, U, nullptr, -h * b[i], dl[i], mu));
       else if (integrand) {
+        PetscCheck(ctx->integrand_from_records, PetscObjectComm((PetscObject)ts), PETSC_ERR_PLIB,
+                   "rk_adjoint: the integrand hook needs whole stages, but only their records were stored");
         if (!ctx->record_view)
           PetscCall(VecCreateMPIWithArray(PetscObjectComm((PetscObject)ts), 1, ctx->record_size, PETSC_DECIDE, nullptr,
                                           &ctx->record_view));
