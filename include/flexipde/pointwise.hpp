@@ -1325,9 +1325,10 @@ public:
   // The leapfrog's split step (Model::second_order_split_step), 2D and 3D: the ghosts of the positions
   // q_k and copies of those within forward_strip_ of the owned block's edge (all that the points near the
   // edge read), then row by row (the rows (j, k) in memory order): a = G_p on the row as rhs() evaluates
-  // it at the positions (the velocities read as 0), the row's forcing, the row's kick, and the drift of
-  // the rows the stencils read no more (R rows behind in 2D, R planes and R rows in 3D). The positions
-  // and velocities pass through the cache once, and a only through a row's buffer.
+  // it at the positions (the velocities read as 0) and the kick with it at each point, v = keep v + w inv a
+  // (LeapfrogSplitParts::point_kick), the row's forcing, and the drift of the rows the stencils read no
+  // more (R rows behind in 2D, R planes and R rows in 3D). The positions and velocities pass through the
+  // cache once. (Parts without a point kick get a through a row's buffer and kick the row.)
   FLEXIPDE_SWEEP PetscErrorCode second_order_split_step(PetscReal t, Vec Q, PetscScalar *v,
                                                         const LeapfrogSplitParts &parts) override {
     PetscFunctionBeginUser;
@@ -1346,44 +1347,60 @@ public:
       f.t = t, f.U = q.data(), f.Ug = g.data(), f.P = p.data();
       uncoupled(f);
       const pointwise::Frame fe = edge_frame(f);
+      const LeapfrogSplitParts::PointKick kick = parts.point_kick();
       row_accel_.resize((size_t)(xm * m));
       PetscScalar *qd = q.data(), *row = row_accel_.data();
-      with_constants([&](auto sc) {
-        with_model([&](const auto &eq) {
-          RowCursor cursor(runs(R, true, false));
-          size_t next_force = 0;
-          PetscInt drifted = 0; // rows [0, drifted) hold q_{k+1}
-          // a of owned point `own` at out[own * m]: the row's buffer, offset for each row. The point
-          // function reads it through a pointer, so that it is made once, not for every row.
-          PetscScalar *out = nullptr, *const *row_out = &out;
-          const auto point = [=](PetscInt at, PetscInt own, PetscInt i, PetscInt j, PetscInt k, auto ck) {
-            constexpr int where = decltype(ck)::value;
-            double gv[C];
-            rhs_of(eq, Pt<Mode::Value, 0, 0, where == 1, m, where == 1, decltype(sc)::value>(where >= 2 ? fe : f, at,
-                                                                                           where >= 2 ? at : own, i, j, k),
-                   gv);
-            PetscScalar *o = *row_out;
-            for (int c = 0; c < m; ++c) o[own * m + c] = gv[m + c];
-          };
-          for (PetscInt r = 0; r < rows; ++r) {
-            const PetscInt j = grid_->ys() + r % ym, k = grid_->zs() + r / ym, first = r * xm;
-            out = row - first * m;
-            const auto k0 = cursor.take(0, j, k), k1 = cursor.take(1, j, k), k2 = cursor.take(2, j, k);
-            run_kind(k0.first, k0.second, point, Check<false>());
-            run_kind(k1.first, k1.second, point, Check<true>());
-            run_kind(k2.first, k2.second, point, Edge());
-            if constexpr (pointwise::HasForcing<Eq>::value)
-              for (; next_force < forcing_order_.size(); ++next_force) {
-                const PetscInt e = forcing_order_[next_force], own = source_->stencil.local[e];
-                if (own >= first + xm) break;
-                out[own * m + Eq::forced_component - m] += source_->density(e, t);
+      // Kick: 0 through the row's buffer (parts.kick), 1 v += w a, 2 v = keep v + w inv a.
+      const auto sweep = [&](auto kick_kind) {
+        constexpr int Kick = decltype(kick_kind)::value;
+        const PetscReal w = kick.w;
+        const PetscScalar *inv = kick.inv, *keep = kick.keep;
+        with_constants([&](auto sc) {
+          with_model([&](const auto &eq) {
+            RowCursor cursor(runs(R, true, false));
+            size_t next_force = 0;
+            PetscInt drifted = 0; // rows [0, drifted) hold q_{k+1}
+            // a of owned point `own` at out[own * m]: the row's buffer, offset for each row. The point
+            // function reads it through a pointer, so that it is made once, not for every row.
+            PetscScalar *out = nullptr, *const *row_out = &out;
+            const auto point = [=](PetscInt at, PetscInt own, PetscInt i, PetscInt j, PetscInt k, auto ck) {
+              constexpr int where = decltype(ck)::value;
+              double gv[C];
+              rhs_of(eq, Pt<Mode::Value, 0, 0, where == 1, m, where == 1, decltype(sc)::value>(where >= 2 ? fe : f, at,
+                                                                                             where >= 2 ? at : own, i, j, k),
+                     gv);
+              for (int c = 0; c < m; ++c) {
+                const PetscInt o = own * m + c;
+                if constexpr (Kick == 0) (*row_out)[o] = gv[m + c];
+                else if constexpr (Kick == 1) v[o] += w * gv[m + c];
+                else v[o] = keep[o] * v[o] + w * inv[o] * gv[m + c];
               }
-            parts.kick(v, row, first, first + xm);
-            for (; drifted + behind <= r; ++drifted) parts.drift(qd, v, drifted * xm, (drifted + 1) * xm);
-          }
-          for (; drifted < rows; ++drifted) parts.drift(qd, v, drifted * xm, (drifted + 1) * xm);
+            };
+            for (PetscInt r = 0; r < rows; ++r) {
+              const PetscInt j = grid_->ys() + r % ym, k = grid_->zs() + r / ym, first = r * xm;
+              out = row - first * m;
+              const auto k0 = cursor.take(0, j, k), k1 = cursor.take(1, j, k), k2 = cursor.take(2, j, k);
+              run_kind(k0.first, k0.second, point, Check<false>());
+              run_kind(k1.first, k1.second, point, Check<true>());
+              run_kind(k2.first, k2.second, point, Edge());
+              if constexpr (pointwise::HasForcing<Eq>::value)
+                for (; next_force < forcing_order_.size(); ++next_force) {
+                  const PetscInt e = forcing_order_[next_force], own = source_->stencil.local[e];
+                  if (own >= first + xm) break;
+                  const PetscInt o = own * m + Eq::forced_component - m;
+                  if constexpr (Kick == 0) out[o] += source_->density(e, t);
+                  else v[o] += w * (Kick == 2 ? inv[o] : 1.0) * source_->density(e, t);
+                }
+              if constexpr (Kick == 0) parts.kick(v, row, first, first + xm);
+              for (; drifted + behind <= r; ++drifted) parts.drift(qd, v, drifted * xm, (drifted + 1) * xm);
+            }
+            for (; drifted < rows; ++drifted) parts.drift(qd, v, drifted * xm, (drifted + 1) * xm);
+          });
         });
-      });
+      };
+      if (kick.w == 0) sweep(std::integral_constant<int, 0>());
+      else if (kick.inv) sweep(std::integral_constant<int, 2>());
+      else sweep(std::integral_constant<int, 1>());
     }
     PetscFunctionReturn(0);
   }

@@ -443,6 +443,8 @@ public:
       for (PetscInt i = 0; i < (hi - lo) * m; ++i) vv[i] = gk[i] * vv[i] + w * g[i] * aa[i];
     });
   }
+  // the same as kick(): 1 * v + w * 1 * a = v + w a exactly where nothing is damped
+  PointKick point_kick() const override { return {w_, inv_, inv_ ? keep_ : nullptr}; }
   void drift(PetscScalar *q, const PetscScalar *v, PetscInt begin, PetscInt end) const override {
     PetscScalar *__restrict qq = q + begin * m_;
     const PetscScalar *__restrict vv = v + begin * m_;
