@@ -124,19 +124,15 @@ PetscErrorCode leapfrog_set_step(TS ts, LeapfrogStep step, void *ctx);
 // velocities) takes the kick-drift-kick steps.
 class LeapfrogSplitParts {
 public:
-  // v += the kick of the time level with the accelerations a of the points [begin, end) (m each, a[0]
-  // the first point's): once the points' a is final.
-  virtual void kick(PetscScalar *v, const PetscScalar *a, PetscInt begin, PetscInt end) const = 0;
-  // q += dt v on the points [begin, end) (and q to the trajectory's slot): once no G reads their q_k.
-  virtual void drift(PetscScalar *q, const PetscScalar *v, PetscInt begin, PetscInt end) const = 0;
-  // The kick as one formula at every point, for a sweep that applies it as it forms a:
-  // v = keep v + w inv a (inv and keep m per point, both null when nothing is damped: 1); w = 0: none
-  // (the sweep calls kick()).
+  // The kick as one formula at every point, for the sweep that applies it as it forms the point's
+  // accelerations a: v = keep v + w inv a (inv and keep m per point, both null when nothing is damped: 1).
   struct PointKick {
     PetscReal w = 0;
     const PetscScalar *inv = nullptr, *keep = nullptr;
   };
-  virtual PointKick point_kick() const { return {}; }
+  virtual PointKick point_kick() const = 0;
+  // q += dt v on the points [begin, end) (and q to the trajectory's slot): once no G reads their q_k.
+  virtual void drift(PetscScalar *q, const PetscScalar *v, PetscInt begin, PetscInt end) const = 0;
 
 protected:
   ~LeapfrogSplitParts() = default;

@@ -104,8 +104,8 @@ public:
     SETERRQ(PetscObjectComm((PetscObject)U), PETSC_ERR_SUP, "Model %s has no fused leapfrog step", name());
   }
   // With second_order_step: the leapfrog's split step on the positions Q (m per owned point, the layout of
-  // a grid DM with m components; changed in place) and the velocities v (m per owned point): parts.kick on
-  // every point with a = G_p at t and the positions (the velocities read as 0: G_p's damping is the
+  // a grid DM with m components; changed in place) and the velocities v (m per owned point): parts.point_kick
+  // on every point with a = G_p at t and the positions (the velocities read as 0: G_p's damping is the
   // integrator's) once the point's a is final, and parts.drift on every point once no G reads its
   // positions (on any rank); collective.
   virtual PetscErrorCode second_order_split_step(PetscReal t, Vec Q, PetscScalar *v, const LeapfrogSplitParts &parts) {

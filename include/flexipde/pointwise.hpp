@@ -694,6 +694,7 @@ public:
     }
     if constexpr (pointwise::HasHeldWalls<Eq>::value) frame_.held = eq_.held_walls();
     strip_ = 4 * R + 2, forward_strip_ = 2 * R + 2;
+    forcing_sorted_ = false;
     make_fold_table();
     frame_.np = NP + NF, frame_.coef0 = NP;
     frame_.na = K;
@@ -809,11 +810,13 @@ public:
       });
       if constexpr (H > 0) PetscCall(VecRestoreArray(Hg_, &hout));
       if constexpr (pointwise::HasForcing<Eq>::value)
-        if (source_)
+        if (source_) {
+          const PetscReal wt = source_->wavelet(t);
           for (PetscInt k = 0; k < source_->stencil.n; ++k) {
             if (!forced_point(source_->stencil.local[k])) continue;
-            out[source_->stencil.local[k] * C + Eq::forced_component] += source_->density(k, t);
+            out[source_->stencil.local[k] * C + Eq::forced_component] += source_->at_wavelet(k, wt);
           }
+        }
     }
     PetscCall(add_outputs(G));
     if (uniform_ && !coupled_only) PetscCall(apply_coupling(coupling_, U, G, 1.0, true, false));
@@ -1298,6 +1301,7 @@ public:
           };
           RowCursor cursor(runs(R, true, false));
           size_t next_force = 0;
+          const PetscReal wt = forcing_order_.empty() ? 0.0 : source_->wavelet(t);
           // Rows [0, kicked) have had their second kick, one row behind G, so that G never loads
           // entries whose stores are still on their way to the cache.
           PetscInt kicked = 0;
@@ -1312,7 +1316,7 @@ public:
                   for (; next_force < forcing_order_.size(); ++next_force) {
                     const PetscInt e = forcing_order_[next_force], own = source_->stencil.local[e];
                     if (own >= (r + 1) * xm) break;
-                    out[own * m + Eq::forced_component - m] += source_->density(e, t);
+                    out[own * m + Eq::forced_component - m] += source_->at_wavelet(e, wt);
                   }
                 for (; kicked < r; ++kicked) parts.kick(ud, out, kicked * xm, (kicked + 1) * xm);
               });
@@ -1328,7 +1332,7 @@ public:
   // it at the positions (the velocities read as 0) and the kick with it at each point, v = keep v + w inv a
   // (LeapfrogSplitParts::point_kick), the row's forcing, and the drift of the rows the stencils read no
   // more (R rows behind in 2D, R planes and R rows in 3D). The positions and velocities pass through the
-  // cache once. (Parts without a point kick get a through a row's buffer and kick the row.)
+  // cache once.
   FLEXIPDE_SWEEP PetscErrorCode second_order_split_step(PetscReal t, Vec Q, PetscScalar *v,
                                                         const LeapfrogSplitParts &parts) override {
     PetscFunctionBeginUser;
@@ -1348,21 +1352,18 @@ public:
       uncoupled(f);
       const pointwise::Frame fe = edge_frame(f);
       const LeapfrogSplitParts::PointKick kick = parts.point_kick();
-      row_accel_.resize((size_t)(xm * m));
-      PetscScalar *qd = q.data(), *row = row_accel_.data();
-      // Kick: 0 through the row's buffer (parts.kick), 1 v += w a, 2 v = keep v + w inv a.
-      const auto sweep = [&](auto kick_kind) {
-        constexpr int Kick = decltype(kick_kind)::value;
+      PetscScalar *qd = q.data();
+      // Damped: v = keep v + w inv a, else v += w a.
+      const auto sweep = [&](auto damped) {
+        constexpr bool Damped = decltype(damped)::value;
         const PetscReal w = kick.w;
         const PetscScalar *inv = kick.inv, *keep = kick.keep;
         with_constants([&](auto sc) {
           with_model([&](const auto &eq) {
             RowCursor cursor(runs(R, true, false));
             size_t next_force = 0;
+            const PetscReal wt = forcing_order_.empty() ? 0.0 : source_->wavelet(t);
             PetscInt drifted = 0; // rows [0, drifted) hold q_{k+1}
-            // a of owned point `own` at out[own * m]: the row's buffer, offset for each row. The point
-            // function reads it through a pointer, so that it is made once, not for every row.
-            PetscScalar *out = nullptr, *const *row_out = &out;
             const auto point = [=](PetscInt at, PetscInt own, PetscInt i, PetscInt j, PetscInt k, auto ck) {
               constexpr int where = decltype(ck)::value;
               double gv[C];
@@ -1371,14 +1372,12 @@ public:
                      gv);
               for (int c = 0; c < m; ++c) {
                 const PetscInt o = own * m + c;
-                if constexpr (Kick == 0) (*row_out)[o] = gv[m + c];
-                else if constexpr (Kick == 1) v[o] += w * gv[m + c];
-                else v[o] = keep[o] * v[o] + w * inv[o] * gv[m + c];
+                if constexpr (Damped) v[o] = keep[o] * v[o] + w * inv[o] * gv[m + c];
+                else v[o] += w * gv[m + c];
               }
             };
             for (PetscInt r = 0; r < rows; ++r) {
               const PetscInt j = grid_->ys() + r % ym, k = grid_->zs() + r / ym, first = r * xm;
-              out = row - first * m;
               const auto k0 = cursor.take(0, j, k), k1 = cursor.take(1, j, k), k2 = cursor.take(2, j, k);
               run_kind(k0.first, k0.second, point, Check<false>());
               run_kind(k1.first, k1.second, point, Check<true>());
@@ -1388,24 +1387,23 @@ public:
                   const PetscInt e = forcing_order_[next_force], own = source_->stencil.local[e];
                   if (own >= first + xm) break;
                   const PetscInt o = own * m + Eq::forced_component - m;
-                  if constexpr (Kick == 0) out[o] += source_->density(e, t);
-                  else v[o] += w * (Kick == 2 ? inv[o] : 1.0) * source_->density(e, t);
+                  v[o] += w * (Damped ? inv[o] : 1.0) * source_->at_wavelet(e, wt);
                 }
-              if constexpr (Kick == 0) parts.kick(v, row, first, first + xm);
               for (; drifted + behind <= r; ++drifted) parts.drift(qd, v, drifted * xm, (drifted + 1) * xm);
             }
             for (; drifted < rows; ++drifted) parts.drift(qd, v, drifted * xm, (drifted + 1) * xm);
           });
         });
       };
-      if (kick.w == 0) sweep(std::integral_constant<int, 0>());
-      else if (kick.inv) sweep(std::integral_constant<int, 2>());
-      else sweep(std::integral_constant<int, 1>());
+      if (kick.inv) sweep(std::true_type());
+      else sweep(std::false_type());
     }
     PetscFunctionReturn(0);
   }
-  // The forcing's points in row order (stable: a point's terms add in rhs()'s order).
+  // The forcing's points in row order (stable: a point's terms add in rhs()'s order), once per source.
   void sort_forcing() {
+    if (forcing_sorted_) return;
+    forcing_sorted_ = true;
     forcing_order_.clear();
     if constexpr (pointwise::HasForcing<Eq>::value)
       if (source_) {
@@ -1492,6 +1490,7 @@ public:
   bool accepts_point_source() const override { return pointwise::HasForcing<Eq>::value; }
   PetscErrorCode set_point_source(const PointSource *s) override {
     source_ = s;
+    forcing_sorted_ = false;
     return 0;
   }
 
@@ -2705,7 +2704,6 @@ private:
   };
   std::vector<Image> images_;
   std::vector<PetscInt> forcing_order_; // the leapfrog steps' forced points in row order
-  std::vector<PetscScalar> row_accel_;  // second_order_split_step's accelerations of one row
   mutable std::deque<std::pair<PetscInt, RunPlan>> plans_; // for_points' runs, per margin and flags
   std::vector<double> sgn_;
   PetscInt strip_ = 1;         // the owned edge strips fill_ghosts copies into a ghosted array (the gather's),
@@ -2728,6 +2726,7 @@ private:
   PetscReal jp_t_ = 0;
   ParameterBounds bounds_;
   const PointSource *source_ = nullptr;
+  bool forcing_sorted_ = false; // forcing_order_ holds source_'s points on this grid
   pointwise::Frame frame_;
   std::vector<int> pattern_;
   std::vector<PetscScalar> coo_v_;              // assemble_rows' values, in the matrix's coordinate list order

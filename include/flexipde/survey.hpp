@@ -99,8 +99,10 @@ struct PointSource {
   PointStencil stencil;
   Wavelet wavelet;
   PetscReal cell_volume = 1.0;
-  // The forcing density at local point k of the stencil at time t.
-  PetscReal density(PetscInt k, PetscReal t) const { return wavelet(t) * stencil.weight[k] / cell_volume; }
+  // The forcing density at local point k of the stencil at time t; at_wavelet: with the wavelet's value
+  // w(t) at hand (one evaluation for all the stencil's points).
+  PetscReal density(PetscInt k, PetscReal t) const { return at_wavelet(k, wavelet(t)); }
+  PetscReal at_wavelet(PetscInt k, PetscReal w) const { return w * stencil.weight[k] / cell_volume; }
 };
 
 class Survey final : public Objective {

@@ -420,30 +420,13 @@ private:
 // The point-local parts of a split step (leapfrog_set_split_step) on ranges of points.
 class SplitParts final : public LeapfrogSplitParts {
 public:
-  // inv, keep, damped: the damping's factors 1/(1 + s) and (1 - s)/(1 + s), m per point, and its runs
-  // (null: none); fresh: v is p at the step's start (a half kick), else at the half step before it;
+  // inv, keep: the damping's factors 1/(1 + s) and (1 - s)/(1 + s), m per point (null: none); fresh: v is p at the step's start (a half kick), else at the half step before it;
   // sink: where the n new positions also go (null: nowhere), on a cache line.
-  SplitParts(PetscInt pairs, const PetscScalar *inv, const PetscScalar *keep,
-             const std::vector<std::pair<PetscInt, PetscInt>> *damped, PetscScalar *sink, PetscInt n, bool fresh, PetscReal dt)
-      : m_(pairs), inv_(inv), keep_(fresh ? inv : keep), damped_(damped), sink_(sink), n_(n), dt_(dt), w_(fresh ? 0.5 * dt : dt) {}
-  // v += w a, or with damping (1 + s) v_{k+1/2} = (1 - s) v_{k-1/2} + dt a (fresh: (1 + s) v = p_k + dt/2 a).
-  void kick(PetscScalar *v, const PetscScalar *a, PetscInt begin, PetscInt end) const override {
-    const PetscInt m = m_;
-    const PetscReal w = w_;
-    const auto plain = [&](PetscInt lo, PetscInt hi) {
-      PetscScalar *__restrict vv = v + lo * m;
-      const PetscScalar *__restrict aa = a + (lo - begin) * m;
-      for (PetscInt i = 0; i < (hi - lo) * m; ++i) vv[i] += w * aa[i];
-    };
-    if (!inv_) return plain(begin, end);
-    for_damping_runs(*damped_, begin, end, [&](PetscInt lo, PetscInt hi, bool damped) {
-      if (!damped) return plain(lo, hi);
-      PetscScalar *__restrict vv = v + lo * m;
-      const PetscScalar *__restrict aa = a + (lo - begin) * m, *__restrict g = inv_ + lo * m, *__restrict gk = keep_ + lo * m;
-      for (PetscInt i = 0; i < (hi - lo) * m; ++i) vv[i] = gk[i] * vv[i] + w * g[i] * aa[i];
-    });
-  }
-  // the same as kick(): 1 * v + w * 1 * a = v + w a exactly where nothing is damped
+  SplitParts(PetscInt pairs, const PetscScalar *inv, const PetscScalar *keep, PetscScalar *sink, PetscInt n, bool fresh,
+             PetscReal dt)
+      : m_(pairs), inv_(inv), keep_(fresh ? inv : keep), sink_(sink), n_(n), dt_(dt), w_(fresh ? 0.5 * dt : dt) {}
+  // v += w a, or with damping (1 + s) v_{k+1/2} = (1 - s) v_{k-1/2} + dt a (fresh: (1 + s) v = p_k + dt/2 a):
+  // v = keep v + w inv a, where nothing is damped 1 * v + w * 1 * a = v + w a exactly.
   PointKick point_kick() const override { return {w_, inv_, inv_ ? keep_ : nullptr}; }
   void drift(PetscScalar *q, const PetscScalar *v, PetscInt begin, PetscInt end) const override {
     PetscScalar *__restrict qq = q + begin * m_;
@@ -631,7 +614,7 @@ PetscErrorCode split_step(TS ts, Leapfrog &lf, bool need_stage) {
   lf.sunk = nullptr;
   const PetscScalar *inv = lf.sigma ? lf.inv_factor.data() : nullptr, *keep = lf.sigma ? lf.keep_factor.data() : nullptr;
   PetscCall(lf.split(lf.split_ctx, t, lf.Qs, lf.Vs.data(),
-                     SplitParts(lf.pairs, inv, keep, &lf.damped, sink, (PetscInt)lf.Vs.size(), lf.split_dt == 0, dt)));
+                     SplitParts(lf.pairs, inv, keep, sink, (PetscInt)lf.Vs.size(), lf.split_dt == 0, dt)));
 #if defined(FLEXIPDE_LEAPFROG_SINK)
   if (sink) _mm_sfence(); // the non-temporal stores of the positions, before anyone reads them
 #endif
