@@ -420,8 +420,9 @@ private:
 // The point-local parts of a split step (leapfrog_set_split_step) on ranges of points.
 class SplitParts final : public LeapfrogSplitParts {
 public:
-  // inv, keep: the damping's factors 1/(1 + s) and (1 - s)/(1 + s), m per point (null: none); fresh: v is p at the step's start (a half kick), else at the half step before it;
-  // sink: where the n new positions also go (null: nowhere), on a cache line.
+  // inv, keep: the damping's factors 1/(1 + s) and (1 - s)/(1 + s), m per point (null: none); fresh: v
+  // is p at the step's start (a half kick), else at the half step before it; sink: where the n new
+  // positions also go (null: nowhere), on a cache line.
   SplitParts(PetscInt pairs, const PetscScalar *inv, const PetscScalar *keep, PetscScalar *sink, PetscInt n, bool fresh,
              PetscReal dt)
       : m_(pairs), inv_(inv), keep_(fresh ? inv : keep), sink_(sink), n_(n), dt_(dt), w_(fresh ? 0.5 * dt : dt) {}
