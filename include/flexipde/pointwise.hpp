@@ -972,12 +972,15 @@ public:
       } else for_points<true, true>(2 * R, point); // (equations on a wall test wall(): EdgeNearWall)
       // An owned point's mirror images beyond odd walls are read by the stencils next to the wall:
       // their gathers (inputs at the image, its sign) belong to the point.
-      if constexpr (WY)
+      if constexpr (WY) {
+        if constexpr (ImageRuns)
+          gather_image_runs<CLO, CHI, YLO, YHI, CS, SC, SPLIT>(eq, fe, xh, y, (ADDY ? w : 1.0), std::make_integer_sequence<int, 2 * D * R>());
         for (const auto &v : images_) {
           double yv[C] = {}, zv[K > 0 ? K : 1] = {}, gv[NG > 0 ? NG : 1] = {};
           gather_offsets<CLO, CHI, 3, CS, SC, true, SPLIT>(eq, fe, xh, v.at, v.at, v.i, v.j, v.k, yv, zv, gv, Offsets());
           for (int c = YLO; c < YHI; ++c) y[x_at<YLO, YHI, SPLIT>(v.own, c)] += (ADDY ? w : 1.0) * v.sign * yv[c];
         }
+      }
       });
     }
     PetscFunctionReturn(0);
@@ -2194,6 +2197,7 @@ private:
     // point's stencil reaches (within R beyond the walls) whose point is not on a wall itself (a wall
     // point is checked: its gather finds its images through the table).
     folded_.clear(), images_.clear();
+    for (auto &runs : image_runs_) runs.clear();
     const PetscInt xs = grid_->xs(), xm = grid_->xm(), ys = grid_->ys(), ym = grid_->ym(), zs = grid_->zs(), zm = grid_->zm();
     const PetscInt nx = grid_->n(), ny = grid_->ny(), nz = grid_->nz();
     const bool wx = !grid_->periodic(), wy = D > 1 && !grid_->periodic_y(), wz = D > 2 && !grid_->periodic_z();
@@ -2210,8 +2214,26 @@ private:
           const bool on_wall =
               (wx && (si == 0 || si == nx - 1)) || (wy && (sj == 0 || sj == ny - 1)) || (wz && (sk == 0 || sk == nz - 1));
           const bool beyond = (wx && (gi < 0 || gi >= nx)) || (wy && (gj < 0 || gj >= ny)) || (wz && (gk < 0 || gk >= nz));
-          if (beyond && reach && owned && !on_wall)
-            images_.push_back({p, ((sk - zs) * ym + (sj - ys)) * xm + (si - xs), gi, gj, gk, sgn_[p]});
+          if (!(beyond && reach && owned && !on_wall)) continue;
+          const PetscInt own = ((sk - zs) * ym + (sj - ys)) * xm + (si - xs);
+          const bool bx = wx && (gi < 0 || gi >= nx), by = wy && (gj < 0 || gj >= ny), bz = wz && (gk < 0 || gk >= nz);
+          // beyond one wall, whose readers (R or fewer points in) are not on the other wall: into its
+          // bucket, extending the last run when it continues it along x
+          const int d = bx ? 0 : by ? 1 : 2;
+          const PetscInt n = grid_->n(d);
+          if (ImageRuns && frame_.held && int(bx) + int(by) + int(bz) == 1 && n >= R + 2) {
+            const PetscInt g = d == 0 ? gi : d == 1 ? gj : gk;
+            const int side = g < 0 ? 0 : 1, depth = int(g < 0 ? -g : g - (n - 1));
+            auto &runs = image_runs_[(2 * d + side) * R + depth - 1];
+            if (!runs.empty()) {
+              ImageRun &r = runs.back();
+              if (r.j == gj && r.k == gk && r.at + r.n == p && r.own + r.n == own && r.i0 + r.n == gi && r.sign == sgn_[p]) {
+                ++r.n;
+                continue;
+              }
+            }
+            runs.push_back({p, own, gi, 1, gj, gk, sgn_[p]});
+          } else images_.push_back({p, own, gi, gj, gk, sgn_[p]});
         }
   }
   // The state U for the sweeps: read in place (the caller keeps U unchanged while s is used) or, if
@@ -2450,6 +2472,45 @@ private:
       (gather_one<Sten::offset(E)[0], Sten::offset(E)[1], Sten::offset(E)[2], CLO, CHI, W, CS, SC, 0, SPLIT>(eq, f, xh, at, own, i, j,
                                                                                                             k, yv, zv, gv),
        ...);
+  }
+  // The images beyond one held wall, gathered as runs (image_runs_). Bucket b = (2 d + side) R + depth - 1
+  // holds the images at that depth beyond the low (side 0) or high (side 1) wall along d; only G at the
+  // points depth + 1 .. R inside the wall along d reads them (G on the wall is 0, beyond it there is
+  // none), so their gather takes those offsets alone, unchecked: the entries of the star stencil at
+  // -s e_d (low wall) or +s e_d (high wall), s = depth + 1 .. R, in entry order.
+  template <int b> static constexpr int image_offset_count() { return R - (b % R + 1); }
+  template <int b, int q> static constexpr int image_offset_entry() {
+    constexpr int d = b / (2 * R), side = (b / R) % 2, depth = b % R + 1;
+    // the star's entries along d are 1 + 2 R d + k, at offset k - R (k < R) or k - R + 1 (k >= R)
+    return side == 0 ? 1 + 2 * R * d + q : 1 + 2 * R * d + R + depth + q;
+  }
+  template <int b, int... q> static constexpr auto image_offsets(std::integer_sequence<int, q...>) {
+    return std::integer_sequence<int, image_offset_entry<b, q>()...>();
+  }
+  template <int CLO, int CHI, int YLO, int YHI, int CS, bool SC, bool SPLIT, class M, int... b>
+  void gather_image_runs(const M &eq, const pointwise::Frame &fe, const PetscScalar *xh, PetscScalar *y, PetscReal w,
+                         std::integer_sequence<int, b...>) const {
+    (gather_image_bucket<b, CLO, CHI, YLO, YHI, CS, SC, SPLIT>(eq, fe, xh, y, w), ...);
+  }
+  template <int b, int CLO, int CHI, int YLO, int YHI, int CS, bool SC, bool SPLIT, class M>
+  FLEXIPDE_RUN void gather_image_bucket(const M &model, const pointwise::Frame &frame_in, const PetscScalar *xh, PetscScalar *y,
+                                        PetscReal w) const {
+    if constexpr (image_offset_count<b>() > 0) {
+      const std::vector<ImageRun> &runs = image_runs_[b];
+      if (runs.empty()) return;
+      const M eq = model;
+      const pointwise::Frame f = frame_in;
+      using Sub = decltype(image_offsets<b>(std::make_integer_sequence<int, image_offset_count<b>()>()));
+      for (const ImageRun &r : runs) {
+        const double ws = w * r.sign;
+#pragma GCC ivdep
+        for (PetscInt q = 0; q < r.n; ++q) {
+          double yv[C] = {}, zv[K > 0 ? K : 1] = {}, gv[NG > 0 ? NG : 1] = {};
+          gather_offsets<CLO, CHI, 2, CS, SC, true, SPLIT>(eq, f, xh, r.at + q, r.at + q, r.i0 + q, r.j, r.k, yv, zv, gv, Sub());
+          for (int c = YLO; c < YHI; ++c) y[x_at<YLO, YHI, SPLIT>(r.own + q, c)] += ws * yv[c];
+        }
+      }
+    }
   }
   // Where x's component c at a point is: interleaved (C per point) or, SPLIT, in an array of the
   // components [CLO, CHI) alone (the leapfrog adjoint's lambda_p; its lambda_q likewise for y).
@@ -2702,7 +2763,14 @@ private:
     PetscInt at, own, i, j, k; // a mirror image beyond a wall (ghosted index, grid indices) of owned point `own`
     double sign;
   };
-  std::vector<Image> images_;
+  std::vector<Image> images_; // (beyond walls ImageRuns does not cover)
+  struct ImageRun {
+    PetscInt at, own, i0, n, j, k; // n images along x from ghosted index at, of the owned points from own
+    double sign;
+  };
+  // A star stencil's images beyond one held wall, gathered on compile-time offsets (gather_image_runs).
+  static constexpr bool ImageRuns = Shape == StencilShape::Star && !Flux && pointwise::HasHeldWalls<Eq>::value;
+  std::array<std::vector<ImageRun>, 2 * D * R> image_runs_;
   std::vector<PetscInt> forcing_order_; // the leapfrog steps' forced points in row order
   mutable std::deque<std::pair<PetscInt, RunPlan>> plans_; // for_points' runs, per margin and flags
   std::vector<double> sgn_;
