@@ -975,11 +975,12 @@ public:
       if constexpr (WY) {
         if constexpr (ImageRuns)
           gather_image_runs<CLO, CHI, YLO, YHI, CS, SC, SPLIT>(eq, fe, xh, y, (ADDY ? w : 1.0), std::make_integer_sequence<int, 2 * D * R>());
-        for (const auto &v : images_) {
-          double yv[C] = {}, zv[K > 0 ? K : 1] = {}, gv[NG > 0 ? NG : 1] = {};
-          gather_offsets<CLO, CHI, 3, CS, SC, true, SPLIT>(eq, fe, xh, v.at, v.at, v.i, v.j, v.k, yv, zv, gv, Offsets());
-          for (int c = YLO; c < YHI; ++c) y[x_at<YLO, YHI, SPLIT>(v.own, c)] += (ADDY ? w : 1.0) * v.sign * yv[c];
-        }
+        for (const ImageRun &r : images_)
+          for (PetscInt q = 0; q < r.n; ++q) {
+            double yv[C] = {}, zv[K > 0 ? K : 1] = {}, gv[NG > 0 ? NG : 1] = {};
+            gather_offsets<CLO, CHI, 3, CS, SC, true, SPLIT>(eq, fe, xh, r.at + q, r.at + q, r.i0 + q, r.j, r.k, yv, zv, gv, Offsets());
+            for (int c = YLO; c < YHI; ++c) y[x_at<YLO, YHI, SPLIT>(r.own + q, c)] += (ADDY ? w : 1.0) * r.sign * yv[c];
+          }
       }
       });
     }
@@ -2213,16 +2214,14 @@ private:
           const bool owned = si >= xs && si < xs + xm && sj >= ys && sj < ys + ym && sk >= zs && sk < zs + zm;
           const bool on_wall =
               (wx && (si == 0 || si == nx - 1)) || (wy && (sj == 0 || sj == ny - 1)) || (wz && (sk == 0 || sk == nz - 1));
-          const bool beyond = (wx && (gi < 0 || gi >= nx)) || (wy && (gj < 0 || gj >= ny)) || (wz && (gk < 0 || gk >= nz));
-          if (!(beyond && reach && owned && !on_wall)) continue;
-          const PetscInt own = ((sk - zs) * ym + (sj - ys)) * xm + (si - xs);
           const bool bx = wx && (gi < 0 || gi >= nx), by = wy && (gj < 0 || gj >= ny), bz = wz && (gk < 0 || gk >= nz);
+          if (!((bx || by || bz) && reach && owned && !on_wall)) continue;
+          const PetscInt own = ((sk - zs) * ym + (sj - ys)) * xm + (si - xs);
           // beyond one wall, whose readers (R or fewer points in) are not on the other wall: into its
           // bucket, extending the last run when it continues it along x
           const int d = bx ? 0 : by ? 1 : 2;
-          const PetscInt n = grid_->n(d);
-          if (ImageRuns && frame_.held && int(bx) + int(by) + int(bz) == 1 && n >= R + 2) {
-            const PetscInt g = d == 0 ? gi : d == 1 ? gj : gk;
+          if (ImageRuns && frame_.held && int(bx) + int(by) + int(bz) == 1 && grid_->n(d) >= R + 2) {
+            const PetscInt n = grid_->n(d), g = d == 0 ? gi : d == 1 ? gj : gk;
             const int side = g < 0 ? 0 : 1, depth = int(g < 0 ? -g : g - (n - 1));
             auto &runs = image_runs_[(2 * d + side) * R + depth - 1];
             if (!runs.empty()) {
@@ -2233,7 +2232,7 @@ private:
               }
             }
             runs.push_back({p, own, gi, 1, gj, gk, sgn_[p]});
-          } else images_.push_back({p, own, gi, gj, gk, sgn_[p]});
+          } else images_.push_back({p, own, gi, 1, gj, gk, sgn_[p]});
         }
   }
   // The state U for the sweeps: read in place (the caller keeps U unchanged while s is used) or, if
@@ -2759,15 +2758,13 @@ private:
     double sign;
   };
   std::vector<Folded> folded_;
-  struct Image {
-    PetscInt at, own, i, j, k; // a mirror image beyond a wall (ghosted index, grid indices) of owned point `own`
-    double sign;
-  };
-  std::vector<Image> images_; // (beyond walls ImageRuns does not cover)
+  // Mirror images beyond walls (ghosted index, grid indices) of owned points, n of them in a row along
+  // x from index at (of the owned points from own).
   struct ImageRun {
-    PetscInt at, own, i0, n, j, k; // n images along x from ghosted index at, of the owned points from own
+    PetscInt at, own, i0, n, j, k;
     double sign;
   };
+  std::vector<ImageRun> images_; // those ImageRuns does not cover, one per record, checked point by point
   // A star stencil's images beyond one held wall, gathered on compile-time offsets (gather_image_runs).
   static constexpr bool ImageRuns = Shape == StencilShape::Star && !Flux && pointwise::HasHeldWalls<Eq>::value;
   std::array<std::vector<ImageRun>, 2 * D * R> image_runs_;
