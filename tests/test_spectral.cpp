@@ -3,7 +3,8 @@
 //     filter and the derivative MatShell, in 1D, 2D and x-only on a 2D grid with a non-periodic y,
 //   - accuracy: round-off by N = 64 for smooth periodic functions (exponential convergence),
 //   - odd-derivative skew-symmetry, and refusal of odd N and non-periodic directions,
-//   - apply_many and apply_pair (two real outputs per backward transform), transform/backward/pairing
+//   - apply_many and apply_pair (two real outputs per backward transform), apply_sum (two real fields
+//     per forward transform, one backward transform for their sum), transform/backward/pairing
 //     against apply, one output at a time; transform_pair/pairing_packed/balance (two real fields in
 //     one transform) against separate transforms.
 // Grids live on PETSC_COMM_WORLD, so every case runs distributed on 2 ranks too. A 1D grid on several
@@ -211,6 +212,42 @@ TEST_P(SpectralTranspose, TransformPairPacksTwoFields) {
     scale = std::max(scale, std::abs(xhat[p]));
   }
   EXPECT_LE(diff, 1e-14 * scale) << c.name;
+}
+
+// apply_sum: y = S0 v0 + S1 v1 + S2 v2 from one forward transform per two fields (v0 + i alpha v1, and
+// v2 alone) and one backward transform, against the sum of apply() of each; symbols even, odd and
+// neither, and v1 on a scale 1e6 times the others' (balance() keeps both parts of the pair at round-off).
+// A term of the pair dropped or taken with the wrong sign of i / alpha would miss by O(1).
+TEST_P(SpectralTranspose, ApplySumMatchesApply) {
+  const DotCase &c = GetParam();
+  Grid g;
+  SpectralDifferentiator s;
+  OwnedVec v0, v1, v2, y, r, t;
+  PETSC_ASSERT_OK(setup_case(c, g, s, {&v0, &v1, &v2, &y, &r, &t}));
+  using cplx = std::complex<PetscReal>;
+  const SpectralDifferentiator::Symbol s0 = s.symbol([](const FourierMode &k) { return cplx(0.5 + k.wx * k.wx, k.wx); }),
+                                       s1 = s.symbol([](const FourierMode &k) { return SpectralDifferentiator::derivative_symbol(k, 0, 1); }),
+                                       s2 = s.symbol([](const FourierMode &k) { return cplx(-(k.wx * k.wx + k.wy * k.wy)); });
+  for (PetscReal scale1 : {1.0, 1e6}) {
+    PETSC_ASSERT_OK(fill_random(v0, -1, 1, 47));
+    PETSC_ASSERT_OK(fill_random(v1, -scale1, scale1, 48));
+    PETSC_ASSERT_OK(fill_random(v2, -1, 1, 49));
+    const SpectralDifferentiator::Symbol *ss[3] = {&s0, &s1, &s2};
+    Vec vs[3] = {v0, v1, v2};
+    for (int n = 1; n <= 3; ++n) { // a single field, a pair, a pair and a single
+      PETSC_ASSERT_OK(s.apply_sum({ss, ss + n}, {vs, vs + n}, y));
+      PETSC_ASSERT_OK(VecSet(r, 0.0));
+      PetscReal size = 0;
+      for (int j = 0; j < n; ++j) {
+        PETSC_ASSERT_OK(s.apply(*ss[j], vs[j], t));
+        size = std::max(size, flexipde_test::norm(t, NORM_INFINITY));
+        PETSC_ASSERT_OK(VecAXPY(r, 1.0, t));
+      }
+      EXPECT_GT(size, 0.1);
+      PETSC_ASSERT_OK(VecAXPY(r, -1.0, y));
+      EXPECT_LE(flexipde_test::norm(r, NORM_INFINITY), 1e-13 * size) << c.name << " fields " << n << " scale " << scale1;
+    }
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(Spectral, SpectralTranspose,

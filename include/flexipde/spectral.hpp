@@ -79,6 +79,11 @@ public:
   // outputs: (S_j + i S_{j+1}) u^ transforms back to S_j u + i S_{j+1} u, both real. Equal to
   // apply(*ss[j], u, ys[j]) to round-off. No y may be u.
   PetscErrorCode apply_many(const std::vector<const Symbol *> &ss, Vec u, const std::vector<Vec> &ys) const;
+  // y = sum_j S_j v_j from one forward transform per two fields and one backward transform:
+  // Z = F(v_j + i alpha v_{j+1}) (transform_pair, alpha from balance()) and Re F^-1 of
+  // (s_j - i s_{j+1} / alpha) Z is S_j v_j + S_{j+1} v_{j+1}. Equal to the sum of apply(*ss[j], v_j) to
+  // round-off. Collective (balance() sums over the ranks). y may be none of the v_j.
+  PetscErrorCode apply_sum(const std::vector<const Symbol *> &ss, const std::vector<Vec> &vs, Vec y) const;
   // pack(s0, s1) = s0 + i s1: apply_pair with it gives y0 = S0 u and y1 = S1 u from one transform
   // pair and one multiplication per mode (apply_many's pair takes two).
   Symbol pack(const Symbol &s0, const Symbol &s1) const;

@@ -63,6 +63,7 @@ struct SpectralDifferentiator::Impl {
   std::vector<FourierMode> modes; // of the forward output this rank holds (fout), made once
   std::map<PetscInt, SpectralDifferentiator::Symbol> derivatives; // derivative()'s symbols, made on first use
   SpectralDifferentiator::Spectrum uhat;                          // apply_many's transform
+  std::vector<SpectralDifferentiator::Spectrum> packed;           // apply_sum's transforms, one per two fields
   // The three parts of apply(): u (DMDA) -> a_out; a_out = s a_out mode by mode (conj(s) for the
   // transpose); a_out -> backward transform -> y (DMDA, real parts).
   // from_spectrum(y, y_imag): y = the real parts of the backward transform; y_imag (optional) = the
@@ -510,6 +511,42 @@ PetscErrorCode SpectralDifferentiator::apply_many(const std::vector<const Symbol
     else im.sum_products({{reals(*ss[j]), in}});
     PetscCall(im.from_spectrum(ys[j], j + 1 < ss.size() ? ys[j + 1] : nullptr));
   }
+  PetscFunctionReturn(0);
+}
+
+PetscErrorCode SpectralDifferentiator::apply_sum(const std::vector<const Symbol *> &ss, const std::vector<Vec> &vs, Vec y) const {
+  Impl &im = *impl_;
+  const size_t n = im.modes.size(), np = (vs.size() + 1) / 2;
+  std::vector<PetscReal> alpha(np, 1.0);
+  PetscFunctionBeginUser;
+  PetscCheck(ss.size() == vs.size() && !vs.empty(), im.comm, PETSC_ERR_ARG_SIZ, "apply_sum: %zu symbols for %zu fields", ss.size(), vs.size());
+  for (const Symbol *q : ss)
+    PetscCheck(q->size() == n, im.comm, PETSC_ERR_ARG_SIZ, "A spectral symbol of %zu modes for %zu", q->size(), n);
+  im.packed.resize(np);
+  for (size_t p = 0; p < np; ++p) { // Z_p = F(v_2p + i alpha_p v_2p+1)
+    const Vec b = 2 * p + 1 < vs.size() ? vs[2 * p + 1] : nullptr;
+    if (b) PetscCall(balance(vs[2 * p], b, &alpha[p]));
+    PetscCall(transform_pair(vs[2 * p], b, alpha[p], im.packed[p]));
+  }
+  // sum_p (s_2p - i s_2p+1 / alpha_p) Z_p: Re F^-1 of s_2p Z_p is S_2p v_2p and Re F^-1 of -i s_2p+1 Z_p /
+  // alpha_p is S_2p+1 v_2p+1 (both symbols' backward transforms of a real field are real).
+  PetscReal *a = &im.a_out[0][0];
+  for (size_t p = 0; p < np; ++p) {
+    const PetscReal *f = reals(*ss[2 * p]), *z = reals(im.packed[p]);
+    const PetscReal *g = 2 * p + 1 < vs.size() ? reals(*ss[2 * p + 1]) : nullptr, ia = 1 / alpha[p];
+    for (size_t k = 0; k < n; ++k) {
+      PetscReal re, imag;
+      cmul(f[2 * k], f[2 * k + 1], z[2 * k], z[2 * k + 1], re, imag);
+      if (g) {
+        PetscReal re1, im1;
+        cmul(g[2 * k], g[2 * k + 1], z[2 * k], z[2 * k + 1], re1, im1);
+        re += ia * im1, imag -= ia * re1;
+      }
+      a[2 * k] = p ? a[2 * k] + re : re;
+      a[2 * k + 1] = p ? a[2 * k + 1] + imag : imag;
+    }
+  }
+  PetscCall(im.from_spectrum(y));
   PetscFunctionReturn(0);
 }
 

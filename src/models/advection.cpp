@@ -108,7 +108,6 @@ struct SpectralMaps {
   std::vector<SpectralDifferentiator::Symbol> aux_t, dealiased_t; // their transposes: conj(s)
   std::vector<const SpectralDifferentiator::Symbol *> aux_adjoint; // aux_t, in order
   std::vector<const SpectralDifferentiator::Symbol *> outputs_t;  // the outputs' transposes, in order
-  mutable std::vector<SpectralDifferentiator::Spectrum> spectra;  // one per auxiliary field or output
   mutable SpectralDifferentiator::Symbol combined;                // sum_k r_k (the auxiliary fields' symbols)
   mutable std::vector<PetscScalar> combined_r;                    // ... for these r
   OwnedVec work;
@@ -393,17 +392,11 @@ private:
     }
     PetscFunctionReturn(0);
   }
-  // y = sum_j sym_j v_j from the transforms of the v_j and one backward transform.
+  // y = sum_j sym_j v_j: one forward transform per two fields, one backward transform.
   PetscErrorCode backward_sum(const SpectralDifferentiator::Symbol *sym, const Vec *v, int n, Vec y) const {
-    std::vector<std::pair<const SpectralDifferentiator::Symbol *, const SpectralDifferentiator::Spectrum *>> terms;
-    PetscFunctionBeginUser;
-    maps_.spectra.resize(n);
-    for (int j = 0; j < n; ++j) {
-      PetscCall(maps_.fft.transform(v[j], maps_.spectra[j]));
-      terms.emplace_back(&sym[j], &maps_.spectra[j]);
-    }
-    PetscCall(maps_.fft.backward(terms, y));
-    PetscFunctionReturn(0);
+    std::vector<const SpectralDifferentiator::Symbol *> ss;
+    for (int j = 0; j < n; ++j) ss.push_back(&sym[j]);
+    return maps_.fft.apply_sum(ss, {v, v + n}, y);
   }
   const SpectralDifferentiator::Symbol &aux_symbol(int k) const {
     return k < Dim ? maps_.derivative[k] : Df == SCALAR_D ? maps_.laplacian : maps_.dealiased[k - Dim];
