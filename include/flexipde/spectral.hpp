@@ -18,9 +18,9 @@
 //                           on several ranks with at most kReplicateMax points (32768),
 //                           replicated instead: every rank gathers the whole field (one
 //                           MPI_Allgatherv) and transforms it with serial FFTW, holding every mode,
-//                           so that a backward transform needs no communication (pairing sums each
-//                           rank's slice of the modes). FFTW-MPI's 1D transform does three all-to-all
-//                           transposes each way, which cost far more than small transforms.
+//                           so that a backward transform needs no communication. FFTW-MPI's 1D
+//                           transform does three all-to-all transposes each way, which cost far
+//                           more than small transforms.
 //   2D grid                 FFTW-MPI 2D complex DFT on y-slabs (both directions periodic)
 //   2D grid, x_only = true  the same y-slabs, each rank transforming its whole x-lines with serial
 //                           FFTW: d/dx on a grid whose y direction need not be periodic (e.g. the
@@ -80,43 +80,11 @@ public:
   // apply(*ss[j], u, ys[j]) to round-off. No y may be u.
   PetscErrorCode apply_many(const std::vector<const Symbol *> &ss, Vec u, const std::vector<Vec> &ys) const;
   // y = sum_j S_j v_j from one forward transform per two fields and one backward transform:
-  // Z = F(v_j + i alpha v_{j+1}) (transform_pair, alpha from balance()) and Re F^-1 of
-  // (s_j - i s_{j+1} / alpha) Z is S_j v_j + S_{j+1} v_{j+1}. Equal to the sum of apply(*ss[j], v_j) to
-  // round-off. Collective (balance() sums over the ranks). y may be none of the v_j.
+  // Z = F(v_j + i alpha v_{j+1}), alpha = ||v_j|| / ||v_{j+1}|| (so that neither part is lost in the
+  // other's round-off), and Re F^-1 of (s_j - i s_{j+1} / alpha) Z is S_j v_j + S_{j+1} v_{j+1}, because
+  // a symbol's backward transform of a real field is real. Equal to the sum of apply(*ss[j], v_j) to
+  // round-off. y may be none of the v_j.
   PetscErrorCode apply_sum(const std::vector<const Symbol *> &ss, const std::vector<Vec> &vs, Vec y) const;
-  // pack(s0, s1) = s0 + i s1: apply_pair with it gives y0 = S0 u and y1 = S1 u from one transform
-  // pair and one multiplication per mode (apply_many's pair takes two).
-  Symbol pack(const Symbol &s0, const Symbol &s1) const;
-  PetscErrorCode apply_pair(const Symbol &packed, Vec u, Vec y0, Vec y1) const;
-
-  // The transforms as separate steps, for operators built from several products (a field
-  // coefficient between two derivatives, an adjoint's sums): a Spectrum is this rank's modes of F u.
-  using Spectrum = std::vector<std::complex<PetscReal>>;
-  PetscErrorCode transform(Vec u, Spectrum &uhat) const;
-  // Two real fields in one forward transform: zhat = F(a + i alpha b) (alpha real, the same on every
-  // rank; b null: zhat = F a). Since a symbol's backward transform is real, a backward transform of
-  // S zhat gives S a + i alpha S b (backward's y_imag), and its real part alone is S a: zhat can stand
-  // for a's spectrum in any backward sum. b's spectrum is not separable from it without the modes -k
-  // (held by other ranks); pairing_packed gives what an adjoint needs of the two together.
-  PetscErrorCode transform_pair(Vec a, Vec b, PetscReal alpha, Spectrum &zhat) const;
-  // y = Re F^-1 sum_j S_j u_j from the spectra of the u_j: one backward transform; y_imag (optional) =
-  // its imaginary part (for a spectrum packed by transform_pair: alpha S b).
-  PetscErrorCode backward(const std::vector<std::pair<const Symbol *, const Spectrum *>> &terms, Vec y,
-                          Vec y_imag = nullptr) const;
-  // y0 = S0 a and y1 = S1 b from one backward transform (real and imaginary parts).
-  PetscErrorCode backward_pair(const Symbol &s0, const Spectrum &a, Vec y0, const Symbol &s1, const Spectrum &b, Vec y1) const;
-  // This rank's part of <b, S a> (Parseval: Re sum_k s(k) a(k) conj(b(k))); the sum over ranks is
-  // the inner product. Local, no communication.
-  PetscReal pairing(const Symbol &s, const Spectrum &a, const Spectrum &b) const;
-  // The same <b, S a> from zhat = F(a + i alpha b) alone (transform_pair), for a symbol that is odd and
-  // purely imaginary (s(-k) = -s(k): an odd derivative, i kappa_d): |zhat|^2 = |a^|^2 + alpha^2 |b^|^2
-  // + 2 alpha Im(a^ conj(b^)), whose first two parts are even in k and drop out of the sum with the odd
-  // s, so <b, S a> = -sum_k Im s(k) |zhat(k)|^2 / (2 alpha). Local (this rank's modes), no -k needed.
-  // Its round-off is eps |s| (|a^|^2 + alpha^2 |b^|^2): choose alpha ~ |a| / |b| (balance()).
-  PetscReal pairing_packed(const Symbol &s, const Spectrum &zhat, PetscReal alpha) const;
-  // alpha = ||a|| / ||b|| over all ranks (1 when either is zero): the scaling that keeps
-  // transform_pair's two parts, and pairing_packed's round-off, balanced. Collective.
-  PetscErrorCode balance(Vec a, Vec b, PetscReal *alpha) const;
   // y = d^order u / d(x or y)^order (dir 0 = x, 1 = y), optionally de-aliased by the 2/3 rule.
   PetscErrorCode derivative(PetscInt dir, PetscInt order, Vec u, Vec y, bool dealias = false, bool transpose = false) const;
   // y = the 2/3-rule truncation of u (symmetric, a projection).
@@ -131,6 +99,7 @@ public:
   PetscErrorCode create_derivative_mat(PetscInt dir, PetscInt order, Mat *A) const;
 
 private:
+  using Spectrum = std::vector<std::complex<PetscReal>>; // this rank's modes of F u
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

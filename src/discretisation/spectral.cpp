@@ -27,6 +27,20 @@ inline void cmul(PetscReal fr, PetscReal fi, PetscReal vr, PetscReal vi, PetscRe
 }
 inline const PetscReal *reals(const std::vector<std::complex<PetscReal>> &v) { return reinterpret_cast<const PetscReal *>(v.data()); }
 
+// alpha = ||a|| / ||b|| (1 when either is zero): the scale of b in apply_sum's pair a + i alpha b
+// that keeps both parts at the same size, so that neither is lost in the other's round-off. Collective
+// (one reduction for both norms).
+PetscErrorCode balance(Vec a, Vec b, PetscReal *alpha) {
+  PetscReal na, nb;
+  PetscFunctionBeginUser;
+  PetscCall(VecNormBegin(a, NORM_2, &na));
+  PetscCall(VecNormBegin(b, NORM_2, &nb));
+  PetscCall(VecNormEnd(a, NORM_2, &na));
+  PetscCall(VecNormEnd(b, NORM_2, &nb));
+  *alpha = na > 0 && nb > 0 ? na / nb : 1.0;
+  PetscFunctionReturn(0);
+}
+
 struct Layout {
   ptrdiff_t start = 0, count = 0; // complex entries, natural ordering
   bool operator==(const Layout &o) const { return start == o.start && count == o.count; }
@@ -52,27 +66,24 @@ struct SpectralDifferentiator::Impl {
   // gathers the whole field (one MPI_Allgatherv of its owned values, real and imaginary parts
   // interleaved, straight into a_in) and transforms all of it with serial FFTW, so it holds every mode
   // and the backward transform needs no communication at all. FFTW-MPI's distributed 1D transform does
-  // three all-to-all transposes each way, which on small grids cost far more than the transform. Sums over modes (pairing) then
-  // take this rank's slice [pair_begin, pair_end) of them, so that their sum over the ranks counts each
-  // mode once.
+  // three all-to-all transposes each way, which on small grids cost far more than the transform.
   bool replicated = false;
   PetscInt xs = 0; // this rank's first point (1D)
   std::vector<PetscMPIInt> counts, displs; // reals per rank in the gather
   std::vector<PetscReal> sendbuf;
-  size_t pair_begin = 0, pair_end = 0;
   std::vector<FourierMode> modes; // of the forward output this rank holds (fout), made once
   std::map<PetscInt, SpectralDifferentiator::Symbol> derivatives; // derivative()'s symbols, made on first use
   SpectralDifferentiator::Spectrum uhat;                          // apply_many's transform
-  std::vector<SpectralDifferentiator::Spectrum> packed;           // apply_sum's transforms, one per two fields
+  std::vector<SpectralDifferentiator::Spectrum> packed;           // apply_sum's transforms but the last, one per two fields
   // The three parts of apply(): u (DMDA) -> a_out; a_out = s a_out mode by mode (conj(s) for the
   // transpose); a_out -> backward transform -> y (DMDA, real parts).
   // from_spectrum(y, y_imag): y = the real parts of the backward transform; y_imag (optional) = the
   // imaginary parts.
   PetscErrorCode to_spectrum(Vec u, Vec v = nullptr, PetscReal alpha = 1); // F(u + i alpha v)
   void multiply(const std::complex<PetscReal> *s, bool transpose);
-  // a_out = sum_j s_j v_j; a_out = s0 u + i s1 v (symbols and spectra as interleaved reals; a spectrum
-  // may be a_out itself).
-  void sum_products(const std::vector<std::pair<const PetscReal *, const PetscReal *>> &terms);
+  // a_out = s v; a_out = s0 u + i s1 v (symbols and spectra as interleaved reals; a spectrum may be
+  // a_out itself).
+  void product(const PetscReal *s, const PetscReal *v);
   void pair_products(const PetscReal *s0, const PetscReal *u, const PetscReal *s1, const PetscReal *v);
   PetscErrorCode from_spectrum(Vec y, Vec y_imag = nullptr);
 
@@ -269,8 +280,7 @@ PetscErrorCode SpectralDifferentiator::setup(const Grid &grid, bool x_only, Pets
              im->nx, im->ny, (int)size);
   im->modes.resize((size_t)im->fout.count);
   for (ptrdiff_t p = 0; p < im->fout.count; ++p) im->modes[p] = im->mode(im->fout.start + p);
-  im->pair_end = im->modes.size();
-  if (im->replicated) { // the gather's counts and offsets (reals: two per point), this rank's slice of the modes
+  if (im->replicated) { // the gather's counts and offsets (reals: two per point)
     const PetscMPIInt mine[2] = {(PetscMPIInt)(2 * grid.xm()), (PetscMPIInt)(2 * grid.xs())};
     std::vector<PetscMPIInt> all(2 * (size_t)size);
     PetscCallMPI(MPI_Allgather(mine, 2, MPI_INT, all.data(), 2, MPI_INT, comm));
@@ -279,8 +289,6 @@ PetscErrorCode SpectralDifferentiator::setup(const Grid &grid, bool x_only, Pets
     for (PetscMPIInt r = 0; r < size; ++r) im->counts[r] = all[2 * r], im->displs[r] = all[2 * r + 1];
     im->xs = grid.xs();
     im->sendbuf.resize(2 * (size_t)grid.xm());
-    im->pair_begin = (size_t)grid.xs();
-    im->pair_end = (size_t)(grid.xs() + grid.xm());
     impl_ = std::move(im);
     PetscFunctionReturn(0);
   }
@@ -456,20 +464,11 @@ PetscErrorCode SpectralDifferentiator::apply(const Symbol &s, Vec u, Vec y, bool
   PetscFunctionReturn(0);
 }
 
-// a_out = sum_j s_j v_j (v_j: a spectrum, or a_out itself: each mode is read before it is written).
-void SpectralDifferentiator::Impl::sum_products(const std::vector<std::pair<const PetscReal *, const PetscReal *>> &terms) {
+// a_out = f v (v: a spectrum, or a_out itself: each mode is read before it is written).
+void SpectralDifferentiator::Impl::product(const PetscReal *f, const PetscReal *v) {
   const size_t n = modes.size();
   PetscReal *a = &a_out[0][0];
-  if (terms.empty()) std::fill(a, a + 2 * n, 0.0);
-  for (size_t j = 0; j < terms.size(); ++j) {
-    const PetscReal *f = terms[j].first, *v = terms[j].second;
-    for (size_t p = 0; p < n; ++p) {
-      PetscReal re, im;
-      cmul(f[2 * p], f[2 * p + 1], v[2 * p], v[2 * p + 1], re, im);
-      a[2 * p] = j ? a[2 * p] + re : re; // (j = 0: whatever a_out held is not read, unless it is v)
-      a[2 * p + 1] = j ? a[2 * p + 1] + im : im;
-    }
-  }
+  for (size_t p = 0; p < n; ++p) cmul(f[2 * p], f[2 * p + 1], v[2 * p], v[2 * p + 1], a[2 * p], a[2 * p + 1]);
 }
 
 // a_out = f u + i g v (u, v: spectra, or a_out itself). With both symbols' backward transforms real
@@ -502,13 +501,15 @@ PetscErrorCode SpectralDifferentiator::apply_many(const std::vector<const Symbol
   for (const Symbol *q : ss)
     PetscCheck(q->size() == im.modes.size(), im.comm, PETSC_ERR_ARG_SIZ, "A spectral symbol of %zu modes for %zu", q->size(), im.modes.size());
   const PetscReal *in = &im.a_out[0][0]; // one backward transform: multiply in place
+  PetscCall(im.to_spectrum(u));
   if (ss.size() > 2) { // more than one: keep the spectrum
-    PetscCall(transform(u, im.uhat));
+    const auto *out = reinterpret_cast<const std::complex<PetscReal> *>(im.a_out);
+    im.uhat.assign(out, out + im.modes.size());
     in = reals(im.uhat);
-  } else PetscCall(im.to_spectrum(u));
+  }
   for (size_t j = 0; j < ss.size(); j += 2) { // two outputs per backward transform (real, imaginary parts)
     if (j + 1 < ss.size()) im.pair_products(reals(*ss[j]), in, reals(*ss[j + 1]), in);
-    else im.sum_products({{reals(*ss[j]), in}});
+    else im.product(reals(*ss[j]), in);
     PetscCall(im.from_spectrum(ys[j], j + 1 < ss.size() ? ys[j + 1] : nullptr));
   }
   PetscFunctionReturn(0);
@@ -522,132 +523,34 @@ PetscErrorCode SpectralDifferentiator::apply_sum(const std::vector<const Symbol 
   PetscCheck(ss.size() == vs.size() && !vs.empty(), im.comm, PETSC_ERR_ARG_SIZ, "apply_sum: %zu symbols for %zu fields", ss.size(), vs.size());
   for (const Symbol *q : ss)
     PetscCheck(q->size() == n, im.comm, PETSC_ERR_ARG_SIZ, "A spectral symbol of %zu modes for %zu", q->size(), n);
-  im.packed.resize(np);
-  for (size_t p = 0; p < np; ++p) { // Z_p = F(v_2p + i alpha_p v_2p+1)
+  im.packed.resize(np - 1);
+  for (size_t p = 0; p < np; ++p) { // Z_p = F(v_2p + i alpha_p v_2p+1); the last one stays in a_out
     const Vec b = 2 * p + 1 < vs.size() ? vs[2 * p + 1] : nullptr;
     if (b) PetscCall(balance(vs[2 * p], b, &alpha[p]));
-    PetscCall(transform_pair(vs[2 * p], b, alpha[p], im.packed[p]));
+    PetscCall(im.to_spectrum(vs[2 * p], b, alpha[p]));
+    if (p + 1 < np) im.packed[p].assign(reinterpret_cast<const std::complex<PetscReal> *>(im.a_out),
+                                        reinterpret_cast<const std::complex<PetscReal> *>(im.a_out) + n);
   }
   // sum_p (s_2p - i s_2p+1 / alpha_p) Z_p: Re F^-1 of s_2p Z_p is S_2p v_2p and Re F^-1 of -i s_2p+1 Z_p /
   // alpha_p is S_2p+1 v_2p+1 (both symbols' backward transforms of a real field are real).
   PetscReal *a = &im.a_out[0][0];
-  for (size_t p = 0; p < np; ++p) {
-    const PetscReal *f = reals(*ss[2 * p]), *z = reals(im.packed[p]);
-    const PetscReal *g = 2 * p + 1 < vs.size() ? reals(*ss[2 * p + 1]) : nullptr, ia = 1 / alpha[p];
-    for (size_t k = 0; k < n; ++k) {
-      PetscReal re, imag;
-      cmul(f[2 * k], f[2 * k + 1], z[2 * k], z[2 * k + 1], re, imag);
-      if (g) {
-        PetscReal re1, im1;
-        cmul(g[2 * k], g[2 * k + 1], z[2 * k], z[2 * k + 1], re1, im1);
-        re += ia * im1, imag -= ia * re1;
+  for (size_t k = 0; k < n; ++k) {
+    PetscReal re = 0, imag = 0;
+    for (size_t p = 0; p < np; ++p) {
+      const PetscReal *f = reals(*ss[2 * p]), *z = p + 1 < np ? reals(im.packed[p]) : a;
+      PetscReal tr, ti;
+      cmul(f[2 * k], f[2 * k + 1], z[2 * k], z[2 * k + 1], tr, ti);
+      if (2 * p + 1 < vs.size()) {
+        const PetscReal *g = reals(*ss[2 * p + 1]), ia = 1 / alpha[p];
+        PetscReal r1, i1;
+        cmul(g[2 * k], g[2 * k + 1], z[2 * k], z[2 * k + 1], r1, i1);
+        tr += ia * i1, ti -= ia * r1;
       }
-      a[2 * k] = p ? a[2 * k] + re : re;
-      a[2 * k + 1] = p ? a[2 * k + 1] + imag : imag;
+      re += tr, imag += ti;
     }
+    a[2 * k] = re, a[2 * k + 1] = imag;
   }
   PetscCall(im.from_spectrum(y));
-  PetscFunctionReturn(0);
-}
-
-SpectralDifferentiator::Symbol SpectralDifferentiator::pack(const Symbol &s0, const Symbol &s1) const {
-  Symbol h(std::min(s0.size(), s1.size()));
-  for (size_t p = 0; p < h.size(); ++p) h[p] = s0[p] + std::complex<PetscReal>(0, 1) * s1[p];
-  return h;
-}
-
-PetscErrorCode SpectralDifferentiator::apply_pair(const Symbol &packed, Vec u, Vec y0, Vec y1) const {
-  PetscFunctionBeginUser;
-  PetscCheck(packed.size() == impl_->modes.size(), impl_->comm, PETSC_ERR_ARG_SIZ, "A spectral symbol of %zu modes for %zu",
-             packed.size(), impl_->modes.size());
-  PetscCall(impl_->to_spectrum(u));
-  impl_->multiply(packed.data(), false);
-  PetscCall(impl_->from_spectrum(y0, y1));
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode SpectralDifferentiator::transform(Vec u, Spectrum &uhat) const {
-  Impl &im = *impl_;
-  PetscFunctionBeginUser;
-  PetscCall(im.to_spectrum(u));
-  const auto *out = reinterpret_cast<const std::complex<PetscReal> *>(im.a_out);
-  uhat.assign(out, out + im.modes.size());
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode SpectralDifferentiator::transform_pair(Vec a, Vec b, PetscReal alpha, Spectrum &zhat) const {
-  Impl &im = *impl_;
-  PetscFunctionBeginUser;
-  PetscCall(im.to_spectrum(a, b, alpha));
-  const auto *out = reinterpret_cast<const std::complex<PetscReal> *>(im.a_out);
-  zhat.assign(out, out + im.modes.size());
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode SpectralDifferentiator::backward(const std::vector<std::pair<const Symbol *, const Spectrum *>> &terms, Vec y,
-                                                Vec y_imag) const {
-  Impl &im = *impl_;
-  const size_t n = im.modes.size();
-  std::vector<std::pair<const PetscReal *, const PetscReal *>> t;
-  PetscFunctionBeginUser;
-  for (const auto &q : terms) {
-    PetscCheck(q.first->size() == n && q.second->size() == n, im.comm, PETSC_ERR_ARG_SIZ, "A spectral term of %zu and %zu modes for %zu",
-               q.first->size(), q.second->size(), n);
-    t.push_back({reals(*q.first), reals(*q.second)});
-  }
-  im.sum_products(t);
-  PetscCall(im.from_spectrum(y, y_imag));
-  PetscFunctionReturn(0);
-}
-
-PetscErrorCode SpectralDifferentiator::backward_pair(const Symbol &s0, const Spectrum &a, Vec y0, const Symbol &s1, const Spectrum &b,
-                                                     Vec y1) const {
-  Impl &im = *impl_;
-  const size_t n = im.modes.size();
-  PetscFunctionBeginUser;
-  PetscCheck(s0.size() == n && a.size() == n && s1.size() == n && b.size() == n, im.comm, PETSC_ERR_ARG_SIZ,
-             "backward_pair: symbols or spectra of the wrong size (%zu modes here)", n);
-  im.pair_products(reals(s0), reals(a), reals(s1), reals(b));
-  PetscCall(im.from_spectrum(y0, y1));
-  PetscFunctionReturn(0);
-}
-
-PetscReal SpectralDifferentiator::pairing(const Symbol &s, const Spectrum &a, const Spectrum &b) const {
-  const size_t n = std::min({s.size(), a.size(), b.size(), impl_->pair_end});
-  const PetscReal *f = reals(s), *u = reals(a), *v = reals(b);
-  PetscReal sum = 0;
-  for (size_t p = impl_->pair_begin; p < n; ++p) { // Re (f u conj(v))
-    PetscReal re, im;
-    cmul(f[2 * p], f[2 * p + 1], u[2 * p], u[2 * p + 1], re, im);
-    sum += re * v[2 * p] + im * v[2 * p + 1];
-  }
-  return sum;
-}
-
-PetscReal SpectralDifferentiator::pairing_packed(const Symbol &s, const Spectrum &zhat, PetscReal alpha) const {
-  const size_t n = std::min({s.size(), zhat.size(), impl_->pair_end});
-  const PetscReal *f = reals(s), *z = reals(zhat);
-  PetscReal sum = 0;
-  for (size_t p = impl_->pair_begin; p < n; ++p) sum += f[2 * p + 1] * (z[2 * p] * z[2 * p] + z[2 * p + 1] * z[2 * p + 1]);
-  return -sum / (2 * alpha);
-}
-
-PetscErrorCode SpectralDifferentiator::balance(Vec a, Vec b, PetscReal *alpha) const {
-  PetscReal ss[2] = {0, 0};
-  const PetscScalar *x;
-  PetscInt n;
-  PetscFunctionBeginUser;
-  PetscCall(VecGetLocalSize(a, &n));
-  Vec v[2] = {a, b};
-  for (int j = 0; j < 2; ++j) {
-    PetscCall(VecGetArrayRead(v[j], &x));
-    for (PetscInt p = 0; p < n; ++p) ss[j] += PetscRealPart(x[p]) * PetscRealPart(x[p]);
-    PetscCall(VecRestoreArrayRead(v[j], &x));
-  }
-  PetscMPIInt size;
-  PetscCallMPI(MPI_Comm_size(impl_->comm, &size));
-  if (size > 1) PetscCallMPI(MPI_Allreduce(MPI_IN_PLACE, ss, 2, MPIU_REAL, MPIU_SUM, impl_->comm));
-  *alpha = ss[0] > 0 && ss[1] > 0 ? std::sqrt(ss[0] / ss[1]) : 1.0;
   PetscFunctionReturn(0);
 }
 

@@ -107,7 +107,7 @@ struct SpectralMaps {
   std::vector<const SpectralDifferentiator::Symbol *> aux;     // the auxiliary fields' symbols, in order
   std::vector<SpectralDifferentiator::Symbol> aux_t, dealiased_t; // their transposes: conj(s)
   std::vector<const SpectralDifferentiator::Symbol *> aux_adjoint; // aux_t, in order
-  std::vector<const SpectralDifferentiator::Symbol *> outputs_t;  // the outputs' transposes, in order
+  std::vector<const SpectralDifferentiator::Symbol *> outputs, outputs_t; // the outputs' maps E_m and their transposes
   mutable SpectralDifferentiator::Symbol combined;                // sum_k r_k (the auxiliary fields' symbols)
   mutable std::vector<PetscScalar> combined_r;                    // ... for these r
   OwnedVec work;
@@ -246,7 +246,7 @@ public:
   PetscErrorCode auxiliary_fields(Vec U, const Vec *a) const { return maps_.fft.apply_many(maps_.aux, U, {a, a + auxiliaries}); }
   PetscErrorCode auxiliary_fields_transpose(const Vec *z, Vec y) const {
     PetscFunctionBeginUser;
-    PetscCall(backward_sum(maps_.aux_t.data(), z, auxiliaries, maps_.work));
+    PetscCall(maps_.fft.apply_sum(maps_.aux_adjoint, {z, z + auxiliaries}, maps_.work));
     PetscCall(VecAXPY(y, 1.0, maps_.work));
     PetscFunctionReturn(0);
   }
@@ -264,7 +264,7 @@ public:
   }
   PetscErrorCode output_fields(const Vec *h, Vec G) const {
     PetscFunctionBeginUser;
-    PetscCall(backward_sum(maps_.dealiased, h, outputs, maps_.work));
+    PetscCall(maps_.fft.apply_sum(maps_.outputs, {h, h + outputs}, maps_.work));
     PetscCall(VecAXPY(G, 1.0, maps_.work));
     PetscFunctionReturn(0);
   }
@@ -388,15 +388,9 @@ private:
       for (int k = 0; k < auxiliaries; ++k) maps_.aux.push_back(&aux_symbol(k)), maps_.aux_t.push_back(conj(aux_symbol(k)));
       for (const auto &s : maps_.aux_t) maps_.aux_adjoint.push_back(&s);
       for (int d = 0; d < Dim; ++d) maps_.dealiased_t.push_back(conj(maps_.dealiased[d]));
-      for (int m = 0; m < outputs; ++m) maps_.outputs_t.push_back(&maps_.dealiased_t[m]);
+      for (int m = 0; m < outputs; ++m) maps_.outputs.push_back(&maps_.dealiased[m]), maps_.outputs_t.push_back(&maps_.dealiased_t[m]);
     }
     PetscFunctionReturn(0);
-  }
-  // y = sum_j sym_j v_j: one forward transform per two fields, one backward transform.
-  PetscErrorCode backward_sum(const SpectralDifferentiator::Symbol *sym, const Vec *v, int n, Vec y) const {
-    std::vector<const SpectralDifferentiator::Symbol *> ss;
-    for (int j = 0; j < n; ++j) ss.push_back(&sym[j]);
-    return maps_.fft.apply_sum(ss, {v, v + n}, y);
   }
   const SpectralDifferentiator::Symbol &aux_symbol(int k) const {
     return k < Dim ? maps_.derivative[k] : Df == SCALAR_D ? maps_.laplacian : maps_.dealiased[k - Dim];
