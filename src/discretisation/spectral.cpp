@@ -532,23 +532,24 @@ PetscErrorCode SpectralDifferentiator::apply_sum(const std::vector<const Symbol 
                                         reinterpret_cast<const std::complex<PetscReal> *>(im.a_out) + n);
   }
   // sum_p (s_2p - i s_2p+1 / alpha_p) Z_p: Re F^-1 of s_2p Z_p is S_2p v_2p and Re F^-1 of -i s_2p+1 Z_p /
-  // alpha_p is S_2p+1 v_2p+1 (both symbols' backward transforms of a real field are real).
+  // alpha_p is S_2p+1 v_2p+1 (both symbols' backward transforms of a real field are real). The last
+  // pair's term first, in place, then the others added: one plain loop over the modes each.
   PetscReal *a = &im.a_out[0][0];
-  for (size_t k = 0; k < n; ++k) {
-    PetscReal re = 0, imag = 0;
-    for (size_t p = 0; p < np; ++p) {
-      const PetscReal *f = reals(*ss[2 * p]), *z = p + 1 < np ? reals(im.packed[p]) : a;
+  for (size_t q = 0; q < np; ++q) {
+    const size_t p = (q + np - 1) % np; // np - 1, 0, 1, ..., np - 2
+    const PetscReal *f = reals(*ss[2 * p]), *g = 2 * p + 1 < vs.size() ? reals(*ss[2 * p + 1]) : nullptr;
+    const PetscReal *z = q ? reals(im.packed[p]) : a, ia = 1 / alpha[p];
+    for (size_t k = 0; k < n; ++k) {
       PetscReal tr, ti;
       cmul(f[2 * k], f[2 * k + 1], z[2 * k], z[2 * k + 1], tr, ti);
-      if (2 * p + 1 < vs.size()) {
-        const PetscReal *g = reals(*ss[2 * p + 1]), ia = 1 / alpha[p];
+      if (g) {
         PetscReal r1, i1;
         cmul(g[2 * k], g[2 * k + 1], z[2 * k], z[2 * k + 1], r1, i1);
         tr += ia * i1, ti -= ia * r1;
       }
-      re += tr, imag += ti;
+      a[2 * k] = q ? a[2 * k] + tr : tr;
+      a[2 * k + 1] = q ? a[2 * k + 1] + ti : ti;
     }
-    a[2 * k] = re, a[2 * k + 1] = imag;
   }
   PetscCall(im.from_spectrum(y));
   PetscFunctionReturn(0);
