@@ -34,7 +34,6 @@
 #include <complex>
 #include <functional>
 #include <memory>
-#include <utility>
 #include <vector>
 
 namespace flexipde {
