@@ -87,6 +87,11 @@ struct SpectralDifferentiator::Impl {
   void product(const PetscReal *s, const PetscReal *v);
   void pair_products(const PetscReal *s0, const PetscReal *u, const PetscReal *s1, const PetscReal *v);
   PetscErrorCode from_spectrum(Vec y, Vec y_imag = nullptr);
+  // s = a_out's modes (a spectrum kept while a_out takes the next transform).
+  void keep(SpectralDifferentiator::Spectrum &s) const {
+    const auto *out = reinterpret_cast<const std::complex<PetscReal> *>(a_out);
+    s.assign(out, out + modes.size());
+  }
 
   ~Impl() {
     if (fwd) fftw_destroy_plan(fwd);
@@ -504,8 +509,7 @@ PetscErrorCode SpectralDifferentiator::apply_many(const std::vector<const Symbol
   const PetscReal *in = &im.a_out[0][0]; // one backward transform: multiply in place
   PetscCall(im.to_spectrum(u));
   if (ss.size() > 2) { // more than one: keep the spectrum
-    const auto *out = reinterpret_cast<const std::complex<PetscReal> *>(im.a_out);
-    im.uhat.assign(out, out + im.modes.size());
+    im.keep(im.uhat);
     in = reals(im.uhat);
   }
   for (size_t j = 0; j < ss.size(); j += 2) { // two outputs per backward transform (real, imaginary parts)
@@ -529,8 +533,7 @@ PetscErrorCode SpectralDifferentiator::apply_sum(const std::vector<const Symbol 
     const Vec b = 2 * p + 1 < vs.size() ? vs[2 * p + 1] : nullptr;
     if (b) PetscCall(balance(vs[2 * p], b, &alpha[p]));
     PetscCall(im.to_spectrum(vs[2 * p], b, alpha[p]));
-    if (p + 1 < np) im.packed[p].assign(reinterpret_cast<const std::complex<PetscReal> *>(im.a_out),
-                                        reinterpret_cast<const std::complex<PetscReal> *>(im.a_out) + n);
+    if (p + 1 < np) im.keep(im.packed[p]);
   }
   // sum_p (s_2p - i s_2p+1 / alpha_p) Z_p: Re F^-1 of s_2p Z_p is S_2p v_2p and Re F^-1 of -i s_2p+1 Z_p /
   // alpha_p is S_2p+1 v_2p+1 (both symbols' backward transforms of a real field are real). The last
